@@ -1,0 +1,71 @@
+"""Summaries of a Monte Carlo campaign: distributions per compensator and metric, and the
+units where a compensator fails worst (with their drawn parameters), so a user sees *when* a
+compensator breaks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from sim.montecarlo import UnitRecord
+
+#: Metrics for which a larger value is better; every other metric is better when smaller.
+HIGHER_IS_BETTER = {"r2", "improvement_pct", "improvement_factor"}
+
+
+def better(metric: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Element-wise: is ``a`` better than ``b`` for ``metric``?"""
+    return a > b if metric in HIGHER_IS_BETTER else a < b
+
+
+@dataclass
+class MetricSummary:
+    compensator: str
+    metric: str
+    n_units: int
+    median: float
+    p5: float
+    p95: float
+    beats_baseline: float      # share of units (0..1) where it beats the baseline; nan if none
+
+
+def metric_matrix(records: Sequence[UnitRecord]) -> dict[tuple[str, str], dict[int, float]]:
+    """{(compensator, metric): {unit: value}} over the successful units."""
+    out: dict[tuple[str, str], dict[int, float]] = {}
+    for rec in records:
+        if rec.status != "ok":
+            continue
+        for comp, metric, value in rec.rows:
+            out.setdefault((comp, metric), {})[rec.unit] = value
+    return out
+
+
+def summarise(records: Sequence[UnitRecord], baseline: str | None) -> list[MetricSummary]:
+    """Median, 5th/95th percentiles and share of units beating ``baseline`` per metric."""
+    matrix = metric_matrix(records)
+    out = []
+    for (comp, metric), per_unit in sorted(matrix.items()):
+        units = sorted(per_unit)
+        values = np.array([per_unit[u] for u in units])
+        share = float("nan")
+        base = matrix.get((baseline, metric)) if baseline else None
+        if base is not None and comp != baseline:
+            common = [u for u in units if u in base]
+            if common:
+                a = np.array([per_unit[u] for u in common])
+                b = np.array([base[u] for u in common])
+                share = float(np.mean(better(metric, a, b)))
+        p5, med, p95 = np.nanpercentile(values, [5, 50, 95]) if values.size else (np.nan,) * 3
+        out.append(MetricSummary(comp, metric, len(units), float(med), float(p5), float(p95), share))
+    return out
+
+
+def worst_units(records: Sequence[UnitRecord], compensator: str, metric: str,
+                count: int = 5) -> list[tuple[int, float, dict[str, float]]]:
+    """The ``count`` units where ``compensator`` scores worst on ``metric``, with parameters."""
+    per_unit = metric_matrix(records).get((compensator, metric), {})
+    params = {rec.unit: rec.params for rec in records}
+    order = sorted(per_unit, key=lambda u: per_unit[u], reverse=metric not in HIGHER_IS_BETTER)
+    return [(u, per_unit[u], params.get(u, {})) for u in order[:count]]
