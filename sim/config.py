@@ -50,8 +50,15 @@ def check_known_keys(table: Mapping[str, Any], allowed: Iterable[str], ctx: Ctx)
     allowed = list(allowed)
     for key in table:
         if key not in allowed:
+            with_unit = [a for a in allowed if a.startswith(f"{key}_")]
             close = difflib.get_close_matches(key, allowed, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            if with_unit:
+                hint = (f" (missing unit: write the unit in the key name, one of "
+                        f"{', '.join(with_unit)})")
+            elif close:
+                hint = f" (did you mean '{close[0]}'?)"
+            else:
+                hint = ""
             raise ctx.error(key, f"unknown key{hint}; allowed keys: {', '.join(sorted(allowed))}")
 
 
@@ -160,3 +167,45 @@ def get_float_list(table: Mapping[str, Any], key: str, ctx: Ctx, default: Any = 
             raise ctx.error(key, f"expected finite numbers, got {v!r}")
         out.append(float(v))
     return out
+
+
+#: Unit suffixes of time keys and their factor to seconds (``duration_h`` → 3600 s per unit).
+TIME_UNITS: dict[str, float] = {"s": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def unit_keys(base: str, units: Mapping[str, float]) -> list[str]:
+    """All spellings of a quantity key: ``unit_keys("duration", TIME_UNITS)`` →
+    ``["duration_s", "duration_min", "duration_h"]`` (for :func:`check_known_keys`)."""
+    return [f"{base}_{suffix}" for suffix in units]
+
+
+def get_quantity(table: Mapping[str, Any], base: str, ctx: Ctx, units: Mapping[str, float],
+                 default: Any = _MISSING, *, min: float | None = None,
+                 max: float | None = None, min_exclusive: bool = False) -> float:
+    """A quantity that may be written in any of several units, converted to SI.
+
+    The key is ``<base>_<unit>`` for one unit of ``units`` (suffix → factor to SI), e.g.
+    ``duration_h = 4`` → 14400.0 with :data:`TIME_UNITS`. Exactly one spelling may be present;
+    ``default`` (already in SI) is returned when none is. ``min``/``max`` are in SI and are
+    reported back in the unit the user wrote.
+    """
+    if not isinstance(table, Mapping):
+        _get(table, base, ctx, default)          # raises "expected a table"
+    present = [k for k in unit_keys(base, units) if k in table]
+    if len(present) > 1:
+        raise ctx.error(present[1], f"give only one of {', '.join(present)}")
+    if not present:
+        if base in table:
+            raise ctx.error(base, f"missing unit: write the unit in the key name, one of "
+                                  f"{', '.join(unit_keys(base, units))}")
+        if default is _MISSING:
+            raise ctx.error(base, f"missing required key; give one of "
+                                  f"{', '.join(unit_keys(base, units))}")
+        return default
+    key = present[0]
+    factor = units[key[len(base) + 1:]]
+    value = get_float(table, key, ctx,
+                      min=None if min is None else min / factor,
+                      max=None if max is None else max / factor,
+                      min_exclusive=min_exclusive)
+    return value * factor

@@ -1,0 +1,131 @@
+"""The ``rlgsim`` command line.
+
+    rlgsim run SCENARIO [-o out.h5] [--chunk-s S] [--quiet]   simulate to an HDF5 dataset
+    rlgsim info FILE                                         summarise a dataset
+    rlgsim demo                                              the quickstart run, into ./rlgsim-demo/
+    rlgsim list                                              shipped scenarios and devices
+
+Every user mistake (:class:`~sim.errors.UserInputError`, bad arguments) is printed as one line
+``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its
+traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+import sys
+import time
+from typing import Sequence
+
+from sim.errors import UserInputError
+
+PROG = "rlgsim"
+DEMO_SCENARIO = "quickstart"
+DEMO_DIR = "rlgsim-demo"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage mistake is one line and exit code 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UserInputError(f"{message} (see '{self.prog} --help')")
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be a number of "
+                                         f"seconds > 0")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Simulated ring-laser-gyro IMU in a temperature chamber "
+                                       "on a turntable, with ground truth.")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    r = sub.add_parser("run", help="simulate a scenario into an HDF5 dataset")
+    r.add_argument("scenario", metavar="SCENARIO",
+                   help="a shipped scenario's name (see 'rlgsim list') or a path to a .toml file")
+    r.add_argument("-o", "--output", metavar="OUT.h5",
+                   help="output file (default: ./<scenario name>.h5)")
+    r.add_argument("--chunk-s", type=_positive_seconds, metavar="S",
+                   help="simulated seconds buffered per write (default: the scenario's "
+                        "acquisition.chunk_s); never changes the data")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
+    i = sub.add_parser("info", help="summarise an rlgsim dataset")
+    i.add_argument("file", metavar="FILE")
+    d = sub.add_parser("demo", help=f"run the '{DEMO_SCENARIO}' scenario into ./{DEMO_DIR}/ "
+                                    f"and summarise it")
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    sub.add_parser("list", help="list the shipped scenarios and device presets")
+    return p
+
+
+def _run(scenario_ref: str, output: str | None, chunk_s: float | None, quiet: bool
+         ) -> pathlib.Path:
+    from sim.scenario import load_scenario
+    from sim.simulate import simulate
+    scenario = load_scenario(scenario_ref)
+    t0 = time.perf_counter()
+    path = simulate(scenario, output, chunk_s=chunk_s, progress=not quiet)
+    wall = time.perf_counter() - t0
+    if not quiet:
+        sim_s = scenario.duration_s
+        print(f"wrote {path}: scenario {scenario.name}, {sim_s / 3600:.4g} h simulated in "
+              f"{wall:.2f} s ({sim_s / max(wall, 1e-9):,.0f}× real time)")
+    return path
+
+
+def _list() -> None:
+    from sim import presets
+    for kind, title in (("scenario", "scenarios"), ("device", "device presets")):
+        print(f"{title}:")
+        names = presets.list_names(kind)
+        width = max((len(n) for n in names), default=0)
+        for name in names:
+            f = presets.load(name, kind)
+            table = f.data.get("device", {}) if kind == "device" else f.data
+            desc = table.get("description", "") if isinstance(table, dict) else ""
+            print(f"  {name:<{width}}  {' '.join(str(desc).split())}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``rlgsim`` console script; returns the exit code."""
+    try:
+        args = _parser().parse_args(argv)
+        if args.command == "run":
+            _run(args.scenario, args.output, args.chunk_s, args.quiet)
+        elif args.command == "info":
+            from sim.dataset import summary
+            print(summary(args.file))
+        elif args.command == "demo":
+            out_dir = pathlib.Path(DEMO_DIR)
+            try:
+                out_dir.mkdir(exist_ok=True)
+            except OSError as exc:
+                raise UserInputError(f"{out_dir}: cannot create the demo directory "
+                                     f"({exc.strerror or exc})") from None
+            path = _run(DEMO_SCENARIO, str(out_dir / f"{DEMO_SCENARIO}.h5"), None, args.quiet)
+            from sim.dataset import summary
+            print(summary(path))
+        elif args.command == "list":
+            _list()
+        return 0
+    except UserInputError as exc:
+        message = " ".join(str(exc).split())
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,300 @@
+"""rlgsim datasets: HDF5 files (h5py) laid out the netCDF-4 way, written by streaming.
+
+Layout (docs/dataset.md is the schema): one HDF5 group per part of the simulation
+(``thermal``, ``probes``, ``timeline``, later ``imu`` ...). Inside a group every dimension has a
+coordinate variable that is an HDF5 *dimension scale*, and every variable has its dimensions
+attached, exactly as netCDF-4 does it — so each group opens with
+``xarray.open_dataset(path, engine="h5netcdf", group="thermal")``. Every variable carries
+``units`` and ``description`` attributes. The root carries the format marker
+(:data:`FORMAT`, :data:`FORMAT_VERSION`), the scenario text, seed and software version.
+
+Writing: :class:`DatasetWriter` opens a temporary file in the target directory
+(``<out>.tmp-<pid>``); groups declare their coordinates and variables, then rows are appended
+along the growing dimension (``time``) in bounded chunks; :meth:`DatasetWriter.commit` closes
+the file and ``os.replace``-s it onto the final path, so a run that fails or is killed never
+leaves a file at the output path. HDF5 chunk shapes depend only on a variable's shape, never on
+how the caller chunks its appends, so the stored arrays do not depend on the chunk size.
+
+Reading: :func:`open_dataset` checks the format marker and raises
+``UserInputError("...: not an rlgsim dataset ...")`` for anything else; :func:`summary` is
+what ``rlgsim info`` prints.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+from typing import Any, Iterable, Mapping
+
+import h5py
+import numpy as np
+
+from sim.errors import UserInputError
+
+#: Root attribute ``rlgsim_format`` of every rlgsim dataset.
+FORMAT = "rlgsim dataset"
+#: Root attribute ``rlgsim_format_version``; bump it when the layout changes incompatibly.
+FORMAT_VERSION = 1
+
+#: Target size of one HDF5 chunk [bytes] along the growing dimension.
+_CHUNK_BYTES = 1 << 18
+_STR = h5py.string_dtype("utf-8")
+
+
+def software_version() -> str:
+    """The installed rlgsim version (``0+unknown`` when run from an uninstalled tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("rlgsim")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def _attr_value(value: Any) -> Any:
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        return np.int8(value)
+    if value is None:
+        return ""
+    return value
+
+
+def check_writable(path: str | os.PathLike) -> pathlib.Path:
+    """Check, before any work, that ``path`` can be written; return it absolute.
+
+    Raises UserInputError naming the path when the directory is missing or not writable or
+    the path is a directory.
+    """
+    out = pathlib.Path(path).expanduser()
+    if out.is_dir():
+        raise UserInputError(f"{out}: output path is a directory; give a file name such as "
+                             f"{out / 'run.h5'}")
+    parent = out.parent if str(out.parent) else pathlib.Path(".")
+    if not parent.is_dir():
+        raise UserInputError(f"{out}: cannot write output: directory {parent} does not exist")
+    probe = parent / f".{out.name}.probe-{os.getpid()}"
+    try:
+        with open(probe, "wb"):
+            pass
+    except OSError as exc:
+        raise UserInputError(f"{out}: cannot write output ({exc.strerror or exc}); "
+                             f"choose a writable location with -o") from None
+    finally:
+        try:
+            probe.unlink()
+        except OSError:
+            pass
+    return out.absolute()
+
+
+class GroupWriter:
+    """One group: coordinates (dimension scales) and variables; rows appended along ``time``."""
+
+    def __init__(self, group: h5py.Group) -> None:
+        self._g = group
+        self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
+
+    @property
+    def name(self) -> str:
+        return self._g.name.lstrip("/")
+
+    def _chunks(self, dtype: np.dtype, tail: tuple[int, ...]) -> tuple[int, ...]:
+        row = max(1, int(np.prod(tail, dtype=np.int64))) * max(1, np.dtype(dtype).itemsize)
+        rows = int(min(1 << 16, max(64, _CHUNK_BYTES // row)))
+        return (rows, *tail)
+
+    def coordinate(self, name: str, values: Iterable | None = None, *, units: str | None = None,
+                   description: str, dtype: Any = np.float64, growing: bool = False,
+                   attrs: Mapping[str, Any] | None = None) -> None:
+        """A dimension with its coordinate variable. ``growing=True`` makes it the unlimited
+        dimension that :meth:`append` extends (its values arrive with the rows)."""
+        if growing:
+            ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
+                                        chunks=self._chunks(dtype, ()), track_times=False)
+            self._growing[name] = [name]
+        else:
+            data = np.asarray(list(values) if not isinstance(values, np.ndarray) else values)
+            if data.dtype.kind in "UO":
+                data = np.asarray([str(v) for v in data], dtype=object)
+                dtype = _STR
+            ds = self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
+        ds.make_scale(name)
+        self._set_attrs(ds, units, description, attrs)
+
+    def variable(self, name: str, dims: tuple[str, ...], *, units: str | None = None,
+                 description: str, dtype: Any = np.float64, data: Any = None,
+                 attrs: Mapping[str, Any] | None = None) -> None:
+        """A variable over existing dimensions; along a growing dimension (first) it starts empty
+        and is filled by :meth:`append`, otherwise ``data`` gives its values."""
+        scales = [self._g[d] for d in dims]
+        string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
+        if string:
+            dtype = _STR
+        if dims and dims[0] in self._growing:
+            tail = tuple(len(s) for s in scales[1:])
+            ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
+                                        dtype=dtype, chunks=self._chunks(dtype, tail),
+                                        track_times=False)
+            self._growing[dims[0]].append(name)
+        else:
+            arr = np.asarray(data)
+            if string:
+                arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
+            ds = self._g.create_dataset(name, data=arr, dtype=dtype, track_times=False)
+        for axis, scale in enumerate(scales):
+            ds.dims[axis].attach_scale(scale)
+        self._set_attrs(ds, units, description, attrs)
+
+    @staticmethod
+    def _set_attrs(ds: h5py.Dataset, units: str | None, description: str,
+                   attrs: Mapping[str, Any] | None) -> None:
+        if units is not None:
+            ds.attrs["units"] = units
+        ds.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            ds.attrs[key] = _attr_value(value)
+
+    def append(self, dim: str, rows: Mapping[str, np.ndarray]) -> None:
+        """Append the same number of rows to ``dim`` and every variable along it."""
+        names = self._growing[dim]
+        missing = set(names) - set(rows)
+        extra = set(rows) - set(names)
+        if missing or extra:
+            raise ValueError(f"{self.name}: append along {dim} needs exactly {sorted(names)}; "
+                             f"missing {sorted(missing)}, unexpected {sorted(extra)}")
+        n = {len(rows[v]) for v in names}
+        if len(n) != 1:
+            raise ValueError(f"{self.name}: rows of different lengths {sorted(n)}")
+        m = n.pop()
+        if m == 0:
+            return
+        start = self._g[dim].shape[0]
+        for v in names:
+            ds = self._g[v]
+            ds.resize(start + m, axis=0)
+            ds[start:start + m] = rows[v]
+
+
+class DatasetWriter:
+    """Stream a dataset to ``<path>.tmp-<pid>``; :meth:`commit` renames it onto ``path``.
+
+    Use as a context manager: leaving the block normally commits, an exception (or
+    KeyboardInterrupt) deletes the temporary file.
+    """
+
+    def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any]) -> None:
+        self.path = check_writable(path)
+        self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
+        self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True)
+        self._file.attrs["rlgsim_format"] = FORMAT
+        self._file.attrs["rlgsim_format_version"] = FORMAT_VERSION
+        self._file.attrs["software_version"] = software_version()
+        for key, value in attrs.items():
+            self._file.attrs[key] = _attr_value(value)
+
+    def group(self, name: str, description: str,
+              attrs: Mapping[str, Any] | None = None) -> GroupWriter:
+        g = self._file.create_group(name, track_order=True)
+        g.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            g.attrs[key] = _attr_value(value)
+        return GroupWriter(g)
+
+    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
+        for key, value in attrs.items():
+            self._file.attrs[key] = _attr_value(value)
+
+    def commit(self) -> pathlib.Path:
+        self._file.close()
+        os.replace(self.tmp_path, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        try:
+            self._file.close()
+        finally:
+            try:
+                self.tmp_path.unlink()
+            except OSError:
+                pass
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def open_dataset(path: str | os.PathLike) -> h5py.File:
+    """Open an rlgsim dataset read-only after checking its format marker.
+
+    Raises UserInputError for a missing file, a non-HDF5 file, an HDF5 file without the
+    marker ("not an rlgsim dataset"), or a newer format version.
+    """
+    p = pathlib.Path(path)
+    if not p.exists():
+        raise UserInputError(f"{p}: no such file")
+    if p.is_dir():
+        raise UserInputError(f"{p}: is a directory, not an rlgsim dataset")
+    try:
+        f = h5py.File(p, "r")
+    except OSError:
+        raise UserInputError(f"{p}: not an rlgsim dataset (not an HDF5 file)") from None
+    fmt = f.attrs.get("rlgsim_format")
+    if isinstance(fmt, bytes):
+        fmt = fmt.decode("utf-8", "replace")
+    if fmt != FORMAT:
+        f.close()
+        raise UserInputError(f"{p}: not an rlgsim dataset (HDF5 file without the "
+                             f"rlgsim_format = '{FORMAT}' marker)")
+    version = int(f.attrs.get("rlgsim_format_version", -1))
+    if version > FORMAT_VERSION:
+        f.close()
+        raise UserInputError(f"{p}: rlgsim dataset format version {version} is newer than this "
+                             f"rlgsim reads ({FORMAT_VERSION}); upgrade rlgsim")
+    return f
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.generic):
+        return str(value.item())
+    return str(value)
+
+
+def summary(path: str | os.PathLike) -> str:
+    """A human-readable summary of a dataset (what ``rlgsim info`` prints)."""
+    with open_dataset(path) as f:
+        a = f.attrs
+        lines = [f"{path}: {FORMAT} v{_text(a.get('rlgsim_format_version'))}, "
+                 f"rlgsim {_text(a.get('software_version', '?'))}"]
+        for key, label in (("scenario_name", "scenario"), ("scenario_source", "scenario file"),
+                           ("device", "device"), ("seed", "seed"),
+                           ("duration_s", "duration [s]"),
+                           ("thermal_step_s", "thermal step [s]")):
+            if key in a:
+                lines.append(f"  {label}: {_text(a[key])}")
+        for gname, g in f.items():
+            if not isinstance(g, h5py.Group):
+                continue
+            desc = _text(g.attrs.get("description", ""))
+            lines.append(f"  group {gname}: {desc}")
+            for vname, ds in g.items():
+                dims = [vname if ds.is_scale else
+                        (ds.dims[i][0].name.rsplit("/", 1)[-1] if len(ds.dims[i]) else "?")
+                        for i in range(ds.ndim)]
+                shape = "×".join(f"{d}={n}" for d, n in zip(dims, ds.shape))
+                units = _text(ds.attrs.get("units", "")) if "units" in ds.attrs else ""
+                extra = ""
+                if vname == "time" and ds.shape[0]:
+                    extra = f"  [{ds[0]:g} .. {ds[-1]:g}]"
+                lines.append(f"    {vname:<18} ({shape}) {units}{extra}")
+    return "\n".join(lines)

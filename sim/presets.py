@@ -1,0 +1,170 @@
+"""Find and read the TOML files rlgsim ships: scenarios, device presets, thermal presets.
+
+Shipped files live in the installed ``scenarios`` package (found with
+:mod:`importlib.resources`, so they work from a wheel as well as from a source tree)::
+
+    scenarios/<name>.toml            a scenario   (kind "scenario")
+    scenarios/devices/<name>.toml    a device     (kind "device")
+    scenarios/thermal/<name>.toml    a thermal network preset (kind "thermal")
+
+Anything that looks like a path (contains a path separator or ends in ``.toml``) is read from
+disk instead; a relative path is tried against ``base_dir`` (the directory of the file that
+refers to it) first and the working directory second.
+
+Every problem — unknown name, missing or unreadable file, TOML syntax error — is raised as a
+one-line :class:`~sim.errors.UserInputError` naming the file (and line for syntax errors).
+Parsing uses the standard library's :mod:`tomllib`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import pathlib
+import re
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+
+from sim.errors import UserInputError
+
+#: Sub-folder of the ``scenarios`` package for each kind of file ("" = the package itself).
+KINDS: dict[str, str] = {"scenario": "", "device": "devices", "thermal": "thermal"}
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
+
+
+@dataclass(frozen=True)
+class TomlFile:
+    """One parsed TOML file: its ``name`` (stem), ``source`` (path for messages), the
+    directory relative references are resolved against, the raw ``text`` and the ``data``."""
+
+    name: str
+    source: str
+    base_dir: pathlib.Path | None
+    text: str
+    data: dict
+
+
+def _package_dir(kind: str):
+    if kind not in KINDS:
+        raise ValueError(f"unknown preset kind {kind!r}; known: {', '.join(KINDS)}")
+    root = resources.files("scenarios")
+    return root.joinpath(KINDS[kind]) if KINDS[kind] else root
+
+
+def list_names(kind: str) -> list[str]:
+    """Names of the shipped files of one kind, sorted."""
+    folder = _package_dir(kind)
+    try:
+        entries = list(folder.iterdir())
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    return sorted(e.name[:-5] for e in entries if e.name.endswith(".toml") and e.is_file())
+
+
+def looks_like_path(ref: str) -> bool:
+    """A reference is a path if it has a directory separator or a ``.toml`` suffix."""
+    return ref.endswith(".toml") or "/" in ref or os.sep in ref
+
+
+def parse_toml(text: str, source: str) -> dict:
+    """Parse TOML text; a syntax error becomes ``source: line L, column C: TOML syntax error``."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        match = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", message)
+        if match:
+            where = f"line {match.group(1)}, column {match.group(2)}"
+            message = message[:match.start()]
+        elif message.endswith("(at end of document)"):
+            where = f"line {text.count(chr(10)) + 1} (end of file)"
+            message = message[:-len("(at end of document)")].rstrip()
+        else:
+            where = "somewhere"
+        message = " ".join(message.split())
+        raise UserInputError(f"{source}: {where}: TOML syntax error: {message}") from None
+
+
+def _read_text(path: pathlib.Path, source: str) -> str:
+    try:
+        raw = path.read_bytes()
+    except IsADirectoryError:
+        raise UserInputError(f"{source}: is a directory, expected a .toml file") from None
+    except FileNotFoundError:
+        raise UserInputError(f"{source}: no such file") from None
+    except OSError as exc:
+        raise UserInputError(f"{source}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{source}: not a UTF-8 text file (byte {exc.start}); "
+                             f"expected a TOML file") from None
+
+
+def _unknown_name(kind: str, ref: str, context: str | None) -> UserInputError:
+    names = list_names(kind)
+    close = difflib.get_close_matches(ref, names, n=1)
+    hint = f" (did you mean '{close[0]}'?)" if close else ""
+    where = f"{context}: " if context else ""
+    label = {"scenario": "scenario", "device": "device preset",
+             "thermal": "thermal preset"}[kind]
+    return UserInputError(
+        f"{where}unknown {label} {ref!r}{hint}; shipped: {', '.join(names) or '(none)'}"
+        f" (or give a path to a .toml file)")
+
+
+def locate(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
+           context: str | None = None) -> tuple[str, pathlib.Path | None, object]:
+    """Resolve a name or path to ``(name, base_dir, traversable)``. ``context`` prefixes the
+    error message (e.g. ``"my.toml: device"``) when the reference came from a file."""
+    if not isinstance(ref, str) or not ref.strip():
+        where = f"{context}: " if context else ""
+        raise UserInputError(f"{where}expected a {kind} name or a path to a .toml file, "
+                             f"got {ref!r}")
+    if looks_like_path(ref):
+        path = pathlib.Path(ref).expanduser()
+        if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
+            path = base_dir / path
+        if not path.exists():
+            where = f"{context}: " if context else ""
+            raise UserInputError(f"{where}{ref}: no such file")
+        name = path.name[:-5] if path.name.endswith(".toml") else path.name
+        return name, path.resolve().parent, path
+    if not _NAME_RE.match(ref):
+        raise _unknown_name(kind, ref, context)
+    entry = _package_dir(kind).joinpath(f"{ref}.toml")
+    if not entry.is_file():
+        raise _unknown_name(kind, ref, context)
+    return ref, None, entry
+
+
+def load(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
+         context: str | None = None) -> TomlFile:
+    """Find (by name or path) and parse one TOML file of ``kind``."""
+    name, folder, entry = locate(ref, kind, base_dir=base_dir, context=context)
+    source = str(entry)
+    if isinstance(entry, pathlib.Path):
+        text = _read_text(entry, source)
+    else:
+        text = entry.read_text(encoding="utf-8")
+    return TomlFile(name=name, source=source, base_dir=folder, text=text,
+                    data=parse_toml(text, source))
+
+
+def load_scenario_file(ref: str) -> TomlFile:
+    """A scenario by shipped name (``quickstart``) or path (``my/run.toml``)."""
+    return load(ref, "scenario")
+
+
+def load_device_file(ref: str, *, base_dir: pathlib.Path | None = None,
+                     context: str | None = None) -> TomlFile:
+    """A device preset by shipped name (``rlg_imu_000``) or path."""
+    return load(ref, "device", base_dir=base_dir, context=context)
+
+
+def load_thermal_file(ref: str, *, base_dir: pathlib.Path | None = None,
+                      context: str | None = None) -> TomlFile:
+    """A thermal network preset by shipped name (``rlg_single``) or path."""
+    return load(ref, "thermal", base_dir=base_dir, context=context)

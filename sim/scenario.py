@@ -1,0 +1,335 @@
+"""The validating scenario loader: a TOML scenario (by shipped name or path) → :class:`Scenario`.
+
+A scenario names a device preset, a site, the acquisition rates, the power schedule, the
+chamber programme, the turntable programme, the duration and the seed (docs/scenarios.md lists
+every key with its unit). This module validates the top level and the small tables it owns
+(``site``, ``acquisition``, ``power``); each other table is validated by the module that owns
+it (``[chamber]`` by :class:`sim.chamber.ChamberProgram`, ``[turntable]`` by
+:mod:`sim.turntable`, the device's ``[thermal]`` by :class:`sim.thermal.ThermalNetwork`, its
+sensor tables by the sensor modules — see :data:`DEVICE_TABLES`). Every user mistake is a
+one-line :class:`~sim.errors.UserInputError` naming file, key, value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import pathlib
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from sim import presets
+from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_quantity,
+                        get_str, get_table, unit_keys)
+from sim.errors import UserInputError
+from sim.rng import generator
+
+#: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
+#: loader can check that steps and samples tile a block without importing the simulator).
+BLOCK_S = 600.0
+
+#: Tables a device preset may hold besides ``[device]``, each with the validator that owns it:
+#: ``"module:Class.from_config"`` called as ``f(table, ctx)``; the result is stored in
+#: ``Device.parts[name]``. ``None`` = accepted as is (kept raw in ``Device.tables``). Sensor
+#: modules add their tables here (``"gyro": "sim.gyro:GyroModel.from_config"``, ...).
+DEVICE_TABLES: dict[str, str | None] = {}
+
+#: Keys of a device preset's ``[device]`` table.
+DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
+
+#: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
+SCENARIO_KEYS = ("name", "description", "seed", "device", *unit_keys("duration", TIME_UNITS),
+                 "site", "acquisition", "power", "chamber", "turntable")
+
+_TOLERANCE = 1e-9
+
+
+def _resolve(spec: str) -> Callable:
+    module, _, attr = spec.partition(":")
+    obj: Any = importlib.import_module(module)
+    for part in attr.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _have(module: str) -> bool:
+    return importlib.util.find_spec(module) is not None
+
+
+# --------------------------------------------------------------------------- device presets
+
+
+@dataclass(frozen=True)
+class ThermalPreset:
+    """A thermal network preset: the network (nodes, links, heat) and the probes on it."""
+
+    name: str
+    source: str
+    text: str
+    network: Any            # sim.thermal.ThermalNetwork (None until thermal.py exists)
+    probes: Any             # sim.thermometers.ProbeSet (None until thermometers.py exists)
+
+
+@dataclass(frozen=True)
+class Device:
+    """A device preset: identity, its thermal preset, and the tables sensor modules read."""
+
+    name: str
+    description: str
+    reference: str                        # where the numbers come from (paper, datasheet)
+    source: str                           # the preset file
+    text: str
+    thermal: ThermalPreset
+    tables: dict[str, dict] = field(default_factory=dict)   # raw tables, by name
+    parts: dict[str, Any] = field(default_factory=dict)     # validated tables (DEVICE_TABLES)
+
+
+def load_thermal_preset(ref: str, *, base_dir: pathlib.Path | None = None,
+                        context: str | None = None) -> ThermalPreset:
+    """Load a thermal preset (``scenarios/thermal/<name>.toml`` or a path)."""
+    if not _have("sim.thermal"):          # stand-in until sim/thermal.py lands
+        return ThermalPreset(name=ref, source="", text="", network=None, probes=None)
+    f = presets.load_thermal_file(ref, base_dir=base_dir, context=context)
+    ctx = Ctx(f.source)
+    network = probes = None
+    if True:
+        from sim.thermal import ThermalNetwork
+        network = ThermalNetwork.from_config(get_table(f.data, "thermal", ctx), ctx.child("thermal"))
+        if _have("sim.thermometers"):
+            from sim.thermometers import ProbeSet
+            probes = ProbeSet.from_config(get_table(f.data, "probes", ctx), network,
+                                          ctx.child("probes"))
+    return ThermalPreset(name=f.name, source=f.source, text=f.text, network=network, probes=probes)
+
+
+def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
+                context: str | None = None) -> Device:
+    """Load and validate a device preset (``scenarios/devices/<name>.toml`` or a path)."""
+    f = presets.load_device_file(ref, base_dir=base_dir, context=context)
+    ctx = Ctx(f.source)
+    check_known_keys(f.data, ["device", *DEVICE_TABLES], ctx)
+    dev = get_table(f.data, "device", ctx)
+    dctx = ctx.child("device")
+    check_known_keys(dev, DEVICE_KEYS, dctx)
+    thermal_ref = get_str(dev, "thermal_preset", dctx)
+    thermal = load_thermal_preset(thermal_ref, base_dir=f.base_dir,
+                                  context=f"{f.source}: device.thermal_preset")
+    tables: dict[str, dict] = {}
+    parts: dict[str, Any] = {}
+    for key, spec in DEVICE_TABLES.items():
+        if key in f.data:
+            tables[key] = get_table(f.data, key, ctx)
+            if spec is not None:
+                parts[key] = _resolve(spec)(tables[key], ctx.child(key))
+    return Device(name=get_str(dev, "name", dctx, f.name),
+                  description=get_str(dev, "description", dctx, ""),
+                  reference=get_str(dev, "source", dctx, ""),
+                  source=f.source, text=f.text, thermal=thermal, tables=tables, parts=parts)
+
+
+# --------------------------------------------------------------------------- scenario tables
+
+
+@dataclass(frozen=True)
+class Site:
+    latitude_deg: float = 34.0      # geodetic latitude [deg]
+    height_m: float = 0.0           # height above the ellipsoid [m]
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    sample_rate_hz: float = 100.0   # IMU output rate [Hz]
+    thermal_step_s: float = 1.0     # thermal grid step [s]
+    chunk_s: float = 3600.0         # simulated time buffered per write [s]
+
+
+@dataclass(frozen=True)
+class PowerSchedule:
+    on_at_s: float = 0.0            # power switched on [s from start]
+    off_at_s: float | None = None   # switched off again (None: stays on)
+
+
+def _divides_block(value: float, per: str) -> bool:
+    n = BLOCK_S / value if per == "step" else BLOCK_S * value
+    return abs(n - round(n)) < 1e-6 * max(1.0, n) and round(n) >= 1
+
+
+def _parse_site(table: dict, ctx: Ctx):
+    if _have("sim.earth"):
+        from sim.earth import Site as EarthSite
+        return EarthSite.from_config(table, ctx)
+    check_known_keys(table, ("latitude_deg", "height_m"), ctx)
+    return Site(latitude_deg=get_float(table, "latitude_deg", ctx, 34.0, min=-90.0, max=90.0),
+                height_m=get_float(table, "height_m", ctx, 0.0, min=-1000.0, max=20000.0))
+
+
+def _parse_acquisition(table: dict, ctx: Ctx) -> Acquisition:
+    check_known_keys(table, ("sample_rate_hz", "thermal_step_s", "chunk_s"), ctx)
+    rate = get_float(table, "sample_rate_hz", ctx, 100.0, min=0.0, min_exclusive=True,
+                     max=100000.0)
+    if not _divides_block(rate, "sample"):
+        raise ctx.error("sample_rate_hz", f"value {rate:g} not allowed; {BLOCK_S:g} s must hold "
+                                          f"a whole number of samples (e.g. 1, 10, 100, 400)")
+    step = get_float(table, "thermal_step_s", ctx, 1.0, min=0.0, min_exclusive=True,
+                     max=BLOCK_S)
+    if not _divides_block(step, "step"):
+        raise ctx.error("thermal_step_s", f"value {step:g} not allowed; must divide {BLOCK_S:g} s "
+                                          f"exactly (e.g. 0.1, 0.5, 1, 2, 5, 10)")
+    chunk = get_float(table, "chunk_s", ctx, 3600.0, min=0.0, min_exclusive=True)
+    return Acquisition(sample_rate_hz=rate, thermal_step_s=step, chunk_s=chunk)
+
+
+def _parse_power(table: dict, ctx: Ctx) -> PowerSchedule:
+    check_known_keys(table, (*unit_keys("on_at", TIME_UNITS), *unit_keys("off_at", TIME_UNITS)),
+                     ctx)
+    on = get_quantity(table, "on_at", ctx, TIME_UNITS, 0.0, min=0.0)
+    off = get_quantity(table, "off_at", ctx, TIME_UNITS, None, min=0.0)
+    if off is not None and off <= on:
+        key = next(k for k in unit_keys("off_at", TIME_UNITS) if k in table)
+        raise ctx.error(key, f"value {table[key]!r} not allowed; must be after power-on "
+                             f"({on:g} s)")
+    return PowerSchedule(on_at_s=on, off_at_s=off)
+
+
+# --------------------------------------------------------------------------- chamber stand-in
+
+
+def _chamber_class():
+    """sim.chamber.ChamberProgram, or the minimal stand-in below until chamber.py lands."""
+    if _have("sim.chamber"):
+        from sim.chamber import ChamberProgram
+        return ChamberProgram
+    return _StandInChamber
+
+
+class _PiecewiseLinear:
+    """Stand-in for sim.chamber.PiecewiseLinear (same interface)."""
+
+    def __init__(self, t_s, y):
+        self.t_s = np.asarray(t_s, float)
+        self.y = np.asarray(y, float)
+
+    def __call__(self, t):
+        return np.interp(t, self.t_s, self.y)
+
+    @property
+    def end_s(self) -> float:
+        return float(self.t_s[-1])
+
+
+@dataclass
+class _StandInChamber:
+    """Hold/ramp programme with an instant setpoint; replaced by sim.chamber when it lands."""
+
+    start_c: float
+    points: list
+    max_rate_c_per_min: float = 10.0
+    air_tau_s: float = 60.0
+
+    @classmethod
+    def from_config(cls, table: dict, ctx: Ctx) -> "_StandInChamber":
+        check_known_keys(table, ("start_c", "segments"), ctx)
+        start = get_float(table, "start_c", ctx, min=-100.0, max=200.0)
+        t, y, pts = 0.0, start, [(0.0, start)]
+        for i, seg in enumerate(table.get("segments", [])):
+            sctx = ctx.child("segments").item(i)
+            kind = get_str(seg, "type", sctx, choices=("hold", "ramp"))
+            if kind == "hold":
+                check_known_keys(seg, ("type", *unit_keys("duration", TIME_UNITS)), sctx)
+                t += get_quantity(seg, "duration", sctx, TIME_UNITS, min=0.0, min_exclusive=True)
+            else:
+                check_known_keys(seg, ("type", "to_c", "rate_c_per_min"), sctx)
+                to = get_float(seg, "to_c", sctx, min=-100.0, max=200.0)
+                rate = get_float(seg, "rate_c_per_min", sctx, min=0.0, min_exclusive=True)
+                t += abs(to - y) / rate * 60.0
+                y = to
+            pts.append((t, y))
+        return cls(start_c=start, points=pts)
+
+    def setpoint(self, rng) -> _PiecewiseLinear:
+        t, y = zip(*self.points)
+        keep = np.r_[True, np.diff(t) > 0]
+        return _PiecewiseLinear(np.asarray(t)[keep], np.asarray(y)[keep])
+
+    def rate_limited(self, setpoint):
+        return setpoint
+
+
+# --------------------------------------------------------------------------- the scenario
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. Times in s, temperatures in °C (see docs/scenarios.md)."""
+
+    name: str
+    description: str
+    source: str                  # the file (or "<string>")
+    text: str                    # the raw TOML, embedded in every dataset
+    seed: int
+    device: Device
+    site: Site
+    acquisition: Acquisition
+    power: PowerSchedule
+    chamber: Any                 # sim.chamber.ChamberProgram
+    turntable: Any               # sim.turntable.TurntableProgram, or None = static mount
+    duration_s: float            # on the thermal grid
+    tables: dict = field(default_factory=dict, repr=False)   # the parsed TOML, for later issues
+
+    def chamber_rng(self) -> np.random.Generator:
+        """The generator that expands the chamber programme (repeat/random segments)."""
+        return generator(self.seed, 0, "chamber", "programme", 0)
+
+
+def _parse_turntable(table: dict | None, ctx: Ctx):
+    if _have("sim.turntable"):
+        from sim.turntable import TurntableProgram
+        return TurntableProgram.from_config(table, ctx)
+    if table:
+        raise ctx.error(next(iter(table)), "turntable programmes are not available in this "
+                                           "version; leave [turntable] out for a static mount")
+    return None
+
+
+def parse_scenario(text: str, source: str = "<string>", *,
+                   base_dir: pathlib.Path | None = None, default_name: str = "scenario"
+                   ) -> Scenario:
+    """Parse and validate scenario TOML ``text`` (``source`` names it in messages)."""
+    data = presets.parse_toml(text, source)
+    ctx = Ctx(source)
+    check_known_keys(data, SCENARIO_KEYS, ctx)
+    name = get_str(data, "name", ctx, default_name)
+    description = get_str(data, "description", ctx, "")
+    seed = get_int(data, "seed", ctx, 0, min=0, max=2**63 - 1)
+    device = load_device(get_str(data, "device", ctx), base_dir=base_dir,
+                         context=f"{source}: device")
+    site = _parse_site(get_table(data, "site", ctx, {}), ctx.child("site"))
+    acquisition = _parse_acquisition(get_table(data, "acquisition", ctx, {}),
+                                     ctx.child("acquisition"))
+    power = _parse_power(get_table(data, "power", ctx, {}), ctx.child("power"))
+    chamber = _chamber_class().from_config(get_table(data, "chamber", ctx), ctx.child("chamber"))
+    turntable = _parse_turntable(get_table(data, "turntable", ctx, None), ctx.child("turntable"))
+    step = acquisition.thermal_step_s
+    duration = get_quantity(data, "duration", ctx, TIME_UNITS, None, min=0.0, min_exclusive=True)
+    if duration is None:
+        rng = generator(seed, 0, "chamber", "programme", 0)
+        duration = float(chamber.rate_limited(chamber.setpoint(rng)).end_s)
+        if duration <= 0:
+            raise ctx.error("duration_h", "missing: the chamber programme has no length, so give "
+                                          "the run's duration (duration_s, duration_min or "
+                                          "duration_h)")
+    steps = max(1, round(duration / step))
+    if steps > 10**9:
+        raise ctx.error("duration", f"{duration:g} s at a {step:g} s thermal step is too long "
+                                    f"(more than 1e9 steps)")
+    return Scenario(name=name, description=description, source=source, text=text, seed=seed,
+                    device=device, site=site, acquisition=acquisition, power=power,
+                    chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data)
+
+
+def load_scenario(ref: str) -> Scenario:
+    """Load a scenario by shipped name (``rlgsim list``) or by path."""
+    f = presets.load_scenario_file(ref)
+    return parse_scenario(f.text, f.source, base_dir=f.base_dir, default_name=f.name)

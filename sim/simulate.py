@@ -1,0 +1,332 @@
+"""The streaming simulator: scenario → timeline → blocks of numerics → HDF5 dataset.
+
+The run advances in blocks of fixed simulated length :data:`BLOCK_S` (600 s: a whole number of
+thermal steps and of IMU samples, checked by the scenario loader). For block ``b``:
+
+1. the *thermal* part samples the timeline (rate-limited chamber setpoint on the grid points,
+   power state over each step) and propagates the thermal network exactly
+   (:class:`sim.thermal_integrator.ThermalIntegrator`), giving a :class:`ThermalTrace`;
+2. every *stage* (:data:`STAGES`: the probes now, the sensors later) turns the trace into its
+   arrays: ``stage.block(state, b, trace, motion) -> (arrays, state)``.
+
+Every carried state (thermal state, probe lags, later pulse remainders and noise-filter states)
+goes from block to block, and every random draw of block ``b`` comes from
+``sim.rng.generator(seed, unit, purpose, channel, b)``. The user's ``chunk_s`` only decides how
+many blocks are buffered before a write (memory stays bounded), so the stored arrays are the same
+whatever the chunk size.
+
+Adding a stage (issue 3: the IMU) — write a class with
+
+* ``group`` (dataset group name) and ``description``;
+* ``declare(group_writer)`` — create coordinates/variables (see :mod:`sim.dataset`); the growing
+  dimension is ``time`` (``coordinate("time", growing=True, ...)``) or any name you declare
+  growing, listed in ``dims``;
+* ``initial_state()`` — the state before block 0;
+* ``block(state, b, trace, motion) -> (rows, state)`` — ``rows`` maps each growing dimension to
+  ``{variable: array}`` (the coordinate included), arrays for this block only;
+
+and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. Then add the
+group to docs/dataset.md. :class:`ProbeStage` is the worked example.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import pathlib
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from sim.dataset import DatasetWriter, GroupWriter, check_writable
+from sim.rng import generator
+from sim.schedule import TRACKS, Timeline, build_timeline
+
+#: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
+BLOCK_S = 600.0
+
+#: The unit index of a single run in the seed tree (Monte Carlo runs use 0, 1, 2, ...).
+UNIT = 0
+
+
+@dataclass(frozen=True)
+class ThermalTrace:
+    """The thermal state over one block, on the thermal grid.
+
+    Row ``j`` belongs to the step ``[t_s[j] - step_s, t_s[j])``: temperatures are the values at
+    its end, ``power`` the state held over it.
+    """
+
+    t_s: np.ndarray          # (m,) end of each step [s]
+    step_s: float
+    setpoint_c: np.ndarray   # (m,) rate-limited chamber setpoint [°C]
+    air_c: np.ndarray        # (m,) chamber air [°C]
+    power: np.ndarray        # (m,) 0/1
+    nodes_c: np.ndarray      # (m, n) true node temperatures [°C]
+    start_c: np.ndarray      # (n,) node temperatures at the block start (row -1)
+
+
+class Stage:
+    """Interface of a simulation stage (see the module docstring)."""
+
+    group: str
+    description: str
+    dims: tuple[str, ...] = ("time",)
+
+    def declare(self, g: GroupWriter) -> None:
+        raise NotImplementedError
+
+    def initial_state(self) -> Any:
+        raise NotImplementedError
+
+    def block(self, state: Any, b: int, trace: ThermalTrace, motion: Any
+              ) -> tuple[dict[str, dict[str, np.ndarray]], Any]:
+        raise NotImplementedError
+
+
+# --------------------------------------------------------------------------- thermal part
+
+
+def _have(module: str) -> bool:
+    return importlib.util.find_spec(module) is not None
+
+
+class ThermalPart:
+    """Samples the timeline and propagates the thermal network block by block."""
+
+    group = "thermal"
+    description = ("chamber setpoint and air, power state and true node temperatures on the "
+                   "thermal grid")
+
+    def __init__(self, scenario, timeline: Timeline) -> None:
+        self.timeline = timeline
+        self.step = timeline.step_s
+        self.network = scenario.device.thermal.network
+        self.integrator = None
+        if self.network is not None:
+            from sim.thermal_integrator import ThermalIntegrator
+            self.integrator = ThermalIntegrator(self.network, self.step,
+                                                scenario.chamber.air_tau_s)
+
+    @property
+    def node_names(self) -> tuple[str, ...]:
+        return tuple(self.network.node_names) if self.network is not None else ()
+
+    def declare(self, g: GroupWriter) -> None:
+        g.coordinate("time", growing=True, units="s",
+                     description="time since the start of the run at the end of each thermal "
+                                 "step")
+        g.variable("chamber_setpoint", ("time",), units="degC",
+                   description="rate-limited chamber setpoint")
+        g.variable("chamber_air", ("time",), units="degC",
+                   description="chamber air temperature (setpoint through the air lag)")
+        g.variable("power_on", ("time",), units="1", dtype=np.int8,
+                   description="device power state held over the step ending at time (1 = on)")
+        if not self.node_names:           # stand-in until sim/thermal.py lands
+            return
+        g.coordinate("node", self.node_names, description="thermal network node")
+        g.variable("node_temperature", ("time", "node"), units="degC",
+                   description="true temperature of each thermal network node")
+
+    def initial_state(self) -> Any:
+        ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
+        powered = bool(self.timeline.power(np.array([0.0]))[0])
+        if self.integrator is None:
+            return np.array([ambient])
+        return np.asarray(self.integrator.initial_state(ambient, powered), dtype=float)
+
+    def block(self, state: Any, b: int, k0: int, m: int) -> tuple[ThermalTrace, Any]:
+        k = np.arange(k0, k0 + m + 1, dtype=np.int64)
+        t = k * self.step
+        setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
+        power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
+        if self.integrator is None:
+            states = setpoint[1:, None]
+            new_state = states[-1]
+        else:
+            states, new_state = self.integrator.propagate(state, setpoint, power)
+        trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
+                             air_c=np.asarray(states[:, 0]), power=power,
+                             nodes_c=np.asarray(states[:, 1:]), start_c=np.asarray(state[1:]))
+        return trace, new_state
+
+    def rows(self, trace: ThermalTrace) -> dict[str, dict[str, np.ndarray]]:
+        rows = {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
+                "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8)}
+        if self.node_names:
+            rows["node_temperature"] = trace.nodes_c
+        return {"time": rows}
+
+
+# --------------------------------------------------------------------------- stages
+
+
+class ProbeStage(Stage):
+    """Thermometer probes on the network nodes (lag, noise, resolution): what the compensators
+    see. Random draws: ``generator(seed, UNIT, "probes", "noise", b)``."""
+
+    group = "probes"
+    description = "thermometer probe readings on the thermal grid (what hardware would log)"
+
+    def __init__(self, scenario, timeline: Timeline) -> None:
+        self.probes = scenario.device.thermal.probes
+        self.network = scenario.device.thermal.network
+        self.seed = scenario.seed
+        self.step = timeline.step_s
+        self._start_nodes = None
+
+    @classmethod
+    def create(cls, scenario, timeline: Timeline) -> "ProbeStage | None":
+        if scenario.device.thermal.probes is None:
+            return None
+        return cls(scenario, timeline)
+
+    def declare(self, g: GroupWriter) -> None:
+        names = tuple(self.probes.names)
+        nodes = [self.network.node_names[i] for i in np.asarray(self.probes.node_index)]
+        g.coordinate("time", growing=True, units="s",
+                     description="time since the start of the run at the end of each thermal "
+                                 "step")
+        g.coordinate("probe", names, description="thermometer probe")
+        g.variable("probe_node", ("probe",), data=nodes, dtype=str,
+                   description="thermal network node each probe is mounted on")
+        g.variable("temperature", ("time", "probe"), units="degC",
+                   description="probe reading (first-order lag, white noise, resolution)")
+
+    def initial_state(self) -> Any:
+        return None          # built from the first block's start temperatures
+
+    def block(self, state, b, trace, motion):
+        if state is None:
+            state = self.probes.initial_state(trace.start_c)
+        rng = generator(self.seed, UNIT, "probes", "noise", b)
+        readings, state = self.probes.read(state, trace.nodes_c, trace.step_s, rng)
+        return {"time": {"time": trace.t_s, "temperature": readings}}, state
+
+
+#: Stage factories run by :func:`simulate`, in order: ``f(scenario, timeline) -> Stage | None``.
+STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create]
+
+
+# --------------------------------------------------------------------------- timeline group
+
+
+def _write_timeline(w: DatasetWriter, timeline: Timeline) -> None:
+    g = w.group("timeline", "labelled segments of the run (chamber, power, turntable, "
+                            "calibration, acquisition) and the chamber setpoint breakpoints")
+    segs = timeline.segments
+    g.coordinate("segment", np.arange(len(segs), dtype=np.int32), units="1",
+                 description="segment index", dtype=np.int32)
+    g.variable("t0", ("segment",), units="s", data=np.array([s.t0_s for s in segs], float),
+               description="segment start, s since the start of the run")
+    g.variable("t1", ("segment",), units="s", data=np.array([s.t1_s for s in segs], float),
+               description="segment end, s since the start of the run")
+    g.variable("track", ("segment",), dtype=str, data=[s.track for s in segs],
+               description=f"track of the segment: one of {', '.join(TRACKS)}")
+    g.variable("label", ("segment",), dtype=str, data=[s.label for s in segs],
+               description="human-readable label")
+    g.variable("attrs", ("segment",), dtype=str,
+               data=[json.dumps(s.attrs, sort_keys=True, default=float) for s in segs],
+               description="segment details as a JSON object (kind, temperatures, rates ...)")
+    sp = timeline.setpoint
+    g.coordinate("breakpoint", np.arange(len(sp.t_s), dtype=np.int32), units="1",
+                 description="setpoint breakpoint index", dtype=np.int32)
+    g.variable("setpoint_time", ("breakpoint",), units="s", data=np.asarray(sp.t_s, float),
+               description="breakpoint time of the rate-limited chamber setpoint (linear in "
+                           "between, last value held)")
+    g.variable("setpoint", ("breakpoint",), units="degC", data=np.asarray(sp.y, float),
+               description="chamber setpoint at the breakpoint")
+
+
+# --------------------------------------------------------------------------- the run
+
+
+def default_output(scenario) -> pathlib.Path:
+    return pathlib.Path(f"{scenario.name}.h5")
+
+
+def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | None = None,
+             progress: bool = True) -> pathlib.Path:
+    """Simulate ``scenario`` and stream it to ``out_path`` (default ``./<name>.h5``).
+
+    ``chunk_s`` (default: the scenario's ``acquisition.chunk_s``) is how much simulated time is
+    buffered before each write; it never changes the stored arrays. Returns the written path.
+    """
+    out = check_writable(out_path if out_path is not None else default_output(scenario))
+    chunk = float(chunk_s if chunk_s is not None else scenario.acquisition.chunk_s)
+    if not chunk > 0:
+        raise ValueError("chunk_s must be > 0")
+    timeline = build_timeline(scenario)
+    step = timeline.step_s
+    n_steps = timeline.n_steps
+    per_block = int(round(BLOCK_S / step))
+    n_blocks = math.ceil(n_steps / per_block)
+    blocks_per_write = max(1, int(round(chunk / BLOCK_S)))
+
+    thermal = ThermalPart(scenario, timeline)
+    stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
+    motion = None            # issue 3: the turntable kinematics per block
+
+    attrs = {
+        "title": f"rlgsim run of scenario {scenario.name}",
+        "scenario_name": scenario.name,
+        "scenario_description": scenario.description,
+        "scenario_source": scenario.source,
+        "scenario_text": scenario.text,
+        "device": scenario.device.name,
+        "device_text": scenario.device.text,
+        "thermal_preset_text": scenario.device.thermal.text,
+        "seed": np.int64(scenario.seed),
+        "unit": np.int64(UNIT),
+        "duration_s": float(timeline.duration_s),
+        "thermal_step_s": float(step),
+        "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
+        "block_s": BLOCK_S,
+        "latitude_deg": scenario.site.latitude_deg,
+        "height_m": scenario.site.height_m,
+    }
+    from tqdm import tqdm
+    with DatasetWriter(out, attrs) as w:
+        _write_timeline(w, timeline)
+        writers = {}
+        writers[thermal.group] = w.group(thermal.group, thermal.description)
+        thermal.declare(writers[thermal.group])
+        for s in stages:
+            writers[s.group] = w.group(s.group, s.description)
+            s.declare(writers[s.group])
+        t_state = thermal.initial_state()
+        s_states = [s.initial_state() for s in stages]
+        buffers: dict[str, dict[str, dict[str, list]]] = {}
+
+        def buffer(group: str, rows: dict[str, dict[str, np.ndarray]]) -> None:
+            gb = buffers.setdefault(group, {})
+            for dim, arrays in rows.items():
+                db = gb.setdefault(dim, {})
+                for name, arr in arrays.items():
+                    db.setdefault(name, []).append(np.asarray(arr))
+
+        def flush() -> None:
+            for group, gb in buffers.items():
+                for dim, arrays in gb.items():
+                    writers[group].append(dim, {k: np.concatenate(v) for k, v in arrays.items()})
+            buffers.clear()
+
+        bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
+                   delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
+        try:
+            for b in range(n_blocks):
+                k0 = b * per_block
+                m = min(per_block, n_steps - k0)
+                trace, t_state = thermal.block(t_state, b, k0, m)
+                buffer(thermal.group, thermal.rows(trace))
+                for i, s in enumerate(stages):
+                    rows, s_states[i] = s.block(s_states[i], b, trace, motion)
+                    buffer(s.group, rows)
+                if (b + 1) % blocks_per_write == 0 or b == n_blocks - 1:
+                    flush()
+                bar.update(round(m * step))
+        finally:
+            bar.close()
+    return out

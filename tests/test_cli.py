@@ -1,0 +1,69 @@
+"""The rlgsim command line: demo end to end, list, info, run, one-line errors with exit 2."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import pathlib
+
+import h5py
+import pytest
+
+from sim.cli import main
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", "sim.cli", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_demo_runs_end_to_end(tmp_path):
+    r = _cli("demo", "--quiet", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "rlgsim-demo" / "quickstart.h5"
+    assert out.is_file()
+    assert "group thermal" in r.stdout and "scenario: quickstart" in r.stdout
+    with h5py.File(out) as f:
+        assert f.attrs["scenario_name"] == "quickstart"
+        assert f["thermal/time"].shape[0] == 7200
+
+
+def test_list_shows_shipped_scenarios_and_devices(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for name in ("quickstart", "rlg_imu_000", "trplg_001", "rlg_002", "rlg8_003"):
+        assert name in out
+
+
+def test_run_then_info(tmp_path, capsys):
+    out = tmp_path / "q.h5"
+    assert main(["run", "quickstart", "-o", str(out), "--quiet"]) == 0
+    assert out.is_file()
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "chamber_setpoint" in text and "seed: 20260101" in text
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["run", "no_such_scenario"], "unknown scenario 'no_such_scenario'"),
+    (["run", "quickstart", "--chunk-s", "-5"], "must be a number of seconds > 0"),
+    (["info", "/no/such/file.h5"], "no such file"),
+    (["frobnicate"], "invalid choice"),
+    ([], "required"),
+])
+def test_user_mistakes_are_one_line_exit_2(args, expected, capsys):
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rlgsim: error: ") and expected in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_error_in_a_subprocess_has_no_traceback(tmp_path):
+    r = _cli("run", "quickstrat", cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()]
+    assert "did you mean 'quickstart'" in r.stderr and "Traceback" not in r.stderr
