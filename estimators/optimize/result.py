@@ -1,0 +1,119 @@
+"""What every optimiser returns, and the bookkeeping they share (bounds, budget, evaluation).
+
+The optimisers in this package minimise a *vectorised* fitness: ``fun(P)`` takes a batch of
+positions ``P`` of shape ``(m, d)`` and returns ``m`` fitness values (``vectorized=False`` wraps a
+function of one position instead). Every call is counted; a budget ``max_evals`` caps the count
+exactly (the last batch is truncated rather than overshooting), so two optimisers can be compared
+at equal evaluation budgets. NaN fitness values are treated as +inf (worst), so a failed model
+fit inside a fitness never becomes the optimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+Fitness = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class OptimizeResult:
+    """Outcome of one optimiser run.
+
+    Attributes
+    ----------
+    x : best position found, shape ``(d,)`` (in the units of the bounds).
+    fun : fitness at ``x`` (the best value ever evaluated).
+    nfev : number of fitness evaluations spent (one per position, batches count per row).
+    nit : number of completed iterations (generations) after the initial population.
+    best_curve : best-so-far fitness after the initial population and after each iteration,
+        shape ``(nit + 1,)``; non-increasing.
+    nfev_curve : cumulative ``nfev`` at the same points, shape ``(nit + 1,)``; plot
+        ``best_curve`` against it to compare optimisers at equal budgets.
+    message : why the run stopped.
+    method : ``"hho"`` or ``"pso"``.
+    counts : per-method diagnostics (for HHO: how often each update rule fired and how many
+        rapid dives were kept).
+    """
+
+    x: np.ndarray
+    fun: float
+    nfev: int
+    nit: int
+    best_curve: np.ndarray
+    nfev_curve: np.ndarray
+    message: str
+    method: str
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
+    """Validate box bounds given as a sequence of ``(low, high)`` pairs, one per dimension.
+
+    Returns ``(lower, upper)`` float arrays of shape ``(d,)``; raises ``ValueError`` naming the
+    offending dimension for non-finite values or ``low >= high``.
+    """
+    b = np.asarray(bounds, dtype=float)
+    if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
+        raise ValueError(f"bounds must be a sequence of (low, high) pairs, one per dimension; "
+                         f"got an array of shape {b.shape}")
+    for i, (lo, hi) in enumerate(b):
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"bounds of dimension {i} must be finite, got ({lo}, {hi})")
+        if not lo < hi:
+            raise ValueError(f"bounds of dimension {i} need low < high, got ({lo}, {hi})")
+    return b[:, 0].copy(), b[:, 1].copy()
+
+
+def check_positive_int(value, name: str, minimum: int = 1, allow_none: bool = False) -> int | None:
+    """Return ``value`` as an int, raising ``ValueError`` if it is not an integer >= ``minimum``."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+class Evaluator:
+    """Counts evaluations, enforces the budget and remembers the best point ever evaluated."""
+
+    def __init__(self, fun: Fitness, dim: int, max_evals: int | None, vectorized: bool = True):
+        self.fun = fun
+        self.dim = dim
+        self.max_evals = max_evals
+        self.vectorized = vectorized
+        self.nfev = 0
+        self.best_x: np.ndarray | None = None
+        self.best_f = np.inf
+
+    @property
+    def remaining(self) -> int | float:
+        return np.inf if self.max_evals is None else self.max_evals - self.nfev
+
+    @property
+    def exhausted(self) -> bool:
+        return self.remaining <= 0
+
+    def __call__(self, P: np.ndarray) -> np.ndarray:
+        """Evaluate the rows of ``P`` that the budget allows (a prefix); return their fitness."""
+        P = np.atleast_2d(P)
+        k = int(min(P.shape[0], self.remaining))
+        if k <= 0:
+            return np.empty(0)
+        P = P[:k]
+        if self.vectorized:
+            f = np.asarray(self.fun(P), dtype=float).reshape(-1)
+        else:
+            f = np.array([float(self.fun(p)) for p in P])
+        if f.shape != (k,):
+            raise ValueError(f"fitness returned {f.size} values for {k} positions; a vectorised "
+                             "fitness must map an (m, d) array to m values")
+        f = np.where(np.isnan(f), np.inf, f)
+        self.nfev += k
+        i = int(np.argmin(f))
+        if f[i] < self.best_f or self.best_x is None:
+            self.best_f = float(f[i])
+            self.best_x = P[i].copy()
+        return f
