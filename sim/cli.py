@@ -95,6 +95,11 @@ def _list() -> None:
             print(f"  {name:<{width}}  {' '.join(str(desc).split())}")
 
 
+def format_error(exc: UserInputError) -> str:
+    """The one line printed for a user mistake."""
+    return f"{PROG}: error: {' '.join(str(exc).split())}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rlgsim`` console script; returns the exit code."""
     try:
@@ -118,8 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             _list()
         return 0
     except UserInputError as exc:
-        message = " ".join(str(exc).split())
-        print(f"{PROG}: error: {message}", file=sys.stderr)
+        print(format_error(exc), file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)

@@ -124,14 +124,18 @@ def locate(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
         raise UserInputError(f"{where}expected a {kind} name or a path to a .toml file, "
                              f"got {ref!r}")
     if looks_like_path(ref):
-        path = pathlib.Path(ref).expanduser()
-        if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
-            path = base_dir / path
-        if not path.exists():
-            where = f"{context}: " if context else ""
-            raise UserInputError(f"{where}{ref}: no such file")
+        where = f"{context}: " if context else ""
+        try:
+            path = pathlib.Path(ref).expanduser()
+            if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
+                path = base_dir / path
+            if not path.exists():
+                raise UserInputError(f"{where}{ref}: no such file")
+            folder = path.resolve().parent
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise UserInputError(f"{where}{ref!r}: not a usable path ({exc})") from None
         name = path.name[:-5] if path.name.endswith(".toml") else path.name
-        return name, path.resolve().parent, path
+        return name, folder, path
     if not _NAME_RE.match(ref):
         raise _unknown_name(kind, ref, context)
     entry = _package_dir(kind).joinpath(f"{ref}.toml")

@@ -21,7 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from sim import presets
-from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_quantity,
+from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list, get_quantity,
                         get_str, get_table, unit_keys)
 from sim.errors import UserInputError
 from sim.rng import generator
@@ -233,8 +233,9 @@ class _StandInChamber:
         check_known_keys(table, ("start_c", "segments"), ctx)
         start = get_float(table, "start_c", ctx, min=-100.0, max=200.0)
         t, y, pts = 0.0, start, [(0.0, start)]
-        for i, seg in enumerate(table.get("segments", [])):
+        for i, seg in enumerate(get_list(table, "segments", ctx, [])):
             sctx = ctx.child("segments").item(i)
+            seg = get_table({"s": seg}, "s", sctx) if not isinstance(seg, dict) else seg
             kind = get_str(seg, "type", sctx, choices=("hold", "ramp"))
             if kind == "hold":
                 check_known_keys(seg, ("type", *unit_keys("duration", TIME_UNITS)), sctx)

@@ -1,0 +1,181 @@
+"""Datasets: netCDF-4 layout readable by xarray/h5netcdf, units, chunk-size independence,
+atomic writes (a killed run leaves nothing at the output path), the format marker."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+
+from sim import dataset
+from sim.errors import UserInputError
+from sim.scenario import load_scenario, parse_scenario
+from sim.simulate import BLOCK_S, simulate
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+QUICKSTART = ROOT / "scenarios" / "quickstart.toml"
+
+
+def _quickstart_text(**top: str) -> str:
+    """The quickstart scenario with top-level keys replaced (values are TOML literals)."""
+    lines = QUICKSTART.read_text().splitlines()
+    out = []
+    for line in lines:
+        key = line.split("=", 1)[0].strip()
+        if key in top and not line.startswith((" ", "[")):
+            out.append(f"{key} = {top.pop(key)}")
+        else:
+            out.append(line)
+    head = [f"{k} = {v}" for k, v in top.items()]
+    return "\n".join(head + out) + "\n"
+
+
+@pytest.fixture(scope="module")
+def quick_file(tmp_path_factory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("ds") / "quick.h5"
+    simulate(load_scenario("quickstart"), out, progress=False)
+    return out
+
+
+def _groups(path: pathlib.Path) -> list[str]:
+    with h5py.File(path) as f:
+        return [k for k, v in f.items() if isinstance(v, h5py.Group)]
+
+
+def test_every_group_opens_with_xarray_h5netcdf(quick_file):
+    groups = _groups(quick_file)
+    assert {"thermal", "timeline"} <= set(groups)
+    for g in groups:
+        with xr.open_dataset(quick_file, engine="h5netcdf", group=g) as ds:
+            assert ds.sizes, g
+            for name, var in ds.variables.items():
+                assert "description" in var.attrs, (g, name)
+                if var.dtype.kind == "f":
+                    assert var.attrs.get("units"), (g, name)
+
+
+def test_thermal_group_contents(quick_file):
+    with xr.open_dataset(quick_file, engine="h5netcdf", group="thermal") as ds:
+        t = ds["time"].values
+        step = 1.0
+        np.testing.assert_array_equal(t, np.arange(1, len(t) + 1) * step)
+        assert ds["time"].attrs["units"] == "s"
+        assert ds["chamber_setpoint"].attrs["units"] == "degC"
+        assert set(np.unique(ds["power_on"].values)) <= {0, 1}
+        sp = ds["chamber_setpoint"].values
+        assert sp[0] == pytest.approx(20.0) and sp.max() == pytest.approx(40.0)
+        if "node_temperature" in ds:
+            assert ds["node_temperature"].dims == ("time", "node")
+            assert ds["node_temperature"].attrs["units"] == "degC"
+
+
+def test_root_attributes_embed_the_scenario(quick_file):
+    with dataset.open_dataset(quick_file) as f:
+        assert f.attrs["rlgsim_format"] == dataset.FORMAT
+        assert f.attrs["scenario_text"] == QUICKSTART.read_text()
+        assert int(f.attrs["seed"]) == 20260101
+        assert f.attrs["software_version"]
+
+
+def test_same_arrays_whatever_the_chunk_size(tmp_path):
+    # 2 h 3 min 20 s: not a whole number of blocks, so the last block is partial.
+    sc = parse_scenario(_quickstart_text(duration_h="2.0555555555555554"),
+                        str(QUICKSTART), default_name="q")
+    assert sc.duration_s % BLOCK_S != 0
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    simulate(sc, a, chunk_s=BLOCK_S, progress=False)            # one block per write
+    simulate(sc, b, chunk_s=5 * 3600.0, progress=False)         # everything in one write
+    with h5py.File(a) as fa, h5py.File(b) as fb:
+        names: list[str] = []
+        fa.visit(names.append)
+        other: list[str] = []
+        fb.visit(other.append)
+        assert names == other
+        for n in names:
+            if isinstance(fa[n], h5py.Dataset):
+                assert fa[n].dtype == fb[n].dtype
+                np.testing.assert_array_equal(fa[n][()], fb[n][()], err_msg=n)
+        assert dict(fa.attrs) == dict(fb.attrs)
+
+
+def test_writer_streams_and_renames_only_on_success(tmp_path):
+    out = tmp_path / "w.h5"
+    with dataset.DatasetWriter(out, {"seed": 1}) as w:
+        g = w.group("g", "test group")
+        g.coordinate("time", growing=True, units="s", description="t")
+        g.coordinate("chan", ["a", "b"], description="channel")
+        g.variable("x", ("time", "chan"), units="m", description="x")
+        for k in range(3):
+            assert not out.exists()
+            g.append("time", {"time": np.arange(k * 5, k * 5 + 5, dtype=float),
+                              "x": np.full((5, 2), k, dtype=float)})
+        with pytest.raises(ValueError, match="missing"):
+            g.append("time", {"time": np.zeros(1)})
+    with xr.open_dataset(out, engine="h5netcdf", group="g") as ds:
+        assert ds["x"].shape == (15, 2)
+        assert list(ds["chan"].values) == ["a", "b"]
+        assert ds["x"].attrs["units"] == "m"
+    assert list(tmp_path.iterdir()) == [out]
+
+    bad = tmp_path / "bad.h5"
+    with pytest.raises(RuntimeError):
+        with dataset.DatasetWriter(bad, {}) as w:
+            w.group("g", "x")
+            raise RuntimeError("boom")
+    assert not bad.exists()
+    assert list(tmp_path.iterdir()) == [out]
+
+
+def test_reader_rejects_other_files(tmp_path):
+    plain = tmp_path / "plain.h5"
+    with h5py.File(plain, "w") as f:
+        f["x"] = np.arange(3)
+    text = tmp_path / "notes.txt"
+    text.write_text("hello")
+    for p in (plain, text):
+        with pytest.raises(UserInputError, match="not an rlgsim dataset"):
+            dataset.open_dataset(p)
+    with pytest.raises(UserInputError, match="no such file"):
+        dataset.open_dataset(tmp_path / "missing.h5")
+
+
+def test_unwritable_output_is_a_user_error(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for target in (afile / "out.h5", tmp_path / "nodir" / "out.h5", tmp_path):
+        with pytest.raises(UserInputError, match="output"):
+            dataset.check_writable(target)
+
+
+def test_killed_run_leaves_no_file_at_the_output_path(tmp_path):
+    scenario = tmp_path / "long.toml"
+    scenario.write_text(_quickstart_text(duration_h="5000.0").replace(
+        "[acquisition]", "[acquisition]\nchunk_s = 600"))
+    out = tmp_path / "long.h5"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-m", "sim.cli", "run", str(scenario), "-o",
+                             str(out), "--quiet"], env=env, cwd=tmp_path,
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    try:
+        while time.monotonic() < deadline:        # wait until the temporary file is growing
+            tmp = list(tmp_path.glob("long.h5.tmp-*"))
+            if tmp and tmp[0].stat().st_size > 200_000:
+                break
+            assert proc.poll() is None, proc.stderr.read().decode()
+            time.sleep(0.02)
+        else:
+            pytest.fail("the run never started writing")
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    assert not out.exists()
