@@ -12,7 +12,8 @@ import numpy as np
 def check_min_samples(n_samples: int, needed: int, what: str) -> None:
     """Raise ``ValueError`` if there are fewer than ``needed`` samples for ``what``."""
     if n_samples < needed:
-        raise ValueError(f"{what} needs at least {needed} samples, got {n_samples}")
+        noun = "sample" if n_samples == 1 else "samples"
+        raise ValueError(f"{what} needs at least {needed} samples, got {n_samples} {noun}")
 
 
 def check_folds(n_samples: int, n_folds: int) -> None:
