@@ -113,13 +113,21 @@ class MotionBlock:
         return body_to_enu(self.outer_deg, self.inner_deg)
 
 
+#: Values assumed when a static segment omits a field (e.g. a bare {"kind": "static"} mount).
+_STATIC_DEFAULTS = {"axis": None, "rate_deg_s": 0.0, "outer_deg": 0.0, "inner_deg": 0.0}
+
+
 def _field(seg: Any, name: str) -> Any:
     attrs = getattr(seg, "attrs", None)
     if isinstance(attrs, Mapping) and name in attrs:
         return attrs[name]
-    if isinstance(seg, Mapping):
+    if isinstance(seg, Mapping) and name in seg:
         return seg[name]
-    return getattr(seg, name)
+    if hasattr(seg, name):
+        return getattr(seg, name)
+    if name in _STATIC_DEFAULTS and _field(seg, "kind") == "static":
+        return _STATIC_DEFAULTS[name]
+    raise ValueError(f"turntable segment {seg!r} has no {name!r}")
 
 
 class Motion:
@@ -130,6 +138,7 @@ class Motion:
     ``attrs`` mapping; segments whose ``track`` is not "turntable" are skipped, so the whole
     timeline may be passed). They must be contiguous, and each must start at the angles where the
     previous one ended. After the last segment the table is held static at its final angles.
+    A static segment may omit ``axis``, ``rate_deg_s`` and the angles (then 0°, 0°).
     """
 
     def __init__(self, segments: Iterable[Any], site: Site | None = None) -> None:

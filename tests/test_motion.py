@@ -294,7 +294,8 @@ def test_motion_rejects_inconsistent_segments():
     with pytest.raises(ValueError, match="starts at outer"):
         Motion([TurntableSegment(0, 10, "turntable", "a", good),
                 TurntableSegment(10, 20, "turntable", "b", {**good, "outer_deg": 90.0})], SITE)
-    mo = Motion([TurntableSegment(0, 10, "turntable", "a", good),
+    mo = Motion([TurntableSegment(0, 10, "turntable", "a", {"kind": "static"}),
                  TurntableSegment(0, 10, "chamber", "x", {})], SITE)   # other tracks skipped
+    np.testing.assert_allclose(mo.increments(0.0, 2, 100.0).dv_m_per_s[:, 2], SITE.gravity / 100)
     with pytest.raises(ValueError, match="sample grid"):
         mo.increments(0.005, 3, 100.0)
