@@ -197,7 +197,8 @@ class ForwardOLS:
             ones = np.ones(n)
             dger(-1.0, ones, mean_cols, a=self._W, overwrite_a=1)
             self._r -= d.mean()
-            self._eligible &= self._current_energy()[:q] > self.tol * self._energy0[:q]
+        self._energy = self._current_energy()
+        self._eligible &= self._energy[:q] > self.tol * self._energy0[:q]
         self.target_energy = float(self._r @ self._r)
 
     # -- state -----------------------------------------------------------------------------
@@ -234,7 +235,7 @@ class ForwardOLS:
         if not np.any(self._eligible):
             return None
         cand = self._W[:, :q]
-        energy = self._current_energy()[:q]
+        energy = self._energy[:q]
         num = (self._r @ cand) ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(self._eligible, num / np.where(self._eligible, energy, 1.0), -np.inf)
@@ -252,8 +253,8 @@ class ForwardOLS:
         self.selected.append(i)
         self.err_ratios.append(err)
         self._eligible[i] = False
-        energy = self._current_energy()[:q]
-        self._eligible &= energy > self.tol * self._energy0[:q]
+        self._energy = self._current_energy()
+        self._eligible &= self._energy[:q] > self.tol * self._energy0[:q]
         return i
 
     # -- weights ---------------------------------------------------------------------------
