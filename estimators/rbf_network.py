@@ -20,8 +20,9 @@ candidate column ``w`` made orthogonal to the columns already chosen, against th
 output layer (weights and bias) is the least-squares fit (what ``newrb``'s ``solvelin2``
 computes; here by back substitution in the OLS triangular system), and growing stops once its
 training mean squared error is at most ``goal`` or ``max_centers`` neurons are in place. (Unlike
-``newrb``, no neuron is added when the bias alone already meets ``goal``.) Memory and time grow as n² (the n x n candidate matrix), as in ``newrb``;
-a few thousand samples (paper 002's data: hours at one 100 s average each) are fine.
+``newrb``, no neuron is added when the bias alone already meets ``goal``.) Memory and time grow
+as n² (the n x n candidate matrix), as in ``newrb``; a few thousand samples (paper 002's data:
+hours at one 100 s average each) are fine.
 """
 
 from __future__ import annotations
