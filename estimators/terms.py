@@ -51,16 +51,18 @@ def term_label(powers: Powers, names: Sequence[str]) -> str:
 
 
 def term_pretty(powers: Powers, names: Sequence[str]) -> str:
-    """Display label as in the papers: ``"T²"``, ``"(dT/dt)²"``, ``"T·dT/dt"``."""
+    """Display label as in the papers: ``"T²"``, ``"(dT/dt)²"``, ``"T·dT/dt"``.
+
+    A name that would read as arithmetic (``"A-B"``, a probe-pair gradient) is parenthesised:
+    ``"(A-B)"``; any other non-word name only when raised to a power.
+    """
     parts = []
     for n, e in zip(names, powers):
         if not e:
             continue
-        if e == 1:
-            parts.append(n)
-        else:
-            base = f"({n})" if re.search(r"[^\w.]", n) else n
-            parts.append(base + str(e).translate(_SUPERSCRIPT))
+        if re.search(r"[-+*·\s]", n) or (e > 1 and re.search(r"[^\w.]", n)):
+            n = f"({n})"
+        parts.append(n if e == 1 else n + str(e).translate(_SUPERSCRIPT))
     return "·".join(parts) if parts else "1"
 
 
@@ -81,7 +83,10 @@ def parse_term(term: str | Sequence[int], names: Sequence[str]) -> Powers:
     factors = [term] if term in index else re.split(r"\s*[*·]\s*", term.strip())
     for factor in factors:
         base, exp = factor, 1
-        if factor not in index:
+        if factor not in index and factor.startswith("(") and factor.endswith(")") \
+                and factor[1:-1] in index:
+            base = factor[1:-1]
+        elif factor not in index:
             m = re.fullmatch(r"(.+?)\^(\d+)", factor) or re.fullmatch(r"(.+?)([⁰¹²³⁴⁵⁶⁷⁸⁹]+)",
                                                                       factor)
             if m:

@@ -26,6 +26,12 @@ def test_pretty_labels_follow_the_paper():
     assert term_pretty((0, 2, 0), NAMES) == "(dT/dt)²"
     assert term_pretty((1, 1, 0), NAMES) == "T·dT/dt"
     assert term_pretty((0, 1, 1), NAMES) == "dT/dt·U"
+    grads = ("A-B", "A-C")
+    assert term_pretty((1, 1), grads) == "(A-B)·(A-C)"
+    assert term_pretty((2, 0), grads) == "(A-B)²"
+    for p in polynomial_powers(2, 2):
+        assert parse_term(term_pretty(p, grads), grads) == p
+        assert parse_term(term_label(p, grads), grads) == p
 
 
 @pytest.mark.parametrize("text, powers", [
