@@ -71,7 +71,7 @@ def bias_stability(x: ArrayLike, rate_hz: float, cluster_s: float = 100.0,
 
     Returns
     -------
-    Bias stability in the unit of ``x``.  Needs at least ``ddof + 1`` full clusters (and 2).
+    Bias stability in the unit of ``x``.  Needs at least 2 full clusters.
     """
     if ddof not in (0, 1):
         raise ValueError(f"ddof must be 0 or 1, got {ddof}")

@@ -174,12 +174,6 @@ class MLRBICRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
         res = ols(y, D[:, cols])
         self.search_used_ = "exhaustive" if exhaustive else "greedy"
         self.search_path_ = path
-        self.candidates_ = tuple(term_label(p, names) for p in cands)
         self.bic_ = float(res.bic)
-        self.pvalues_ = np.asarray(res.pvalues[1:])
-        powers = [cands[j] for j in cols]
-        factors = np.array([np.prod(scale ** np.array(p)) for p in powers])
-        self.bse_ = np.asarray(res.bse[1:]) / factors if cols else np.empty(0)
-        self._set_terms(names, powers, np.asarray(res.params[1:]), float(res.params[0]),
-                        np.zeros(X.shape[1]), scale)
+        self._set_ols_terms(names, cands, cols, res, scale)
         return self

@@ -26,7 +26,6 @@ import warnings
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
-import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 
@@ -148,13 +147,7 @@ class StepwiseRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
             warnings.warn(f"stepwise regression did not settle within max_steps="
                           f"{self.max_steps} moves", ConvergenceWarning, stacklevel=2)
         res = ols(y, D[:, model])
-        powers = [cands[j] for j in model]
-        factors = np.array([np.prod(scale ** np.array(p)) for p in powers])
         self.history_ = history
-        self.candidates_ = tuple(term_label(p, names) for p in cands)
-        self.pvalues_ = np.asarray(res.pvalues[1:])
-        self.bse_ = np.asarray(res.bse[1:]) / factors if model else np.empty(0)
         self.rsquared_ = float(res.rsquared)
-        self._set_terms(names, powers, np.asarray(res.params[1:]), float(res.params[0]),
-                        np.zeros(X.shape[1]), scale)
+        self._set_ols_terms(names, cands, model, res, scale)
         return self

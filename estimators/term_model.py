@@ -99,6 +99,19 @@ class TermRegressorMixin:
         self.intercept_ = raw[zero]
         self.coef_ = np.array([raw.get(p, 0.0) for p in self.powers_])
 
+    def _set_ols_terms(self, names: tuple[str, ...], candidates: Sequence[Powers],
+                       cols: Sequence[int], res: Any, scale: np.ndarray) -> None:
+        """Store an :func:`ols` fit on the columns ``cols`` of the candidate terms evaluated on
+        ``x / scale`` (:func:`scaled_terms`): ``candidates_``, raw-unit ``bse_``, ``pvalues_``
+        and the terms/coefficients of :meth:`_set_terms`."""
+        powers = [candidates[j] for j in cols]
+        factors = np.array([np.prod(scale ** np.array(p)) for p in powers])
+        self.candidates_ = tuple(term_label(p, names) for p in candidates)
+        self.pvalues_ = np.asarray(res.pvalues[1:])
+        self.bse_ = np.asarray(res.bse[1:]) / factors
+        self._set_terms(names, powers, np.asarray(res.params[1:]), float(res.params[0]),
+                        np.zeros(len(names)), scale)
+
     def predict(self, X: Any) -> np.ndarray:
         """Model output for inputs ``X`` (array or :class:`~estimators.columns.Columns`
         holding the fitted inputs by name); units of the training target."""

@@ -13,6 +13,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 from estimators.columns import Columns
 from estimators.stepwise import StepwiseRegressor
 from estimators.terms import design_matrix, parse_term
+from selection_bad_inputs import BAD_INPUTS
 
 MODEL1_START = ("T", "T^2", "dT/dt")                          # paper 001 Model 1 initial terms
 
@@ -122,13 +123,7 @@ def test_max_steps_warns():
         StepwiseRegressor(max_steps=1).fit(X, y)
 
 
-@pytest.mark.parametrize("X, y, message", [
-    (np.array([[1.0, 2.0], [np.nan, 1.0], [3.0, 4.0], [5.0, 1.0]]), np.arange(4.0), "NaN"),
-    (np.array([[1.0, 2.0], [np.inf, 1.0], [3.0, 4.0], [5.0, 1.0]]), np.arange(4.0), "infinity"),
-    (np.arange(8.0).reshape(4, 2), np.arange(3.0), "inconsistent numbers of samples"),
-    (np.arange(2.0)[:, None], np.arange(2.0), "needs at least 3 samples, got 2"),
-    (np.column_stack([np.arange(9.0), np.full(9, 2.0)]), np.arange(9.0), r"constant input \(x1\)"),
-])
+@pytest.mark.parametrize("X, y, message", BAD_INPUTS)
 def test_bad_input_is_a_clear_value_error(X, y, message):
     with pytest.raises(ValueError, match=message):
         StepwiseRegressor().fit(X, y)
