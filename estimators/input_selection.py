@@ -106,6 +106,15 @@ class CorrelationSelector(SelectorMixin, BaseEstimator):
         self.selected_names_ = tuple(self.input_names_[i] for i in kept)
         return self
 
+    def transform(self, X: Any) -> Any:
+        """The kept inputs (in their original order); a :class:`Columns` stays a
+        :class:`Columns` so the next estimator in a pipeline still knows their names."""
+        out = super().transform(X)
+        if isinstance(X, Columns) and isinstance(out, np.ndarray):
+            return Columns.from_array(out, [n for n, keep in zip(self.input_names_,
+                                                                 self.support_) if keep])
+        return out
+
     def _get_support_mask(self) -> np.ndarray:
         check_is_fitted(self, "support_")
         return self.support_

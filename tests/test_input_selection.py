@@ -76,6 +76,10 @@ def test_selector_names_and_pipeline():
     pipe = make_pipeline(CorrelationSelector(threshold=0.4), PolynomialRegressor(degree=1))
     pipe.fit(X, y)
     assert pipe.score(X, y) > 0.8
+    # names survive the selector, so the model reports the inputs it used (original order)
+    assert pipe[-1].input_names_ == ("T", "U")
+    assert isinstance(pipe[0].transform(X), Columns)
+    np.testing.assert_array_equal(pipe[0].transform(X.values), X.select(["T", "U"]).values)
 
 
 @parametrize_with_checks([CorrelationSelector()])
