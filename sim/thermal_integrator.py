@@ -1,0 +1,229 @@
+"""Exact discrete-time propagation of the thermal network and the chamber air.
+
+State ``x = [T_air, T_1 … T_n]`` (column 0 the chamber air, docs/architecture.md). Continuous
+model (docs/thermal.md, eqs. (1)–(2))::
+
+    τ_air dT_air/dt = s(t) − T_air                      (first-order air lag, τ_air ≥ 0)
+    C dT/dt = −K T + g T_air + u(t) P                   (the network, sim.thermal)
+
+with the rate-limited chamber setpoint ``s(t)`` linear between grid points (first-order hold,
+FOH) and the power state ``u(t)`` constant over each step (zero-order hold, ZOH). Between grid
+points this is a linear time-invariant system with polynomial input, so its discrete form is
+exact (no Euler, no step-size error):
+
+* Modal decomposition: ``C⁻¹K`` is similar to the symmetric ``S = C^-½ K C^-½ = V Λ Vᵀ``
+  (C diagonal, K symmetric positive definite), so the node part splits into ``n`` independent
+  real modes ``w = Vᵀ C^½ T`` with ``dw_i/dt = −λ_i w_i + β_i T_air + π_i u``
+  (``β = Vᵀ C^-½ g``, ``π = Vᵀ C^-½ P``). The air is one more first-order mode that drives them
+  (the coupling is one-way).
+* Exact discretisation: for each mode the 5×5 augmented system ``[w, T_air, s, ṡ, u]`` is
+  integrated over one step with ``scipy.linalg.expm`` (Van Loan's construction for the FOH
+  ramp); this gives per-mode coefficients
+  ``w[k+1] = μ w[k] + a_T T_air[k] + a_s s[k] + a_Δ (s[k+1] − s[k]) + a_u u[k]``
+  with ``μ = e^{−λh}``, and the same for the air. Computing them with ``expm`` (instead of the
+  closed forms, which contain ``(e^{−λh} − e^{−h/τ})/(1/τ − λ)``) stays accurate when a mode's
+  rate coincides with the air's.
+* Vectorised: each mode is a first-order recurrence, run over the whole block at once by
+  :func:`scipy.signal.lfilter` with its internal state ``zi`` carried between calls; node
+  temperatures are ``T = C^-½ V w`` (one matrix product per block of rows).
+
+Splitting one call into several (carrying the returned state) gives bit-identical results: the
+returned state is a :class:`ThermalState` — an ordinary ``(1 + n,)`` array ``[T_air, T_nodes]``
+that also carries the modal coordinates, so nothing is lost in a physical ↔ modal round trip
+(a plain array works as well; it is then converted to modal coordinates, exact to rounding).
+The product with ``C^-½ V`` is done on fixed-shape row blocks so BLAS takes the same path for
+every row whatever the call length.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+import scipy.signal
+
+from sim.thermal import ThermalNetwork
+
+#: Rows per matrix product when mapping modal to node temperatures (fixed, see module doc).
+_ROW_BLOCK = 1024
+
+
+class ThermalState(np.ndarray):
+    """``[T_air, T_1 … T_n]`` [°C] that remembers the integrator's modal coordinates.
+
+    Behaves as a plain float array (slicing, arithmetic and ``np.asarray`` give ordinary
+    arrays). :meth:`ThermalIntegrator.propagate` uses ``modal`` when it is present and still
+    consistent with the temperatures, which makes split propagation bit-identical.
+    """
+
+    modal: np.ndarray | None
+    _check: bytes | None
+
+    def __new__(cls, temperatures: np.ndarray, modal: np.ndarray | None = None):
+        obj = np.array(temperatures, dtype=float).view(cls)
+        obj.modal = None if modal is None else np.array(modal, dtype=float)
+        obj._check = obj.view(np.ndarray).tobytes() if modal is not None else None
+        return obj
+
+    def __array_finalize__(self, obj: Any) -> None:
+        # views, copies and results of arithmetic do not inherit the modal coordinates
+        self.modal = None
+        self._check = None
+
+    def __reduce__(self):
+        return (ThermalState, (np.asarray(self), self.modal))
+
+    def modal_if_valid(self) -> np.ndarray | None:
+        if self.modal is None or self._check != self.view(np.ndarray).tobytes():
+            return None
+        return self.modal
+
+
+class ThermalIntegrator:
+    """Exact propagation of ``network`` plus chamber air on a grid of ``step_s`` [s].
+
+    ``air_tau_s`` [s] is the chamber-air time constant (0: the air is the setpoint).
+    """
+
+    def __init__(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
+        if not (np.isfinite(step_s) and step_s > 0):
+            raise ValueError("step_s must be > 0")
+        if not (np.isfinite(air_tau_s) and air_tau_s >= 0):
+            raise ValueError("air_tau_s must be >= 0")
+        self.network = network
+        self.step_s = float(step_s)
+        self.air_tau_s = float(air_tau_s)
+        n = network.n_nodes
+        self.n_nodes = n
+        C = network.capacitance_j_per_k
+        d = 1.0 / np.sqrt(C)
+        S = d[:, None] * network.stiffness_w_per_k() * d[None, :]
+        S = 0.5 * (S + S.T)
+        lam, V = np.linalg.eigh(S)
+        if np.any(lam <= 0):
+            raise ValueError("the network's stiffness is not positive definite")
+        self.rates_per_s = lam                                   # λ_i [1/s]
+        self._to_modal = V.T * np.sqrt(C)[None, :]               # w = Vᵀ C^½ T
+        self._to_nodes_T = np.ascontiguousarray((d[:, None] * V).T)   # T = w @ (C^-½ V)ᵀ
+        beta = V.T @ (d * network.ambient_conductance_w_per_k)   # Vᵀ C^-½ g
+        pi = V.T @ (d * network.power_w)                         # Vᵀ C^-½ P
+        h = self.step_s
+        tau = self.air_tau_s
+        # one augmented system per mode: state [w, T_air, s, r, u], r = ds/dt
+        M = np.zeros((n, 5, 5))
+        M[:, 0, 0] = -lam
+        M[:, 0, 4] = 1.0                                         # u enters w with π (=1 here)
+        if tau > 0:
+            M[:, 0, 1] = 1.0                                     # T_air enters w with β (=1)
+            M[:, 1, 1] = -1.0 / tau
+            M[:, 1, 2] = 1.0 / tau
+        else:
+            M[:, 0, 2] = 1.0                                     # T_air ≡ s
+        M[:, 2, 3] = 1.0
+        E = scipy.linalg.expm(M * h)
+        self._mu = E[:, 0, 0].copy()
+        if tau > 0:
+            self._c_air = beta * E[:, 0, 1]                      # × T_air[k]
+        else:
+            self._c_air = np.zeros(n)
+        self._c_s = beta * E[:, 0, 2]                            # × s[k]
+        self._c_ds = beta * E[:, 0, 3] / h                       # × (s[k+1] − s[k])
+        self._c_u = pi * E[:, 0, 4]                              # × u[k]
+        if tau > 0:
+            self._air_mu = float(E[0, 1, 1])
+            self._air_s = float(E[0, 1, 2])
+            self._air_ds = float(E[0, 1, 3] / h)
+        else:
+            self._air_mu = self._air_s = self._air_ds = 0.0
+
+    # ----------------------------------------------------------------- states
+
+    @property
+    def node_names(self) -> tuple[str, ...]:
+        return self.network.node_names
+
+    def time_constants_s(self) -> np.ndarray:
+        """Node-mode time constants ``1/λ`` [s], longest first."""
+        return np.sort(1.0 / self.rates_per_s)[::-1]
+
+    def state(self, air_c: float, node_temps_c: Any) -> ThermalState:
+        """A state from chamber-air and node temperatures [°C]."""
+        T = np.asarray(node_temps_c, dtype=float).reshape(-1)
+        if T.shape != (self.n_nodes,):
+            raise ValueError(f"expected {self.n_nodes} node temperatures, got {T.shape}")
+        w = self._to_modal @ T
+        return ThermalState(np.concatenate(([float(air_c)], self._nodes(w[None, :])[0])), w)
+
+    def initial_state(self, ambient_c: float, powered: bool) -> ThermalState:
+        """Equilibrium at constant chamber air ``ambient_c`` [°C] with the power on/off:
+        ``[T_air, T_nodes]`` (a :class:`ThermalState`)."""
+        return self.state(ambient_c, self.network.steady_state(ambient_c, powered))
+
+    def _nodes(self, W: np.ndarray) -> np.ndarray:
+        """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks."""
+        m, n = W.shape
+        out = np.empty((m, n))
+        buf = np.zeros((_ROW_BLOCK, n))
+        for r0 in range(0, m, _ROW_BLOCK):
+            r1 = min(m, r0 + _ROW_BLOCK)
+            buf[: r1 - r0] = W[r0:r1]
+            if r1 - r0 < _ROW_BLOCK:
+                buf[r1 - r0:] = 0.0
+            out[r0:r1] = (buf @ self._to_nodes_T)[: r1 - r0]
+        return out
+
+    # ----------------------------------------------------------------- propagation
+
+    def propagate(self, state: Any, setpoint_c: Any, power_on: Any
+                  ) -> tuple[np.ndarray, ThermalState]:
+        """Advance ``m`` steps exactly.
+
+        ``state``: ``[T_air, T_nodes]`` at ``t0`` (from :meth:`initial_state` or a previous
+        call); ``setpoint_c`` (m+1,): rate-limited setpoint at ``t0 … t0 + m·h`` [°C], linear in
+        between (FOH); ``power_on`` (m,): power state held over each step (ZOH; 0/1 or a
+        fraction). Returns ``states`` (m, 1+n) at ``t0 + h … t0 + m·h`` (column 0 chamber air)
+        and the last state (a :class:`ThermalState`).
+        """
+        s = np.asarray(setpoint_c, dtype=float).reshape(-1)
+        u = np.asarray(power_on, dtype=float).reshape(-1)
+        m = s.size - 1
+        if m < 0 or u.size != m:
+            raise ValueError(f"setpoint_c needs m+1 values and power_on m values, got "
+                             f"{s.size} and {u.size}")
+        x0 = np.asarray(state, dtype=float).reshape(-1)
+        n = self.n_nodes
+        if x0.shape != (1 + n,):
+            raise ValueError(f"state must have {1 + n} entries, got {x0.shape}")
+        w0 = state.modal_if_valid() if isinstance(state, ThermalState) else None
+        if w0 is None:
+            w0 = self._to_modal @ x0[1:]
+        if m == 0:
+            return np.empty((0, 1 + n)), ThermalState(x0, w0)
+        if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
+            raise ValueError("setpoint and power must be finite")
+        sk, ds = s[:-1], np.diff(s)
+        # chamber air: air[k+1] = μa air[k] + ca s[k] + cd Δs[k]
+        air0 = float(x0[0])
+        if self.air_tau_s > 0:
+            forcing = self._air_s * sk + self._air_ds * ds
+            air_next, _ = scipy.signal.lfilter([1.0], [1.0, -self._air_mu], forcing,
+                                               zi=[self._air_mu * air0])
+            air_k = np.concatenate(([air0], air_next[:-1]))      # air at t_k, k = 0..m-1
+        else:
+            air_next = s[1:].copy()
+            air_k = sk
+        W = np.empty((n, m))
+        for i in range(n):
+            g = self._c_s[i] * sk
+            g += self._c_ds[i] * ds
+            g += self._c_u[i] * u
+            if self.air_tau_s > 0:
+                g += self._c_air[i] * air_k
+            W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g,
+                                           zi=[self._mu[i] * w0[i]])
+        states = np.empty((m, 1 + n))
+        states[:, 0] = air_next
+        states[:, 1:] = self._nodes(W.T)
+        last = ThermalState(states[-1], W[:, -1])
+        return states, last
