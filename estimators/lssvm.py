@@ -64,6 +64,7 @@ truncating to the numerical rank: with thousands of samples per landmark the res
 
 from __future__ import annotations
 
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -75,6 +76,7 @@ from sklearn.metrics.pairwise import rbf_kernel
 from sklearn.model_selection import KFold
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
+from threadpoolctl import threadpool_limits  # a scikit-learn dependency
 
 from estimators._validation import check_folds, check_not_constant
 
@@ -84,6 +86,17 @@ MAX_DENSE_SAMPLES = 10_000
 #: Rows per chunk when kernel blocks against the training set or the landmarks are formed.
 CHUNK_ROWS = 4096
 SOLVERS = ("auto", "dense", "nystroem")
+#: Below this many samples the many small factorisations of CV and re-weighting loops run on one
+#: BLAS thread: thread start-up and hand-over cost more than they save for such matrices, and
+#: far more on a machine whose cores are busy with other work.
+SMALL_PROBLEM = 600
+
+
+def blas_threads_for(n_samples: int) -> AbstractContextManager:
+    """Context limiting BLAS to one thread for problems of fewer than ``SMALL_PROBLEM`` samples."""
+    if n_samples < SMALL_PROBLEM:
+        return threadpool_limits(limits=1, user_api="blas")
+    return nullcontext()
 
 
 # --------------------------------------------------------------------------------------------
@@ -272,6 +285,7 @@ def validate_fit_input(estimator: BaseEstimator, X, y) -> tuple[np.ndarray, np.n
     ``estimators._validation.check_not_constant``; sets ``n_features_in_``.
     """
     X, y = validate_data(estimator, X, y, dtype=np.float64, y_numeric=True, ensure_min_samples=2)
+    y = np.asarray(y, dtype=np.float64)  # integer targets: residuals must not be truncated
     check_not_constant(X, list(map(str, getattr(estimator, "feature_names_in_", []))) or None)
     return X, y
 
@@ -360,10 +374,11 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         if solver == "auto":
             solver = "dense" if n <= MAX_DENSE_SAMPLES else "nystroem"
         self.solver_ = solver
-        if solver == "dense":
-            self._fit_dense(Xs, y, gamma, sigma2)
-        else:
-            self._fit_nystroem(Xs, y, gamma, sigma2)
+        with blas_threads_for(n):
+            if solver == "dense":
+                self._fit_dense(Xs, y, gamma, sigma2)
+            else:
+                self._fit_nystroem(Xs, y, gamma, sigma2)
         return self
 
     def _fit_dense(self, Xs: np.ndarray, y: np.ndarray, gamma: float, sigma2: float) -> None:

@@ -27,8 +27,8 @@ from scipy import linalg
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from estimators.lssvm import (LSSVMRegressor, check_positive_grid, cv_residuals, make_folds, rbf,
-                              standardisation, validate_fit_input)
+from estimators.lssvm import (LSSVMRegressor, blas_threads_for, check_positive_grid,
+                              cv_residuals, make_folds, rbf, standardisation, validate_fit_input)
 
 SCORES = {
     "mse": lambda r: float(np.mean(r**2)),
@@ -125,9 +125,11 @@ class LSSVMRegressorCV(RegressorMixin, BaseEstimator):
         score = SCORES[self.scoring]
         scores = np.full((sigma2s.size, gammas.size), np.nan)
         residuals = {}
-        for i, j, r in lssvm_grid_cv_residuals(Xs, y, gammas, sigma2s, folds, self.fit_intercept):
-            scores[i, j] = score(r)
-            residuals[i, j] = r
+        with blas_threads_for(X.shape[0]):
+            for i, j, r in lssvm_grid_cv_residuals(Xs, y, gammas, sigma2s, folds,
+                                                   self.fit_intercept):
+                scores[i, j] = score(r)
+                residuals[i, j] = r
         if not np.isfinite(scores).any():
             raise ValueError("cross-validation failed at every (gamma, sigma2) grid point")
         i, j = np.unravel_index(np.nanargmin(scores), scores.shape)
