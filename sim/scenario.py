@@ -13,7 +13,6 @@ one-line :class:`~sim.errors.UserInputError` naming file, key, value and what is
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import pathlib
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -21,10 +20,14 @@ from typing import Any, Callable
 import numpy as np
 
 from sim import presets
-from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list, get_quantity,
+from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_quantity,
                         get_str, get_table, unit_keys)
-from sim.errors import UserInputError
+from sim.chamber import ChamberProgram
+from sim.earth import Site
 from sim.rng import generator
+from sim.thermal import ThermalNetwork
+from sim.thermometers import ProbeSet
+from sim.turntable import TurntableProgram
 
 #: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
 #: loader can check that steps and samples tile a block without importing the simulator).
@@ -54,10 +57,6 @@ def _resolve(spec: str) -> Callable:
     return obj
 
 
-def _have(module: str) -> bool:
-    return importlib.util.find_spec(module) is not None
-
-
 # --------------------------------------------------------------------------- device presets
 
 
@@ -68,8 +67,8 @@ class ThermalPreset:
     name: str
     source: str
     text: str
-    network: Any            # sim.thermal.ThermalNetwork (None until thermal.py exists)
-    probes: Any             # sim.thermometers.ProbeSet (None until thermometers.py exists)
+    network: ThermalNetwork
+    probes: ProbeSet
 
 
 @dataclass(frozen=True)
@@ -88,19 +87,13 @@ class Device:
 
 def load_thermal_preset(ref: str, *, base_dir: pathlib.Path | None = None,
                         context: str | None = None) -> ThermalPreset:
-    """Load a thermal preset (``scenarios/thermal/<name>.toml`` or a path)."""
-    if not _have("sim.thermal"):          # stand-in until sim/thermal.py lands
-        return ThermalPreset(name=ref, source="", text="", network=None, probes=None)
+    """Load a thermal preset (``scenarios/thermal/<name>.toml`` or a path): its ``[thermal]``
+    network and its ``[probes]``."""
     f = presets.load_thermal_file(ref, base_dir=base_dir, context=context)
     ctx = Ctx(f.source)
-    network = probes = None
-    if True:
-        from sim.thermal import ThermalNetwork
-        network = ThermalNetwork.from_config(get_table(f.data, "thermal", ctx), ctx.child("thermal"))
-        if _have("sim.thermometers"):
-            from sim.thermometers import ProbeSet
-            probes = ProbeSet.from_config(get_table(f.data, "probes", ctx), network,
-                                          ctx.child("probes"))
+    check_known_keys(f.data, ("thermal", "probes"), ctx)
+    network = ThermalNetwork.from_config(get_table(f.data, "thermal", ctx), ctx.child("thermal"))
+    probes = ProbeSet.from_config(get_table(f.data, "probes", ctx), network, ctx.child("probes"))
     return ThermalPreset(name=f.name, source=f.source, text=f.text, network=network, probes=probes)
 
 
@@ -133,12 +126,6 @@ def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
 
 
 @dataclass(frozen=True)
-class Site:
-    latitude_deg: float = 34.0      # geodetic latitude [deg]
-    height_m: float = 0.0           # height above the ellipsoid [m]
-
-
-@dataclass(frozen=True)
 class Acquisition:
     sample_rate_hz: float = 100.0   # IMU output rate [Hz]
     thermal_step_s: float = 1.0     # thermal grid step [s]
@@ -156,13 +143,8 @@ def _divides_block(value: float, per: str) -> bool:
     return abs(n - round(n)) < 1e-6 * max(1.0, n) and round(n) >= 1
 
 
-def _parse_site(table: dict, ctx: Ctx):
-    if _have("sim.earth"):
-        from sim.earth import Site as EarthSite
-        return EarthSite.from_config(table, ctx)
-    check_known_keys(table, ("latitude_deg", "height_m"), ctx)
-    return Site(latitude_deg=get_float(table, "latitude_deg", ctx, 34.0, min=-90.0, max=90.0),
-                height_m=get_float(table, "height_m", ctx, 0.0, min=-1000.0, max=20000.0))
+def _parse_site(table: dict, ctx: Ctx) -> Site:
+    return Site.from_config(table, ctx)
 
 
 def _parse_acquisition(table: dict, ctx: Ctx) -> Acquisition:
@@ -193,71 +175,6 @@ def _parse_power(table: dict, ctx: Ctx) -> PowerSchedule:
     return PowerSchedule(on_at_s=on, off_at_s=off)
 
 
-# --------------------------------------------------------------------------- chamber stand-in
-
-
-def _chamber_class():
-    """sim.chamber.ChamberProgram, or the minimal stand-in below until chamber.py lands."""
-    if _have("sim.chamber"):
-        from sim.chamber import ChamberProgram
-        return ChamberProgram
-    return _StandInChamber
-
-
-class _PiecewiseLinear:
-    """Stand-in for sim.chamber.PiecewiseLinear (same interface)."""
-
-    def __init__(self, t_s, y):
-        self.t_s = np.asarray(t_s, float)
-        self.y = np.asarray(y, float)
-
-    def __call__(self, t):
-        return np.interp(t, self.t_s, self.y)
-
-    @property
-    def end_s(self) -> float:
-        return float(self.t_s[-1])
-
-
-@dataclass
-class _StandInChamber:
-    """Hold/ramp programme with an instant setpoint; replaced by sim.chamber when it lands."""
-
-    start_c: float
-    points: list
-    max_rate_c_per_min: float = 10.0
-    air_tau_s: float = 60.0
-
-    @classmethod
-    def from_config(cls, table: dict, ctx: Ctx) -> "_StandInChamber":
-        check_known_keys(table, ("start_c", "segments"), ctx)
-        start = get_float(table, "start_c", ctx, min=-100.0, max=200.0)
-        t, y, pts = 0.0, start, [(0.0, start)]
-        for i, seg in enumerate(get_list(table, "segments", ctx, [])):
-            sctx = ctx.child("segments").item(i)
-            seg = get_table({"s": seg}, "s", sctx) if not isinstance(seg, dict) else seg
-            kind = get_str(seg, "type", sctx, choices=("hold", "ramp"))
-            if kind == "hold":
-                check_known_keys(seg, ("type", *unit_keys("duration", TIME_UNITS)), sctx)
-                t += get_quantity(seg, "duration", sctx, TIME_UNITS, min=0.0, min_exclusive=True)
-            else:
-                check_known_keys(seg, ("type", "to_c", "rate_c_per_min"), sctx)
-                to = get_float(seg, "to_c", sctx, min=-100.0, max=200.0)
-                rate = get_float(seg, "rate_c_per_min", sctx, min=0.0, min_exclusive=True)
-                t += abs(to - y) / rate * 60.0
-                y = to
-            pts.append((t, y))
-        return cls(start_c=start, points=pts)
-
-    def setpoint(self, rng) -> _PiecewiseLinear:
-        t, y = zip(*self.points)
-        keep = np.r_[True, np.diff(t) > 0]
-        return _PiecewiseLinear(np.asarray(t)[keep], np.asarray(y)[keep])
-
-    def rate_limited(self, setpoint):
-        return setpoint
-
-
 # --------------------------------------------------------------------------- the scenario
 
 
@@ -271,11 +188,11 @@ class Scenario:
     text: str                    # the raw TOML, embedded in every dataset
     seed: int
     device: Device
-    site: Site
+    site: Site                   # sim.earth.Site
     acquisition: Acquisition
     power: PowerSchedule
-    chamber: Any                 # sim.chamber.ChamberProgram
-    turntable: Any               # sim.turntable.TurntableProgram, or None = static mount
+    chamber: ChamberProgram
+    turntable: TurntableProgram  # program = "static" when the scenario has no [turntable]
     duration_s: float            # on the thermal grid
     tables: dict = field(default_factory=dict, repr=False)   # the parsed TOML, for later issues
 
@@ -284,14 +201,8 @@ class Scenario:
         return generator(self.seed, 0, "chamber", "programme", 0)
 
 
-def _parse_turntable(table: dict | None, ctx: Ctx):
-    if _have("sim.turntable"):
-        from sim.turntable import TurntableProgram
-        return TurntableProgram.from_config(table, ctx)
-    if table:
-        raise ctx.error(next(iter(table)), "turntable programmes are not available in this "
-                                           "version; leave [turntable] out for a static mount")
-    return None
+def _parse_turntable(table: dict | None, ctx: Ctx) -> TurntableProgram:
+    return TurntableProgram.from_config(table, ctx)
 
 
 def parse_scenario(text: str, source: str = "<string>", *,
@@ -310,7 +221,7 @@ def parse_scenario(text: str, source: str = "<string>", *,
     acquisition = _parse_acquisition(get_table(data, "acquisition", ctx, {}),
                                      ctx.child("acquisition"))
     power = _parse_power(get_table(data, "power", ctx, {}), ctx.child("power"))
-    chamber = _chamber_class().from_config(get_table(data, "chamber", ctx), ctx.child("chamber"))
+    chamber = ChamberProgram.from_config(get_table(data, "chamber", ctx), ctx.child("chamber"))
     turntable = _parse_turntable(get_table(data, "turntable", ctx, None), ctx.child("turntable"))
     step = acquisition.thermal_step_s
     duration = get_quantity(data, "duration", ctx, TIME_UNITS, None, min=0.0, min_exclusive=True)

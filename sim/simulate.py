@@ -31,7 +31,6 @@ group to docs/dataset.md. :class:`ProbeStage` is the worked example.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import pathlib
@@ -39,10 +38,12 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from sim.dataset import DatasetWriter, GroupWriter, check_writable
 from sim.rng import generator
 from sim.schedule import TRACKS, Timeline, build_timeline
+from sim.thermal_integrator import ThermalIntegrator
 
 #: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
 BLOCK_S = 600.0
@@ -89,10 +90,6 @@ class Stage:
 # --------------------------------------------------------------------------- thermal part
 
 
-def _have(module: str) -> bool:
-    return importlib.util.find_spec(module) is not None
-
-
 class ThermalPart:
     """Samples the timeline and propagates the thermal network block by block."""
 
@@ -104,15 +101,11 @@ class ThermalPart:
         self.timeline = timeline
         self.step = timeline.step_s
         self.network = scenario.device.thermal.network
-        self.integrator = None
-        if self.network is not None:
-            from sim.thermal_integrator import ThermalIntegrator
-            self.integrator = ThermalIntegrator(self.network, self.step,
-                                                scenario.chamber.air_tau_s)
+        self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s)
 
     @property
     def node_names(self) -> tuple[str, ...]:
-        return tuple(self.network.node_names) if self.network is not None else ()
+        return tuple(self.network.node_names)
 
     def declare(self, g: GroupWriter) -> None:
         g.coordinate("time", growing=True, units="s",
@@ -124,8 +117,6 @@ class ThermalPart:
                    description="chamber air temperature (setpoint through the air lag)")
         g.variable("power_on", ("time",), units="1", dtype=np.int8,
                    description="device power state held over the step ending at time (1 = on)")
-        if not self.node_names:           # stand-in until sim/thermal.py lands
-            return
         g.coordinate("node", self.node_names, description="thermal network node")
         g.variable("node_temperature", ("time", "node"), units="degC",
                    description="true temperature of each thermal network node")
@@ -133,31 +124,23 @@ class ThermalPart:
     def initial_state(self) -> Any:
         ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
         powered = bool(self.timeline.power(np.array([0.0]))[0])
-        if self.integrator is None:
-            return np.array([ambient])
-        return np.asarray(self.integrator.initial_state(ambient, powered), dtype=float)
+        return self.integrator.initial_state(ambient, powered)      # keeps its modal state
 
     def block(self, state: Any, b: int, k0: int, m: int) -> tuple[ThermalTrace, Any]:
         k = np.arange(k0, k0 + m + 1, dtype=np.int64)
         t = k * self.step
         setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
         power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
-        if self.integrator is None:
-            states = setpoint[1:, None]
-            new_state = states[-1]
-        else:
-            states, new_state = self.integrator.propagate(state, setpoint, power)
+        states, new_state = self.integrator.propagate(state, setpoint, power)
         trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
                              air_c=np.asarray(states[:, 0]), power=power,
                              nodes_c=np.asarray(states[:, 1:]), start_c=np.asarray(state[1:]))
         return trace, new_state
 
     def rows(self, trace: ThermalTrace) -> dict[str, dict[str, np.ndarray]]:
-        rows = {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
-                "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8)}
-        if self.node_names:
-            rows["node_temperature"] = trace.nodes_c
-        return {"time": rows}
+        return {"time": {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
+                         "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8),
+                         "node_temperature": trace.nodes_c}}
 
 
 # --------------------------------------------------------------------------- stages
@@ -175,11 +158,10 @@ class ProbeStage(Stage):
         self.network = scenario.device.thermal.network
         self.seed = scenario.seed
         self.step = timeline.step_s
-        self._start_nodes = None
 
     @classmethod
     def create(cls, scenario, timeline: Timeline) -> "ProbeStage | None":
-        if scenario.device.thermal.probes is None:
+        if not scenario.device.thermal.probes.n_probes:
             return None
         return cls(scenario, timeline)
 
@@ -192,6 +174,14 @@ class ProbeStage(Stage):
         g.coordinate("probe", names, description="thermometer probe")
         g.variable("probe_node", ("probe",), data=nodes, dtype=str,
                    description="thermal network node each probe is mounted on")
+        g.variable("tau", ("probe",), units="s", data=np.asarray(self.probes.tau_s),
+                   description="time constant of the probe's first-order lag")
+        g.variable("noise_sigma", ("probe",), units="K",
+                   data=np.asarray(self.probes.noise_sigma_c),
+                   description="standard deviation of the probe's white reading noise")
+        g.variable("resolution", ("probe",), units="K",
+                   data=np.asarray(self.probes.resolution_c),
+                   description="reading resolution (quantisation step; 0 = none)")
         g.variable("temperature", ("time", "probe"), units="degC",
                    description="probe reading (first-order lag, white noise, resolution)")
 
@@ -315,6 +305,9 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
 
         bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
                    delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
+        # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
+        # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
+        limits = threadpool_limits(limits=1, user_api="blas")
         try:
             for b in range(n_blocks):
                 k0 = b * per_block
@@ -328,5 +321,6 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                     flush()
                 bar.update(round(m * step))
         finally:
+            limits.restore_original_limits()
             bar.close()
     return out

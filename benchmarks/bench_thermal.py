@@ -1,0 +1,62 @@
+"""Thermal benchmark: the full paper-000 chamber programme (-5 °C for 4 h, then to 65 °C over
+7000 min: 124.7 h) at a 1 s thermal step, every probe, streamed to HDF5.
+
+Prints the machine, the wall time and simulated time / wall time. Target: under 5 s on a
+2-core machine. ``python benchmarks/bench_thermal.py [SCENARIO] [--repeat N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import sys
+import tempfile
+import time
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+from _machine import machine  # noqa: E402
+
+
+def main(argv: list[str]) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("scenario", nargs="?", default="paper000_ramp")
+    p.add_argument("--repeat", type=int, default=3, help="runs; the best is reported")
+    args = p.parse_args(argv)
+
+    import h5py
+    from sim.scenario import load_scenario
+    from sim.simulate import simulate
+
+    print(f"machine: {machine()}")
+    t0 = time.perf_counter()
+    scenario = load_scenario(args.scenario)
+    load_s = time.perf_counter() - t0
+    net = scenario.device.thermal.network
+    probes = scenario.device.thermal.probes
+    print(f"scenario: {scenario.name} ({scenario.duration_s / 3600:.2f} h simulated, thermal step "
+          f"{scenario.acquisition.thermal_step_s:g} s, "
+          f"{0 if net is None else len(net.node_names)} nodes, "
+          f"{0 if probes is None else len(probes.names)} probes); load {load_s:.3f} s")
+    walls = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "bench.h5"
+        for _ in range(max(1, args.repeat)):
+            t0 = time.perf_counter()
+            simulate(scenario, out, progress=False)
+            walls.append(time.perf_counter() - t0)
+        size = out.stat().st_size
+        with h5py.File(out) as f:
+            steps = f["thermal/time"].shape[0]
+    best = min(walls)
+    print(f"wall time: best {best:.2f} s of {len(walls)} "
+          f"(all: {', '.join(f'{w:.2f}' for w in walls)} s)")
+    print(f"simulated time / wall time: {scenario.duration_s / best:,.0f}")
+    print(f"thermal steps: {steps:,} ({steps / best:,.0f} steps/s); file {size / 2**20:.1f} MiB")
+    print(f"target < 5 s: {'met' if best < 5.0 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
