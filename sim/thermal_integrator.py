@@ -32,11 +32,14 @@ returned state is a :class:`ThermalState` — an ordinary ``(1 + n,)`` array ``[
 that also carries the modal coordinates, so nothing is lost in a physical ↔ modal round trip
 (a plain array works as well; it is then converted to modal coordinates, exact to rounding).
 The product with ``C^-½ V`` is done on fixed-shape row blocks so BLAS takes the same path for
-every row whatever the call length.
+every row whatever the call length (a plain ``W @ P`` is not row-independent in OpenBLAS), with
+BLAS limited to one thread (threadpoolctl): the products are small, and multi-threaded
+OpenBLAS on a busy machine is many times slower than one thread.
 """
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -46,7 +49,26 @@ import scipy.signal
 from sim.thermal import ThermalNetwork
 
 #: Rows per matrix product when mapping modal to node temperatures (fixed, see module doc).
-_ROW_BLOCK = 1024
+_ROW_BLOCK = 200
+#: Steps per internal chunk of a long propagate call (bounds the temporaries).
+_CHUNK = 8000
+
+_controller: Any = None
+
+
+def _one_blas_thread() -> contextlib.AbstractContextManager:
+    """Limit BLAS/LAPACK to one thread for the duration of a ``with`` block (a no-op without
+    threadpoolctl). The controller is built once per process (building it costs ~1 ms)."""
+    global _controller
+    if _controller is None:
+        try:
+            from threadpoolctl import ThreadpoolController
+            _controller = ThreadpoolController()
+        except Exception:                       # pragma: no cover - optional speed-up only
+            _controller = False
+    if _controller is False:
+        return contextlib.nullcontext()
+    return _controller.limit(limits=1, user_api="blas")
 
 
 class ThermalState(np.ndarray):
@@ -87,6 +109,10 @@ class ThermalIntegrator:
     """
 
     def __init__(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
+        with _one_blas_thread():
+            self._setup(network, step_s, air_tau_s)
+
+    def _setup(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
         if not (np.isfinite(step_s) and step_s > 0):
             raise ValueError("step_s must be > 0")
         if not (np.isfinite(air_tau_s) and air_tau_s >= 0):
@@ -165,12 +191,15 @@ class ThermalIntegrator:
         m, n = W.shape
         out = np.empty((m, n))
         buf = np.zeros((_ROW_BLOCK, n))
-        for r0 in range(0, m, _ROW_BLOCK):
-            r1 = min(m, r0 + _ROW_BLOCK)
-            buf[: r1 - r0] = W[r0:r1]
-            if r1 - r0 < _ROW_BLOCK:
-                buf[r1 - r0:] = 0.0
-            out[r0:r1] = (buf @ self._to_nodes_T)[: r1 - r0]
+        res = np.empty((_ROW_BLOCK, n))
+        with _one_blas_thread():
+            for r0 in range(0, m, _ROW_BLOCK):
+                r1 = min(m, r0 + _ROW_BLOCK)
+                buf[: r1 - r0] = W[r0:r1]
+                if r1 - r0 < _ROW_BLOCK:
+                    buf[r1 - r0:] = 0.0
+                np.matmul(buf, self._to_nodes_T, out=res)
+                out[r0:r1] = res[: r1 - r0]
         return out
 
     # ----------------------------------------------------------------- propagation
@@ -202,28 +231,40 @@ class ThermalIntegrator:
             return np.empty((0, 1 + n)), ThermalState(x0, w0)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
             raise ValueError("setpoint and power must be finite")
+        states = np.empty((m, 1 + n))
+        air, w = float(x0[0]), w0
+        # long calls run in fixed chunks (bounded temporaries; bit-identical by construction)
+        for k0 in range(0, m, _CHUNK):
+            k1 = min(m, k0 + _CHUNK)
+            air, w = self._advance(air, w, s[k0:k1 + 1], u[k0:k1], states[k0:k1])
+        return states, ThermalState(states[-1], w)
+
+    def _advance(self, air0: float, w0: np.ndarray, s: np.ndarray, u: np.ndarray,
+                 out: np.ndarray) -> tuple[float, np.ndarray]:
+        """Propagate ``len(u)`` steps from chamber air ``air0`` and modal state ``w0`` into
+        ``out`` (m, 1+n); return the final air temperature and modal state."""
+        n = self.n_nodes
+        m = u.size
         sk, ds = s[:-1], np.diff(s)
         # chamber air: air[k+1] = μa air[k] + ca s[k] + cd Δs[k]
-        air0 = float(x0[0])
         if self.air_tau_s > 0:
             forcing = self._air_s * sk + self._air_ds * ds
             air_next, _ = scipy.signal.lfilter([1.0], [1.0, -self._air_mu], forcing,
                                                zi=[self._air_mu * air0])
             air_k = np.concatenate(([air0], air_next[:-1]))      # air at t_k, k = 0..m-1
         else:
-            air_next = s[1:].copy()
+            air_next = s[1:]
             air_k = sk
+        # modal forcing g_i[k] (n, m), then one first-order recurrence per mode
+        g = np.multiply.outer(self._c_s, sk)
+        g += np.multiply.outer(self._c_ds, ds)
+        g += np.multiply.outer(self._c_u, u)
+        if self.air_tau_s > 0:
+            g += np.multiply.outer(self._c_air, air_k)
         W = np.empty((n, m))
         for i in range(n):
-            g = self._c_s[i] * sk
-            g += self._c_ds[i] * ds
-            g += self._c_u[i] * u
-            if self.air_tau_s > 0:
-                g += self._c_air[i] * air_k
-            W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g,
+            W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
                                            zi=[self._mu[i] * w0[i]])
-        states = np.empty((m, 1 + n))
-        states[:, 0] = air_next
-        states[:, 1:] = self._nodes(W.T)
-        last = ThermalState(states[-1], W[:, -1])
-        return states, last
+        out[:, 0] = air_next
+        out[:, 1:] = self._nodes(W.T)
+        return float(out[-1, 0]), W[:, -1].copy()

@@ -190,27 +190,35 @@ class ProbeSet:
         m = T.shape[0]
         if m == 0:
             return np.empty((0, self.n_probes)), st.copy()
-        X = T[:, self.node_index]                       # (m, n_probes) probed node temps
-        prev = np.vstack((st[1][None, :], X[:-1]))      # T[k] for steps k → k+1
+        # work probe-major (n_probes, m): each probe's trace contiguous for lfilter
+        X = T.T[self.node_index]                        # probed node temperatures
+        prev = np.empty_like(X)                         # T[k] for the step k → k+1
+        prev[:, 0] = st[1]
+        prev[:, 1:] = X[:, :-1]
         a, c = self._coefficients(float(step_s))
         theta = np.empty_like(X)
         for tau in np.unique(self.tau_s):
-            cols = np.flatnonzero(self.tau_s == tau)
+            rows = np.flatnonzero(self.tau_s == tau)
             if tau == 0:
-                theta[:, cols] = X[:, cols]
+                theta[rows] = X[rows]
                 continue
-            ag, cg = a[cols[0]], c[cols[0]]
-            forcing = (1.0 - ag - cg) * prev[:, cols] + cg * X[:, cols]
-            theta[:, cols], _ = scipy.signal.lfilter([1.0], [1.0, -ag], forcing, axis=0,
-                                                     zi=(ag * st[0, cols])[None, :])
-        new_state = np.vstack((theta[-1], X[-1]))
-        noise = rng.standard_normal((m, self.n_probes))
-        reading = theta + noise * self.noise_sigma_c
+            ag, cg = a[rows[0]], c[rows[0]]
+            forcing = (1.0 - ag - cg) * prev[rows]
+            forcing += cg * X[rows]
+            theta[rows], _ = scipy.signal.lfilter([1.0], [1.0, -ag], forcing, axis=-1,
+                                                  zi=(ag * st[0, rows])[:, None])
+        new_state = np.vstack((theta[:, -1], X[:, -1]))
+        reading = rng.standard_normal((m, self.n_probes))
+        reading *= self.noise_sigma_c
+        reading += theta.T
         q = self.resolution_c
-        quantised = q > 0
-        if np.any(quantised):
-            qq = np.where(quantised, q, 1.0)
-            reading = np.where(quantised, np.round(reading / qq) * qq, reading)
+        if np.all(q > 0):
+            reading /= q
+            np.round(reading, out=reading)
+            reading *= q
+        elif np.any(q > 0):
+            cols = np.flatnonzero(q > 0)
+            reading[:, cols] = np.round(reading[:, cols] / q[cols]) * q[cols]
         return reading, new_state
 
 

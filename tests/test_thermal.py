@@ -223,13 +223,14 @@ def test_no_air_lag_means_air_is_the_setpoint():
 
 def test_split_propagation_is_bit_identical(imu):
     integ = ThermalIntegrator(imu, 1.0, 60.0)
-    m = 5000
+    m = 17003                     # longer than the integrator's internal chunk
     t = np.arange(m + 1, dtype=float)
-    s = np.interp(t, [0, 1000, 3000, 5000], [-5.0, -5.0, 25.0, 20.0])
+    s = np.interp(t, [0, 1000, 3000, 9000, m], [-5.0, -5.0, 25.0, 20.0, 40.0])
     u = (t[:-1] >= 333).astype(float)
     x0 = integ.initial_state(-5.0, False)
     whole, last = integ.propagate(x0, s, u)
-    for cuts in ([1, 2, 600, 1200, 1201, 4999], [2500], list(range(0, m, 600))[1:]):
+    for cuts in ([1, 2, 600, 1200, 1201, 7999, 8001, 16999], [8500],
+                 list(range(0, m, 600))[1:]):
         edges = [0, *cuts, m]
         state, parts = x0, []
         for a, b in zip(edges[:-1], edges[1:]):
