@@ -1,0 +1,438 @@
+"""Systematic-calibration Kalman filter for one turntable window (paper 000 §4.1).
+
+The IMU stands at the centre of the turntable; a strapdown navigation
+(:mod:`estimators.strapdown`) integrates its compensated pulses; its velocity — whose true
+value is zero — is the measurement during the static dwells. A Kalman filter (filterpy's
+:class:`~filterpy.kalman.KalmanFilter` for the discrete predict/update) estimates the sensor
+errors from it; the estimates are fed back into the pulse model and the whole window is
+navigated again, until the corrections stop changing (iterated, feedback calibration:
+Cai Q. et al., Sensors 16(6):940, 2016; Yang X. & Huang Y., J. Chinese Inertial Tech. 2009).
+
+State vector (33), in the filter's scaled units (docs/calibration.md)
+--------------------------------------------------------------------
+====== ========== ==========================================================================
+index  unit       state
+====== ========== ==========================================================================
+0–2    arcsec     φ attitude error (ENU), computed C̃_b^n = (I − [φ×]) C_b^n
+3–5    mm/s       δv velocity error (ENU) = navigated velocity (the truth is zero)
+6–8    °/h        b_g gyro bias error, ω̂ − ω ∋ b_g
+9–11   ppm        s_g gyro scale-factor error, true K_g = K̂_g (1 + s_g)
+12–17  arcsec     Γ_g gyro misalignment error Γ_xy, Γ_xz, Γ_yx, Γ_yz, Γ_zx, Γ_zy (E_g − Ê_g)
+18–20  µg         b_a accelerometer bias error
+21–23  ppm        s_a⁺ positive-input scale-factor error, true K_a⁺ = K̂_a⁺ (1 + s_a⁺)
+24–26  ppm        s_a⁻ negative-input scale-factor error
+27–29  arcsec     Γ_a accelerometer misalignment error Γ_yx, Γ_zx, Γ_zy (lower triangle)
+30–32  arcsec     φ₀ attitude error at the window start (a constant copy, for feedback)
+====== ========== ==========================================================================
+
+The body frame is defined by the accelerometers (x along accelerometer x, y in the plane of
+accelerometers x and y), so only the three lower-triangular accelerometer misalignments are
+estimated; with zero velocity as the only measurement a common rotation of both sensor triads
+is indistinguishable from an initial-attitude error (it would make three misalignments
+unobservable).
+
+Error model (continuous; Titterton & Weston 2004 §12.3, ψ/φ-angle form, fixed site):
+
+    φ̇  = −ω_ie^n × φ − C_b^n δω,    δω = b_g + s_g∘ω^b + Γ_g ω^b
+    δv̇ = f^n × φ + C_b^n δf,        δf = b_a + s_a⁺∘f⁺ + s_a⁻∘f⁻ + Γ_a f^b
+
+with f^n = (0, 0, γ) exactly (no lever arm), f⁺ = max(f^b, 0), f⁻ = min(f^b, 0) per axis, and
+no Coriolis term (consistently left out of the navigation: the true velocity is zero). With
+ξ = (φ, δv) this is ξ̇ = M ξ + B(t) p + G w, M = [[−ω_ie×, 0], [f^n×, 0]] constant, and
+B(t) = [[−C[I | diag ω | Γ-map(ω)], 0], [0, C[I | diag f⁺ | diag f⁻ | L-map(f)]]].
+
+Discretisation at the KF step T (default 1 s: the KF runs decimated; the navigation runs at the
+sample rate): Φ_ξξ = expm(M T) (constant), Φ_ξp = Σ_j expm(M (T − τ_j)) ∫_j B dt over m
+sub-steps (default 5 per step) with ∫_j B dt built from the sub-step's accumulated increments
+(Σ Δθ, Σ Δv⁺, Σ Δv⁻) and the navigated attitude at the sub-step middle; parameters are
+constant within a window (Φ_pp = I, optional random walk). Process noise G w: gyro angle
+random walk w_g (PSD ARW² per axis) into φ through −C, accelerometer velocity random walk w_a
+(PSD VRW²) into δv through C; Q_ξ = ∫₀ᵀ e^{Ms} G Q_c Gᵀ e^{Mᵀs} ds in closed form with
+Ω_ie neglected inside the step (relative error ~Ω T ≈ 7e-5):
+
+    Q_φφ = Q_g T,   Q_vφ = F Q_g T²/2,   Q_vv = Q_a T + F Q_g Fᵀ T³/3,
+    Q_g = C diag(ARW²) Cᵀ,  Q_a = C diag(VRW²) Cᵀ,  F = [f^n×]
+
+Measurement: z = v̂(t_k) at KF step ends that lie inside a static dwell (minus a margin after
+and before the table moves), H = [0 I 0], R = σ_v² I.
+
+Observability (which motion shows which state; docs/calibration.md): the dwells in 19
+orientations separate gyro and accelerometer biases and the tilts; each ±90° turn about a
+horizontal axis turns a gyro scale-factor error (and the misalignment of the other two gyros
+onto the turned axis) into a tilt, which the following dwell shows as a growing velocity; each
+accelerometer pointing Up and Down separates K_a⁺, K_a⁻ and bias; horizontal axes under g
+expose the accelerometer misalignments.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from scipy.linalg import expm
+
+from estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
+                                  earth_rate_enu, navigate, normal_gravity, rotation_matrix,
+                                  skew, table_attitude)
+
+#: Standard gravity for µg [m/s²].
+G0 = 9.80665
+DEG_PER_H = DEG / 3600.0          # rad/s per °/h
+UG = 1e-6 * G0                    # m/s² per µg
+
+N_STATES = 33
+PHI, DV, BG, SG, MG, BA, SAP, SAN, MA, PHI0 = (slice(0, 3), slice(3, 6), slice(6, 9),
+                                               slice(9, 12), slice(12, 18), slice(18, 21),
+                                               slice(21, 24), slice(24, 27), slice(27, 30),
+                                               slice(30, 33))
+PARAMS = slice(6, 30)
+#: Gyro misalignment states (row, column) of E_g, and accelerometer ones of E_a.
+GYRO_MIS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
+ACCEL_MIS = ((1, 0), (2, 0), (2, 1))
+
+STATE_NAMES = (["phi_e", "phi_n", "phi_u", "dv_e", "dv_n", "dv_u"]
+               + [f"gyro_bias_{a}" for a in "xyz"] + [f"gyro_sf_{a}" for a in "xyz"]
+               + [f"gyro_mis_{'xyz'[i]}{'xyz'[j]}" for i, j in GYRO_MIS]
+               + [f"accel_bias_{a}" for a in "xyz"] + [f"accel_sf_pos_{a}" for a in "xyz"]
+               + [f"accel_sf_neg_{a}" for a in "xyz"]
+               + [f"accel_mis_{'xyz'[i]}{'xyz'[j]}" for i, j in ACCEL_MIS]
+               + ["phi0_e", "phi0_n", "phi0_u"])
+STATE_UNITS = (["arcsec"] * 3 + ["mm/s"] * 3 + ["deg/h"] * 3 + ["ppm"] * 3 + ["arcsec"] * 6
+               + ["ug"] * 3 + ["ppm"] * 6 + ["arcsec"] * 3 + ["arcsec"] * 3)
+#: SI value of one scaled unit, per state.
+SCALE = np.array([ARCSEC] * 3 + [1e-3] * 3 + [DEG_PER_H] * 3 + [1e-6] * 3 + [ARCSEC] * 6
+                 + [UG] * 3 + [1e-6] * 6 + [ARCSEC] * 3 + [ARCSEC] * 3)
+
+
+@dataclass(frozen=True)
+class CommandedMotion:
+    """One commanded turntable motion, times relative to the window start [s]."""
+
+    t0_s: float
+    t1_s: float
+    kind: str                       # 'static' | 'rotate'
+    axis: str | None = None
+    rate_deg_s: float = 0.0
+    outer_deg: float = 0.0          # at t0_s
+    inner_deg: float = 0.0
+    position: int | None = None
+    label: str = ""
+
+
+@dataclass
+class FilterSettings:
+    """Tuning of the calibration filter (SI unless the name says otherwise).
+
+    ``arw_rad_per_sqrt_s`` (3,) gyro angle random walk; ``vrw_m_per_s_per_sqrt_s`` (3,)
+    accelerometer velocity random walk; ``velocity_sigma_m_per_s`` measurement noise of the
+    navigated velocity (accelerometer pulse quantisation and readout); ``kf_step_s`` KF step;
+    ``substeps`` per KF step for the transition matrix; ``margin_s`` no measurement this close
+    to a turn; ``align_s`` levelling time at the start of the first dwell; prior 1σ of the
+    states in the filter's units (``prior``: dict name → σ for φ, b_g, s_g, Γ_g, b_a, s_a, Γ_a);
+    ``param_random_walk`` (24,) optional random walk of the parameters [unit/√s];
+    ``max_iterations``; convergence when every parameter correction is below
+    ``tol_sigma`` × its σ or ``tol_abs`` (filter units).
+    """
+
+    arw_rad_per_sqrt_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    vrw_m_per_s_per_sqrt_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    velocity_sigma_m_per_s: float | None = None
+    kf_step_s: float = 1.0
+    substeps: int = 5
+    margin_s: float = 1.0
+    align_s: float = 60.0
+    prior: dict = field(default_factory=lambda: dict(
+        phi_arcsec=300.0, dv_mm_s=1e-3, gyro_bias_deg_h=0.5, gyro_sf_ppm=1000.0,
+        gyro_mis_arcsec=300.0, accel_bias_ug=1000.0, accel_sf_ppm=1000.0,
+        accel_mis_arcsec=300.0))
+    param_random_walk: np.ndarray | None = None
+    max_iterations: int = 10
+    tol_sigma: float = 1e-2
+    tol_abs: float = 1e-4
+
+    def __post_init__(self) -> None:
+        self.arw_rad_per_sqrt_s = np.broadcast_to(
+            np.asarray(self.arw_rad_per_sqrt_s, float), (3,)).copy()
+        self.vrw_m_per_s_per_sqrt_s = np.broadcast_to(
+            np.asarray(self.vrw_m_per_s_per_sqrt_s, float), (3,)).copy()
+        if not self.kf_step_s > 0 or self.substeps < 1 or (
+                self.velocity_sigma_m_per_s is not None and not self.velocity_sigma_m_per_s > 0):
+            raise ValueError("kf_step_s, substeps and velocity_sigma_m_per_s must be positive")
+
+    def velocity_sigma(self, nominal: SensorModel) -> float:
+        """σ of the navigated-velocity measurement [m/s]: the given value, else the
+        accelerometer pulse quantum's readout error 1/(K_a√12) (largest axis), at least 1e-6."""
+        if self.velocity_sigma_m_per_s is not None:
+            return float(self.velocity_sigma_m_per_s)
+        k = float(np.min(np.concatenate([nominal.k_a_pos, nominal.k_a_neg])))
+        return max(1.0 / (k * math.sqrt(12.0)), 1e-6)
+
+    def prior_sigma(self) -> np.ndarray:
+        """Prior 1σ of the 33 states in filter units."""
+        p = self.prior
+        return np.array([p["phi_arcsec"]] * 3 + [p["dv_mm_s"]] * 3 + [p["gyro_bias_deg_h"]] * 3
+                        + [p["gyro_sf_ppm"]] * 3 + [p["gyro_mis_arcsec"]] * 6
+                        + [p["accel_bias_ug"]] * 3 + [p["accel_sf_ppm"]] * 6
+                        + [p["accel_mis_arcsec"]] * 3 + [p["phi_arcsec"]] * 3, dtype=float)
+
+
+@dataclass
+class WindowResult:
+    """Outcome of one window: the calibrated ``model``, the 1σ of the 33 states after the last
+    pass (filter units; the parameter part is the 1σ of the calibrated parameters), ``c0`` the
+    calibrated initial attitude, ``iterations`` run, ``converged``, the parameter corrections of
+    every pass (filter units),
+    ``n_measurements`` per pass, ``nis`` mean normalised innovation squared of the last pass
+    (≈ 3 when the noise model fits), ``residual_rms_m_per_s`` RMS of the navigated velocity at
+    the measurement epochs of the last pass (the velocity error left by the model of that
+    pass)."""
+
+    model: SensorModel
+    sigma: np.ndarray
+    covariance: np.ndarray
+    c0: np.ndarray
+    iterations: int
+    converged: bool
+    corrections: list
+    residual_rms_m_per_s: float
+    n_measurements: int
+    nis: float
+
+
+# ----------------------------------------------------------------------------- model pieces
+
+def apply_correction(model: SensorModel, x: np.ndarray) -> SensorModel:
+    """Feed the estimated errors (filter units, 33 states) back into the pulse model."""
+    si = x * SCALE
+    e_g = model.e_g.copy()
+    for (i, j), val in zip(GYRO_MIS, si[MG]):
+        e_g[i, j] += val
+    e_a = model.e_a.copy()
+    for (i, j), val in zip(ACCEL_MIS, si[MA]):
+        e_a[i, j] += val
+    return SensorModel(k_g=model.k_g * (1 + si[SG]), d_g=model.d_g + si[BG], e_g=e_g,
+                       k_a_pos=model.k_a_pos * (1 + si[SAP]),
+                       k_a_neg=model.k_a_neg * (1 + si[SAN]), d_a=model.d_a + si[BA], e_a=e_a)
+
+
+def model_difference(target: SensorModel, model: SensorModel) -> np.ndarray:
+    """The parameter states (24, filter units) that :func:`apply_correction` would need to move
+    ``model`` to ``target`` (to first order; exact for biases and misalignments)."""
+    d = np.zeros(N_STATES)
+    d[BG] = target.d_g - model.d_g
+    d[SG] = target.k_g / model.k_g - 1
+    d[MG] = [target.e_g[i, j] - model.e_g[i, j] for i, j in GYRO_MIS]
+    d[BA] = target.d_a - model.d_a
+    d[SAP] = target.k_a_pos / model.k_a_pos - 1
+    d[SAN] = target.k_a_neg / model.k_a_neg - 1
+    d[MA] = [target.e_a[i, j] - model.e_a[i, j] for i, j in ACCEL_MIS]
+    return (d / SCALE)[PARAMS]
+
+
+def _transition_pieces(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, per_step: int,
+                       per_sub: int, dt_s: float, g: float, w_ie: np.ndarray,
+                       settings: FilterSettings):
+    """Φ_ξξ (6, 6), Φ_ξp (K, 6, 24) and Q_ξ (K, 6, 6) for K KF steps (SI units)."""
+    n_steps = dtheta.shape[0] // per_step
+    m = per_step // per_sub
+    n_sub = n_steps * m
+    used = n_sub * per_sub
+    T = per_step * dt_s
+    h = per_sub * dt_s
+    f_n = np.array([0.0, 0.0, g])
+    F = skew(f_n)
+    M = np.zeros((6, 6))
+    M[0:3, 0:3] = -skew(w_ie)
+    M[3:6, 0:3] = F
+    phi_xx, e_j = _exponentials(M.tobytes(), T, m)
+    # sub-step sums of the increments
+    th = dtheta[:used].reshape(n_sub, per_sub, 3).sum(1)
+    dvs = dv[:used].reshape(n_sub, per_sub, 3)
+    dv_pos = np.maximum(dvs, 0.0).sum(1)
+    dv_neg = np.minimum(dvs, 0.0).sum(1)
+    dv_all = dv_pos + dv_neg
+    mid = np.arange(n_sub) * per_sub + max(per_sub // 2 - 1, 0)     # sample ending mid-sub-step
+    c = nav.attitude(mid)
+    b = np.zeros((n_sub, 6, 24))
+    # φ rows: −C [h I | diag Δθ | Γ-map(Δθ)]
+    b[:, 0:3, 0:3] = -c * h
+    b[:, 0:3, 3:6] = -c * th[:, None, :]
+    for col, (i, j) in enumerate(GYRO_MIS):
+        b[:, 0:3, 6 + col] = -c[:, :, i] * th[:, j:j + 1]
+    # δv rows: C [h I | diag Δv⁺ | diag Δv⁻ | L-map(Δv)]
+    b[:, 3:6, 12:15] = c * h
+    b[:, 3:6, 15:18] = c * dv_pos[:, None, :]
+    b[:, 3:6, 18:21] = c * dv_neg[:, None, :]
+    for col, (i, j) in enumerate(ACCEL_MIS):
+        b[:, 3:6, 21 + col] = c[:, :, i] * dv_all[:, j:j + 1]
+    phi_xp = np.einsum("jab,kjbc->kac", e_j, b.reshape(n_steps, m, 6, 24), optimize=True)
+    # process noise, closed form with C at the step middle
+    c_step = c.reshape(n_steps, m, 3, 3)[:, m // 2]
+    qg = np.einsum("kij,j,klj->kil", c_step, settings.arw_rad_per_sqrt_s ** 2, c_step)
+    qa = np.einsum("kij,j,klj->kil", c_step, settings.vrw_m_per_s_per_sqrt_s ** 2, c_step)
+    q = np.zeros((n_steps, 6, 6))
+    q[:, 0:3, 0:3] = qg * T
+    q[:, 3:6, 0:3] = F @ qg * (T ** 2 / 2)
+    q[:, 0:3, 3:6] = np.swapaxes(q[:, 3:6, 0:3], 1, 2)
+    q[:, 3:6, 3:6] = qa * T + F @ qg @ F.T * (T ** 3 / 3)
+    return phi_xx, phi_xp, q
+
+
+@functools.lru_cache(maxsize=32)
+def _exponentials(m_bytes: bytes, T: float, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """expm(M T) and expm(M (T − τ_j)) at the sub-step middles τ_j (cached per window shape)."""
+    M = np.frombuffer(m_bytes).reshape(6, 6)
+    h = T / m
+    tau = (np.arange(m) + 0.5) * h
+    return expm(M * T), np.stack([expm(M * (T - tj)) for tj in tau])
+
+
+def measurement_mask(motions: Sequence[CommandedMotion], t_end: np.ndarray, margin_s: float
+                     ) -> np.ndarray:
+    """True where a KF step end time lies inside a static dwell, ``margin_s`` away from turns."""
+    mask = np.zeros(t_end.shape, dtype=bool)
+    for mo in motions:
+        if mo.kind == "static":
+            mask |= (t_end >= mo.t0_s + margin_s) & (t_end <= mo.t1_s - margin_s)
+    return mask
+
+
+def motion_breaks(motions: Sequence[CommandedMotion], rate_hz: float, n: int) -> np.ndarray:
+    """Sample indices at which the commanded table rate steps (motion boundaries)."""
+    idx = np.array([round(mo.t0_s * rate_hz) for mo in motions], dtype=np.intp)
+    return idx[(idx > 0) & (idx < n)]
+
+
+def initial_attitude(motions: Sequence[CommandedMotion], dv: np.ndarray, rate_hz: float,
+                     align_s: float) -> np.ndarray:
+    """Commanded attitude at the window start, levelled with the mean specific force over the
+    first ``align_s`` seconds of the first dwell (which must start the window)."""
+    first = motions[0]
+    c_cmd = table_attitude(first.outer_deg, first.inner_deg)
+    if first.kind != "static":
+        return c_cmd
+    n = int(min(align_s, first.t1_s - first.t0_s) * rate_hz)
+    k0 = int(round(first.t0_s * rate_hz))
+    if n < 1:
+        return c_cmd
+    return coarse_level(c_cmd, dv[k0:k0 + n].sum(0))
+
+
+# ------------------------------------------------------------------------------ the filter
+
+def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: float,
+               motions: Sequence[CommandedMotion], g: float, w_ie: np.ndarray,
+               settings: FilterSettings, velocity_sigma: float,
+               x0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """One forward pass of the Kalman filter over the window; returns the final state x (33,),
+    covariance P (33, 33) in filter units, and diagnostics. ``x0`` is the prior mean relative
+    to the current linearisation point (filter units; default 0)."""
+    dt = 1.0 / rate_hz
+    per_step = int(round(settings.kf_step_s * rate_hz))
+    if per_step < 1 or abs(per_step * dt - settings.kf_step_s) > 1e-9:
+        raise ValueError(f"kf_step_s = {settings.kf_step_s} s is not a whole number of "
+                         f"samples at {rate_hz:g} Hz")
+    subs = settings.substeps
+    while per_step % subs:
+        subs -= 1
+    per_sub = per_step // subs
+    phi_xx, phi_xp, q = _transition_pieces(nav, dtheta, dv, per_step, per_sub, dt, g, w_ie,
+                                           settings)
+    n_steps = phi_xp.shape[0]
+    t_end = (np.arange(n_steps) + 1) * per_step * dt
+    mask = measurement_mask(motions, t_end, settings.margin_s)
+    v_meas = nav.v[(np.arange(n_steps) + 1) * per_step - 1]
+
+    inv = 1.0 / SCALE
+    kf = KalmanFilter(dim_x=N_STATES, dim_z=3)
+    sig0 = settings.prior_sigma()
+    P0 = np.diag(sig0 ** 2)
+    P0[PHI, PHI0] = P0[PHI0, PHI] = np.diag(sig0[PHI] ** 2)          # φ(0) = φ₀
+    kf.P = P0
+    kf.x = np.zeros((N_STATES, 1)) if x0 is None else np.asarray(x0, float).reshape(-1, 1)
+    H = np.zeros((3, N_STATES))
+    H[:, DV] = np.eye(3)
+    kf.H = H
+    kf.R = np.eye(3) * (velocity_sigma / 1e-3) ** 2
+    F = np.eye(N_STATES)
+    F[0:6, 0:6] = inv[0:6, None] * phi_xx * SCALE[None, 0:6]
+    Q = np.zeros((N_STATES, N_STATES))
+    if settings.param_random_walk is not None:
+        Q[PARAMS, PARAMS] = np.diag(np.asarray(settings.param_random_walk) ** 2
+                                    * settings.kf_step_s)
+    scale_xp = inv[0:6, None] * SCALE[None, PARAMS]
+    scale_q = inv[0:6, None] * inv[None, 0:6]
+    nis = []
+    for k in range(n_steps):
+        F[0:6, PARAMS] = phi_xp[k] * scale_xp
+        Q[0:6, 0:6] = q[k] * scale_q
+        kf.predict(F=F, Q=Q)
+        if mask[k]:
+            kf.update(v_meas[k][:, None] / 1e-3)
+            y = kf.y[:, 0]
+            nis.append(float(y @ kf.SI @ y))
+    z = v_meas[mask]
+    diag = dict(n_measurements=int(mask.sum()), nis=float(np.mean(nis)) if nis else float("nan"),
+                residual_rms=float(np.sqrt(np.mean(z ** 2))) if z.size else float("nan"),
+                n_steps=n_steps)
+    return kf.x[:, 0].copy(), kf.P.copy(), diag
+
+
+def calibrate_window(gyro_pulses: np.ndarray, accel_pulses: np.ndarray, rate_hz: float,
+                     motions: Sequence[CommandedMotion], nominal: SensorModel,
+                     latitude_deg: float, height_m: float = 0.0,
+                     settings: FilterSettings | None = None,
+                     start: SensorModel | None = None) -> WindowResult:
+    """Calibrate the pulse model from one window of pulses (n, 3) at ``rate_hz`` with the
+    commanded ``motions`` (times relative to the first sample's start).
+
+    Starts from ``start`` (default ``nominal``), navigates, filters, feeds back, and repeats
+    until the parameter corrections stop changing (``settings.tol_*``) or
+    ``settings.max_iterations``.
+    """
+    settings = settings or FilterSettings()
+    dt = 1.0 / rate_hz
+    g = normal_gravity(latitude_deg, height_m)
+    w_ie = earth_rate_enu(latitude_deg)
+    gp = np.asarray(gyro_pulses, dtype=float)
+    ap = np.asarray(accel_pulses, dtype=float)
+    n = gp.shape[0]
+    breaks = motion_breaks(motions, rate_hz, n)
+    sigma_v = settings.velocity_sigma(nominal)
+    model = start if start is not None else nominal
+    c0 = None
+    phi_fed = np.zeros(3)          # attitude fed back so far [arcsec]
+    corrections = []
+    converged = False
+    x = P = diag = None
+    it = 0
+    for it in range(1, settings.max_iterations + 1):
+        dtheta, dv = model.compensate(gp, ap, dt)
+        if c0 is None:
+            c0 = initial_attitude(motions, dv, rate_hz, settings.align_s)
+        nav = navigate(dtheta, dv, dt, c0, latitude_deg, height_m, breaks=breaks, gravity=g)
+        # the prior stays centred on the nominal model and the levelled attitude (iterated
+        # filter: the passes only move the linearisation point, so the fixed point is the
+        # posterior mode and convergence is quadratic rather than slowed by the prior)
+        x0 = np.zeros(N_STATES)
+        x0[PARAMS] = model_difference(nominal, model)
+        x0[PHI] = x0[PHI0] = -phi_fed
+        x, P, diag = run_filter(nav, dtheta, dv, rate_hz, motions, g, w_ie, settings, sigma_v,
+                                x0)
+        model = apply_correction(model, x)
+        c0 = rotation_matrix(x[PHI0] * ARCSEC) @ c0
+        phi_fed += x[PHI0]
+        corr = x[PARAMS]
+        corrections.append(corr.copy())
+        sig = np.sqrt(np.diag(P))[PARAMS]
+        if np.all(np.abs(corr) <= np.maximum(settings.tol_sigma * sig, settings.tol_abs)):
+            converged = True
+            break
+    return WindowResult(model=model, sigma=np.sqrt(np.diag(P)), covariance=P, c0=c0,
+                        iterations=it, converged=converged, corrections=corrections,
+                        residual_rms_m_per_s=diag["residual_rms"],
+                        n_measurements=diag["n_measurements"], nis=diag["nis"])
