@@ -17,13 +17,18 @@ whatever the chunk size.
 
 Adding a stage (issue 3: the IMU) — write a class with
 
-* ``group`` (dataset group name) and ``description``;
+* ``group`` (dataset group name), ``description`` and ``needs_motion`` (True to receive the
+  turntable kinematics, a :class:`sim.motion.Motion` — ``motion.increments(t0_s, n, rate_hz)``
+  gives the exact angle/velocity increments of ``n`` samples);
 * ``declare(group_writer)`` — create coordinates/variables (see :mod:`sim.dataset`); the growing
-  dimension is ``time`` (``coordinate("time", growing=True, ...)``) or any name you declare
-  growing, listed in ``dims``;
-* ``initial_state()`` — the state before block 0;
+  dimension is usually ``time`` (``coordinate("time", growing=True, ...)``; a group may declare
+  more than one growing dimension);
+* ``initial_state()`` — the state before block 0 (or ``None`` and build it from the first
+  block's ``trace.start_c``, as the probes do);
 * ``block(state, b, trace, motion) -> (rows, state)`` — ``rows`` maps each growing dimension to
-  ``{variable: array}`` (the coordinate included), arrays for this block only;
+  ``{variable: array}`` holding every variable along it (the coordinate included), for this
+  block only: block ``b`` covers ``[b·BLOCK_S, b·BLOCK_S + len(trace.t_s)·trace.step_s)``;
+  random draws from ``generator(seed, UNIT, purpose, channel, b)``;
 
 and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. Then add the
 group to docs/dataset.md. :class:`ProbeStage` is the worked example.
@@ -74,7 +79,7 @@ class Stage:
 
     group: str
     description: str
-    dims: tuple[str, ...] = ("time",)
+    needs_motion: bool = False     # True: block() receives a sim.motion.Motion (else None)
 
     def declare(self, g: GroupWriter) -> None:
         raise NotImplementedError
@@ -257,7 +262,10 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
 
     thermal = ThermalPart(scenario, timeline)
     stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
-    motion = None            # issue 3: the turntable kinematics per block
+    motion = None
+    if any(getattr(s, "needs_motion", False) for s in stages):
+        from sim.motion import Motion
+        motion = Motion(timeline.segments, scenario.site)      # exact turntable kinematics
 
     attrs = {
         "title": f"rlgsim run of scenario {scenario.name}",
