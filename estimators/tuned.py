@@ -1,0 +1,357 @@
+"""Regressors whose hyper-parameters are tuned inside ``fit`` by a population optimiser.
+
+* :class:`HHORVR` — paper 000 §3.2: the RBF width of a relevance vector regression
+  (:class:`estimators.rvr.RVR`) tuned by Harris hawks optimisation (30 hawks, 500 iterations)
+  with the 5-fold cross-validation RMSE as fitness.
+* :class:`PSOSVR` — paper 003 §3.2-3.3: scikit-learn's epsilon-SVR with C and gamma (and
+  optionally epsilon) tuned by particle swarm optimisation on a validation RMSE.
+
+Both share :class:`OptimizerTunedRegressor`: every hyper-parameter is searched in log10 between
+its bounds, mapped affinely onto the box [-1, 1]^d the optimiser sees (so the optimiser's
+coordinates do not depend on the units of X or y — HHO's rules are drawn towards the origin of
+its box, which is then the geometric middle of the bounds, not "width = 1 unit"); the fitness of
+a population is the validation RMSE (units of y) of one model per member; the best point is
+refitted on all the data. Validation defaults to contiguous-in-time folds (estimators/cv.py);
+``shuffle=True`` gives the randomly split folds of paper 000.
+
+``optimizer`` may be "hho" or "pso" for either model (HHO-tuned SVR, PSO-tuned RVR), with
+``n_agents``, ``max_iter`` and ``max_evals`` passed to it.
+"""
+
+from __future__ import annotations
+
+import warnings
+from numbers import Integral, Real
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.compose import TransformedTargetRegressor
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVR
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from ._validation import check_min_samples, check_not_constant
+from .cv import validation_splits
+from .optimize import harris_hawks, particle_swarm
+from .rvr import RVR, rbf_from_sqdist, scale_width, sparse_bayes_fit, squared_distances
+
+OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
+
+
+def _check_bounds_pair(value, name: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a (low, high) pair of positive numbers, "
+                         f"got {value!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+        raise ValueError(f"{name} must satisfy 0 < low < high (finite), got {value!r}")
+    return lo, hi
+
+
+def _check_int(value, name: str, minimum: int, allow_none: bool = False):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
+    """Base: tune log10 hyper-parameters by an optimiser on a validation RMSE, then refit.
+
+    Subclasses define ``_search_space(X, y) -> (names, log10_low, log10_high)``,
+    ``_make_fitness(X, y, splits) -> f(log10_params (m, d)) -> (m,) RMSE`` and
+    ``_refit(X, y, params) -> fitted estimator``.
+
+    Attributes after ``fit``: ``best_params_`` (dict, natural units), ``best_score_``
+    (validation RMSE at the best point, units of y), ``optimize_result_`` (the optimiser's
+    :class:`~estimators.optimize.OptimizeResult`: evaluations, best-so-far curve), ``n_iter_``
+    (optimiser iterations run), ``n_fits_``
+    (validation model fits actually run), ``estimator_`` (the refitted model).
+    """
+
+    _model_name = "tuned regressor"
+
+    def _check_common_params(self) -> None:
+        if self.optimizer not in OPTIMIZERS:
+            raise ValueError(f"optimizer must be one of {sorted(OPTIMIZERS)}, "
+                             f"got {self.optimizer!r}")
+        _check_int(self.n_agents, "n_agents", 2)
+        _check_int(self.max_iter, "max_iter", 1, allow_none=True)
+        _check_int(self.max_evals, "max_evals", 1, allow_none=True)
+        if self.max_iter is None and self.max_evals is None:
+            raise ValueError("give max_iter, max_evals or both")
+
+    def fit(self, X, y):
+        """Tune on (X, y) — rows in time order — then refit on all of it; returns self."""
+        self._check_common_params()
+        self._check_params()
+        X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
+        check_min_samples(X.shape[0], 2, self._model_name)
+        check_not_constant(X)
+        rs = check_random_state(self.random_state)
+        fold_seed, opt_seed = rs.randint(np.iinfo(np.int32).max, size=2)
+        splits = validation_splits(X.shape[0], self.validation, self.shuffle, fold_seed)
+        names, lo, hi = self._search_space(X, y)
+        lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+        self.n_fits_ = 0
+        fitness_log = self._make_fitness(X, y, splits)
+
+        def fitness(U: np.ndarray) -> np.ndarray:
+            return fitness_log(lo + (U + 1.0) * 0.5 * (hi - lo))
+
+        result = OPTIMIZERS[self.optimizer](
+            fitness, [(-1.0, 1.0)] * len(names), self.n_agents, self.max_iter, self.max_evals,
+            random_state=np.random.default_rng(opt_seed))
+        best_log = lo + (result.x + 1.0) * 0.5 * (hi - lo)
+        self.best_params_ = {n: float(10.0 ** v) for n, v in zip(names, best_log)}
+        self.best_score_ = float(result.fun)
+        self.optimize_result_ = result
+        self.n_iter_ = result.nit
+        self.estimator_ = self._refit(X, y, self.best_params_)
+        return self
+
+    def predict(self, X):
+        """Predictions of the refitted model (units of y)."""
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        return self.estimator_.predict(X)
+
+
+class HHORVR(OptimizerTunedRegressor):
+    """RVR whose RBF width is tuned by Harris hawks optimisation on the k-fold CV RMSE
+    (paper 000 §3.2: 30 hawks, 500 iterations, 5 folds).
+
+    Parameters
+    ----------
+    width_bounds : (low, high) or None
+        Search range of the width in units of X (log-uniform). ``None``: 0.01 to 10 times
+        sqrt(n_features var(X)) (paper 000's range was lost in the text extraction).
+    fit_intercept, rvr_max_iter : passed to :class:`~estimators.rvr.RVR`.
+    optimizer : "hho" (default) or "pso".
+    n_agents, max_iter, max_evals : population size, iterations, evaluation budget.
+    validation : int k >= 2 for k-fold CV (default 5) or a hold-out fraction in (0, 1).
+    shuffle : shuffle the folds (default False: contiguous in time).
+    width_resolution : float or None, default 1e-6
+        Resolution of the width search in decades (1e-6 decade = 2.3 ppm of width): positions
+        that round to the same grid point share one cross-validation (cached). Late in an HHO
+        run most hawks sit within that distance of the rabbit, so this removes most repeated
+        RVR fits without changing the answer at any physically meaningful resolution. ``None``
+        evaluates every position exactly.
+    random_state : seed for the optimiser and shuffled folds.
+
+    Attributes
+    ----------
+    width_ : tuned width (units of X); ``best_params_ = {"width": width_}``.
+    best_score_ : CV RMSE at ``width_`` (units of y), pooled over all held-out points.
+    estimator_ : the :class:`~estimators.rvr.RVR` refitted on all data.
+    n_fits_ : distinct widths cross-validated (cache misses); ``optimize_result_.nfev`` counts
+        fitness evaluations as the optimiser sees them.
+    """
+
+    _model_name = "HHO-RVR"
+
+    def __init__(self, width_bounds=None, fit_intercept: bool = True, rvr_max_iter: int = 10000,
+                 optimizer: str = "hho", n_agents: int = 30, max_iter: int | None = 500,
+                 max_evals: int | None = None, validation=5, shuffle: bool = False,
+                 width_resolution: float | None = 1e-3, random_state=None):
+        self.width_bounds = width_bounds
+        self.fit_intercept = fit_intercept
+        self.rvr_max_iter = rvr_max_iter
+        self.optimizer = optimizer
+        self.n_agents = n_agents
+        self.max_iter = max_iter
+        self.max_evals = max_evals
+        self.validation = validation
+        self.shuffle = shuffle
+        self.width_resolution = width_resolution
+        self.random_state = random_state
+
+    def _check_params(self) -> None:
+        if self.width_bounds is not None:
+            _check_bounds_pair(self.width_bounds, "width_bounds")
+        _check_int(self.rvr_max_iter, "rvr_max_iter", 1)
+        r = self.width_resolution
+        if r is not None and not (isinstance(r, Real) and np.isfinite(r) and r > 0):
+            raise ValueError(f"width_resolution must be a positive number of decades or None, "
+                             f"got {r!r}")
+
+    def _search_space(self, X, y):
+        if self.width_bounds is None:
+            s = scale_width(X)
+            lo, hi = 0.05 * s, 10.0 * s
+        else:
+            lo, hi = _check_bounds_pair(self.width_bounds, "width_bounds")
+        return ["width"], [np.log10(lo)], [np.log10(hi)]
+
+    def _make_fitness(self, X, y, splits):
+        D2 = squared_distances(X, X)          # cached across all evaluations
+        n_test = sum(te.size for _, te in splits)
+        blocks = [(tr, te, np.ix_(tr, tr)) for tr, te in splits]
+        cache: dict = {}
+        res = self.width_resolution
+
+        def cv_rmse(log_w: float) -> float:
+            K = rbf_from_sqdist(D2, 10.0 ** log_w)
+            sse = 0.0
+            for tr, te, trtr in blocks:
+                fit = sparse_bayes_fit(K[trtr], y[tr], self.fit_intercept, self.rvr_max_iter)
+                pred = K[np.ix_(te, tr[fit.relevant])] @ fit.weights + fit.bias
+                sse += float(np.sum((pred - y[te]) ** 2))
+            self.n_fits_ += 1
+            return float(np.sqrt(sse / n_test))
+
+        def fitness(L: np.ndarray) -> np.ndarray:
+            out = np.empty(L.shape[0])
+            for i, log_w in enumerate(L[:, 0]):
+                if res is None:
+                    out[i] = cv_rmse(log_w)
+                    continue
+                key = int(np.rint(log_w / res))
+                if key not in cache:
+                    cache[key] = cv_rmse(key * res)
+                out[i] = cache[key]
+            return out
+
+        return fitness
+
+    def _refit(self, X, y, params):
+        return RVR(width=params["width"], fit_intercept=self.fit_intercept,
+                   max_iter=self.rvr_max_iter).fit(X, y)
+
+    def fit(self, X, y):
+        super().fit(X, y)
+        if self.width_resolution is not None:   # the width actually cross-validated
+            res = self.width_resolution
+            w = 10.0 ** (np.rint(np.log10(self.best_params_["width"]) / res) * res)
+            self.best_params_ = {"width": float(w)}
+            self.estimator_ = self._refit(X, y, self.best_params_)
+        self.width_ = self.best_params_["width"]
+        return self
+
+    def predict(self, X, return_std: bool = False):
+        """Predictive mean (units of y); with ``return_std`` also the RVR predictive std."""
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        return self.estimator_.predict(X, return_std=return_std)
+
+
+class PSOSVR(OptimizerTunedRegressor):
+    """epsilon-SVR (scikit-learn, RBF kernel) with C and gamma (and optionally epsilon) tuned
+    by particle swarm optimisation on a validation RMSE (paper 003 §3.3).
+
+    Inputs and target are standardised (statistics of the whole training set), so C, gamma and
+    epsilon refer to the standardised problem: gamma in 1/(standard deviation)^2 of the inputs,
+    epsilon in standard deviations of y, C in standard deviations of y per unit weight.
+
+    Parameters
+    ----------
+    C_bounds, gamma_bounds : (low, high) log-uniform search ranges; defaults (1e-2, 1e3) and
+        (1e-3, 1e2) — their log-centres C ~ 3 and gamma ~ 0.3 are the usual starting values
+        for standardised data (Cherkassky & Ma 2004: C ~ 3 sigma_y).
+    epsilon : tube half-width when not tuned (default 0.1).
+    tune_epsilon : also tune epsilon within ``epsilon_bounds`` (default (1e-3, 1)).
+    optimizer : "pso" (default) or "hho"; n_agents, max_iter, max_evals as for the optimiser
+        (defaults 30 particles x 100 iterations).
+    validation : hold-out fraction (default 0.2: the last 20 % of the rows in time order) or
+        an integer k for k-fold CV; ``shuffle`` randomises either.
+    search_max_iter : libsvm iteration cap during the search (default 100 000; -1 for none).
+        Corners of the box with large C·gamma can take minutes to converge; capped, they are
+        scored as fitted. The final refit is never capped.
+    random_state : seed for the optimiser and shuffled splits.
+
+    Attributes
+    ----------
+    best_params_ : {"C", "gamma", "epsilon"} of the standardised problem.
+    best_score_ : validation RMSE at the best point (units of y).
+    estimator_ : ``TransformedTargetRegressor(Pipeline(StandardScaler, SVR), StandardScaler)``
+        refitted on all data.
+    """
+
+    _model_name = "PSO-SVR"
+
+    def __init__(self, C_bounds=(1e-2, 1e3), gamma_bounds=(1e-3, 1e2), epsilon: float = 0.1,
+                 tune_epsilon: bool = False, epsilon_bounds=(1e-3, 1.0), optimizer: str = "pso",
+                 n_agents: int = 30, max_iter: int | None = 100, max_evals: int | None = None,
+                 validation=0.2, shuffle: bool = False, search_max_iter: int = 100_000,
+                 random_state=None):
+        self.C_bounds = C_bounds
+        self.gamma_bounds = gamma_bounds
+        self.epsilon = epsilon
+        self.tune_epsilon = tune_epsilon
+        self.epsilon_bounds = epsilon_bounds
+        self.optimizer = optimizer
+        self.n_agents = n_agents
+        self.max_iter = max_iter
+        self.max_evals = max_evals
+        self.validation = validation
+        self.shuffle = shuffle
+        self.search_max_iter = search_max_iter
+        self.random_state = random_state
+
+    def _check_params(self) -> None:
+        _check_bounds_pair(self.C_bounds, "C_bounds")
+        _check_bounds_pair(self.gamma_bounds, "gamma_bounds")
+        if self.tune_epsilon:
+            _check_bounds_pair(self.epsilon_bounds, "epsilon_bounds")
+        e = self.epsilon
+        if isinstance(e, bool) or not isinstance(e, Real) or not (np.isfinite(e) and e >= 0):
+            raise ValueError(f"epsilon must be a finite number >= 0, got {e!r}")
+        m = self.search_max_iter
+        if isinstance(m, bool) or not isinstance(m, Integral) or (m < 1 and m != -1):
+            raise ValueError(f"search_max_iter must be an integer >= 1 or -1, got {m!r}")
+
+    def _search_space(self, X, y):
+        names = ["C", "gamma"]
+        bounds = [_check_bounds_pair(self.C_bounds, "C_bounds"),
+                  _check_bounds_pair(self.gamma_bounds, "gamma_bounds")]
+        if self.tune_epsilon:
+            names.append("epsilon")
+            bounds.append(_check_bounds_pair(self.epsilon_bounds, "epsilon_bounds"))
+        b = np.log10(np.array(bounds))
+        return names, b[:, 0], b[:, 1]
+
+    def _make_fitness(self, X, y, splits):
+        Xs = StandardScaler().fit_transform(X)
+        y_mean, y_std = float(np.mean(y)), float(np.std(y))
+        y_std = y_std if y_std > 0 else 1.0
+        ys = (y - y_mean) / y_std
+        n_test = sum(te.size for _, te in splits)
+        tune_eps = self.tune_epsilon
+
+        def one(logp: np.ndarray) -> float:
+            C, gamma = 10.0 ** logp[0], 10.0 ** logp[1]
+            eps = 10.0 ** logp[2] if tune_eps else float(self.epsilon)
+            sse = 0.0
+            for tr, te in splits:
+                svr = SVR(kernel="rbf", C=C, gamma=gamma, epsilon=eps,
+                          max_iter=int(self.search_max_iter), cache_size=500)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", ConvergenceWarning)
+                    svr.fit(Xs[tr], ys[tr])
+                sse += float(np.sum((svr.predict(Xs[te]) - ys[te]) ** 2))
+            self.n_fits_ += 1
+            return float(np.sqrt(sse / n_test)) * y_std
+
+        def fitness(L: np.ndarray) -> np.ndarray:
+            return np.array([one(p) for p in L])
+
+        return fitness
+
+    def _refit(self, X, y, params):
+        eps = params.get("epsilon", float(self.epsilon))
+        svr = SVR(kernel="rbf", C=params["C"], gamma=params["gamma"], epsilon=eps,
+                  cache_size=500)
+        model = TransformedTargetRegressor(regressor=make_pipeline(StandardScaler(), svr),
+                                           transformer=StandardScaler())
+        return model.fit(X, y)
+
+    def fit(self, X, y):
+        super().fit(X, y)
+        if not self.tune_epsilon:
+            self.best_params_["epsilon"] = float(self.epsilon)
+        return self
