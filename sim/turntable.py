@@ -36,6 +36,10 @@ expands it into :class:`TableMotion` records, each with the angles at its start 
   programme), ``None`` for programmes that are not calibrations.
 * ``kind`` — ``'static'`` or ``'rotate'``.
 
+An optional static *lead-in* (``lead_in_s``; e.g. paper 000's 4 h soak before the ramp) holds
+the start angles before the first repetition; it is labelled "lead-in", position 0, window
+None, and is not part of any calibration window.
+
 A *continuous* programme repeats back to back for the whole run (paper 000 §4.1: the IMU
 "continuously carries out rotation calibration work" while the chamber ramps, 175 windows of
 ~40 min); :meth:`motions` then yields forever unless ``until_s`` is given.
@@ -223,8 +227,12 @@ class TurntableProgram:
 
     def __init__(self, steps: Sequence[Step], *, start_outer_deg: float = 0.0,
                  start_inner_deg: float = 0.0, continuous: bool = False,
-                 calibration: bool = False, name: str = "custom") -> None:
+                 calibration: bool = False, name: str = "custom",
+                 lead_in_s: float = 0.0) -> None:
         self.steps = tuple(steps)
+        self.lead_in_s = float(lead_in_s)
+        if not (0.0 <= self.lead_in_s < math.inf):
+            raise ValueError(f"lead_in_s must be finite and >= 0, got {lead_in_s!r}")
         if not self.steps:
             raise ValueError("a turntable programme needs at least one step")
         self.start_outer_deg = float(start_outer_deg)
@@ -232,7 +240,7 @@ class TurntableProgram:
         self.continuous = bool(continuous)
         self.calibration = bool(calibration)
         self.name = name
-        self.duration_s = _steps_duration(self.steps)   # of one repetition [s]
+        self.duration_s = _steps_duration(self.steps)   # of one repetition [s], no lead-in
         if self.continuous and not (0 < self.duration_s < math.inf):
             raise ValueError("a continuous programme needs a finite, positive duration")
         if self.continuous:
@@ -255,10 +263,12 @@ class TurntableProgram:
     def calibration19(cls, rate_deg_s: float = DEFAULT_RATE_DEG_S,
                       dwell_s: float = CALIBRATION19_DWELL_S,
                       first_dwell_s: float = CALIBRATION19_FIRST_DWELL_S,
-                      continuous: bool = True) -> "TurntableProgram":
-        """The 19-position systematic-calibration sequence (40 min with the defaults)."""
+                      continuous: bool = True, lead_in_s: float = 0.0) -> "TurntableProgram":
+        """The 19-position systematic-calibration sequence (40 min with the defaults), after an
+        optional static ``lead_in_s`` (e.g. a chamber soak) that belongs to no window."""
         return cls(calibration19_steps(rate_deg_s, dwell_s, first_dwell_s),
-                   continuous=continuous, calibration=True, name="calibration19")
+                   continuous=continuous, calibration=True, name="calibration19",
+                   lead_in_s=lead_in_s)
 
     @classmethod
     def from_config(cls, table: Mapping | None, ctx: Ctx) -> "TurntableProgram":
@@ -279,7 +289,7 @@ class TurntableProgram:
         table = {} if table is None else table
         check_known_keys(table, ("program", "outer_deg", "inner_deg", "continuous",
                                  "calibration", "rate_deg_s", "dwell_s", "first_dwell_s",
-                                 "motions"), ctx)
+                                 "motions") + LEAD_IN_KEYS, ctx)
         program = get_str(table, "program", ctx, "static",
                           choices=("static", "calibration19", "custom"))
 
@@ -294,10 +304,13 @@ class TurntableProgram:
             return cls.static(get_float(table, "outer_deg", ctx, 0.0, min=-360.0, max=360.0),
                               get_float(table, "inner_deg", ctx, 0.0, min=-360.0, max=360.0))
         if program == "calibration19":
-            only(("program", "continuous", "rate_deg_s", "dwell_s", "first_dwell_s"))
+            only(("program", "continuous", "rate_deg_s", "dwell_s", "first_dwell_s")
+                 + LEAD_IN_KEYS)
             return cls.calibration19(**_sequence_kwargs(table, ctx),
-                                     continuous=get_bool(table, "continuous", ctx, True))
-        only(("program", "outer_deg", "inner_deg", "continuous", "calibration", "motions"))
+                                     continuous=get_bool(table, "continuous", ctx, True),
+                                     lead_in_s=_lead_in(table, ctx))
+        only(("program", "outer_deg", "inner_deg", "continuous", "calibration", "motions")
+             + LEAD_IN_KEYS)
         continuous = get_bool(table, "continuous", ctx, False)
         steps = _parse_steps(get_list(table, "motions", ctx, min_len=1), ctx.child("motions"))
         _check_open_ended(steps, continuous, ctx.child("motions"))
@@ -307,7 +320,8 @@ class TurntableProgram:
                        start_inner_deg=get_float(table, "inner_deg", ctx, 0.0,
                                                  min=-360.0, max=360.0),
                        continuous=continuous,
-                       calibration=get_bool(table, "calibration", ctx, False))
+                       calibration=get_bool(table, "calibration", ctx, False),
+                       lead_in_s=_lead_in(table, ctx))
         except ValueError as exc:
             raise ctx.error("motions", str(exc)) from None
 
@@ -347,6 +361,13 @@ class TurntableProgram:
         o, i = _wrap(self.start_outer_deg), _wrap(self.start_inner_deg)
         t = 0.0
         window = 0
+        if self.lead_in_s > 0:
+            dur = self.lead_in_s if until_s is None else min(self.lead_in_s, until_s)
+            if dur <= 0:
+                return
+            yield TableMotion(dur, "static", None, 0.0, o, i, "lead-in", 0, None,
+                              self.continuous)
+            t = dur
         while True:
             position = 0
             for kind, axis, rate, dur, label in self._expand(self.steps):
@@ -379,6 +400,21 @@ class TurntableProgram:
 
 # --------------------------------------------------------------------------------------------
 # config parsing
+
+LEAD_IN_KEYS = ("lead_in_s", "lead_in_min", "lead_in_h")
+
+
+def _lead_in(table: Mapping, ctx: Ctx) -> float:
+    """Static lead-in before the programme [s], from exactly one of ``lead_in_s``,
+    ``lead_in_min``, ``lead_in_h`` (default 0)."""
+    given = [k for k in LEAD_IN_KEYS if k in table]
+    if len(given) > 1:
+        raise ctx.error(given[1], f"give only one of {', '.join(given)}")
+    if not given:
+        return 0.0
+    factor = {"lead_in_s": 1.0, "lead_in_min": 60.0, "lead_in_h": 3600.0}[given[0]]
+    return get_float(table, given[0], ctx, min=0.0) * factor
+
 
 def _sequence_kwargs(table: Mapping, ctx: Ctx) -> dict:
     return dict(rate_deg_s=get_float(table, "rate_deg_s", ctx, DEFAULT_RATE_DEG_S,

@@ -299,3 +299,19 @@ def test_motion_rejects_inconsistent_segments():
     np.testing.assert_allclose(mo.increments(0.0, 2, 100.0).dv_m_per_s[:, 2], SITE.gravity / 100)
     with pytest.raises(ValueError, match="sample grid"):
         mo.increments(0.005, 3, 100.0)
+
+
+def test_lead_in_then_continuous_calibration():
+    ctx = Ctx("sc.toml", "turntable")
+    p = TurntableProgram.from_config({"program": "calibration19", "lead_in_h": 4}, ctx)
+    ms = list(p.motions(until_s=4 * 3600 + 175 * 2400.0))
+    assert ms[0].label == "lead-in" and ms[0].window is None and ms[0].duration_s == 14400.0
+    assert ms[0].kind == "static" and ms[0].position == 0
+    windows = {m.window for m in ms[1:]}
+    assert windows == set(range(175))
+    assert ms[-1].window == 174 and ms[-1].duration_s == 120.0     # the last window is whole
+    with pytest.raises(UserInputError, match="only one of"):
+        TurntableProgram.from_config({"program": "calibration19", "lead_in_h": 4,
+                                      "lead_in_s": 5}, ctx)
+    mo = Motion(segments_from_program(p, 14500.0), SITE)
+    assert mo.angles(np.array([14399.0]))[0][0] == 0.0
