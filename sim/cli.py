@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import pathlib
 import sys
 import time
@@ -64,6 +65,8 @@ def _parser() -> argparse.ArgumentParser:
                                     f"and summarise it")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list the shipped scenarios and device presets")
+    from sim.cli_calibrate import add_subparser as add_calibrate
+    add_calibrate(sub)                     # rlgsim calibrate (sim/cli_calibrate.py)
     return p
 
 
@@ -121,6 +124,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(summary(path))
         elif args.command == "list":
             _list()
+        elif args.command == "calibrate":
+            return args.handler(args)
         return 0
     except UserInputError as exc:
         print(format_error(exc), file=sys.stderr)
@@ -128,6 +133,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 
