@@ -21,6 +21,10 @@ the maximum is slowed to it, and the limited setpoint catches up with the progra
 following hold). The chamber air then follows the rate-limited setpoint as a first-order lag
 with time constant ``air_tau_s``; that lag is one more state of the thermal integrator
 (:mod:`sim.thermal_integrator`, column 0 of its state), integrated exactly.
+
+The slew-rate limiter is written here because no library offers an exact (event-based,
+closed-form) limiter of a piecewise-linear signal; sampled limiters would put the catch-up
+instants off the breakpoints. docs/thermal.md §1.1 states the equations.
 """
 
 from __future__ import annotations
@@ -349,10 +353,6 @@ class ChamberProgram:
         """
         return rate_limit(setpoint, self.max_rate_c_per_min / MINUTE)
 
-    def air_lag_s(self) -> float:
-        """Time constant of the chamber air behind the rate-limited setpoint [s]."""
-        return self.air_tau_s
-
 
 def _draw_target(rng: np.random.Generator, current: float, seg: RandomProfile) -> float:
     """A target uniform on ``[min_c, max_c]`` minus the band ``current ± min_change_c``."""
@@ -400,30 +400,29 @@ def rate_limit(setpoint: PiecewiseLinear, max_rate_k_per_s: float) -> PiecewiseL
         if t1 == t0:           # jump in the input: the output does not jump
             continue
         s = (x1 - x0) / (t1 - t0)
+        caught = abs(x0 + s * (t - t0) - y) <= eps
         # advance from t (== t0) to t1 on this piece
         while t < t1:
-            x = x0 + s * (t - t0)
-            d = x - y
-            if abs(d) <= eps:
-                y = x
+            if caught:
                 if abs(s) <= r:          # track the input to the end of the piece
                     t, y = t1, x1
-                    push(t, y)
-                    break
-                # input faster than allowed: fall behind at full rate to the end of the piece
-                y = y + np.sign(s) * r * (t1 - t)
-                t = t1
+                else:                    # input faster than allowed: fall behind at full rate
+                    y = y + (1.0 if s > 0 else -1.0) * r * (t1 - t)
+                    t = t1
                 push(t, y)
                 break
+            d = x0 + s * (t - t0) - y
             direction = 1.0 if d > 0 else -1.0
             closing = r - direction * s            # > 0: the output closes the gap
             if closing > 0:
                 tc = t + abs(d) / closing
                 if tc < t1:
+                    # move along the limiter's own ramp (keeps |slope| <= r to rounding; the
+                    # input's value at tc would carry the input slope's rounding error)
                     y = y + direction * r * (tc - t)
                     t = tc
-                    y = x0 + s * (t - t0)          # exactly on the input again
                     push(t, y)
+                    caught = True
                     continue
             y = y + direction * r * (t1 - t)
             t = t1

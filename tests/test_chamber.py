@@ -221,3 +221,32 @@ def test_good_table_parses():
     assert isinstance(p.segments[1], Ramp) and p.segments[1].rate_c_per_min == 1.0
     sp = p.rate_limited(p.setpoint())
     assert sp.end_s == pytest.approx(600 + 20 * 60 + 2 * 300)
+
+
+# --------------------------------------------------------------------------- properties
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.0, 2000.0), st.floats(-50.0, 80.0)), min_size=1,
+                max_size=12),
+       st.floats(0.01, 2.0))
+def test_rate_limit_properties(points, rate):
+    """For any piecewise-linear programme (jumps allowed): the limited setpoint is continuous
+    with increasing breakpoints, never faster than the limit, starts at the programme's start
+    and ends on its final value, no earlier than the programme ends."""
+    times = np.cumsum([p[0] for p in points])
+    times[0] = 0.0
+    sp = PiecewiseLinear(times, [p[1] for p in points])
+    rl = rate_limit(sp, rate)
+    assert np.all(np.diff(rl.t_s) > 0) or rl.t_s.size == 1
+    # |Δy| ≤ r·Δt on every piece (absolute tolerance: catch-up points are rounded values)
+    assert np.all(np.abs(np.diff(rl.y)) <= rate * np.diff(rl.t_s) * (1 + 1e-9) + 1e-9)
+    assert rl.y[0] == sp.y[0] and rl.y[-1] == pytest.approx(sp.y[-1], abs=1e-9)
+    assert rl.end_s >= sp.end_s - 1e-9
+    # after its last breakpoint the limited setpoint holds the programme's final value
+    t = np.linspace(0, rl.end_s, 400)
+    gap = np.abs(rl(t) - sp(t))
+    assert np.all(gap[t >= rl.end_s] <= 1e-6)
