@@ -39,6 +39,8 @@ FORMAT_VERSION = 1
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
 _STR = h5py.string_dtype("utf-8")
+#: NAME of a netCDF-4 dimension scale that is not a variable (netCDF-C / h5netcdf convention).
+_NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
 
 
 def software_version() -> str:
@@ -94,6 +96,7 @@ class GroupWriter:
     def __init__(self, group: h5py.Group) -> None:
         self._g = group
         self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
+        self._dim_only: set[str] = set()             # growing dims without coordinate values
 
     @property
     def name(self) -> str:
@@ -122,11 +125,30 @@ class GroupWriter:
         ds.make_scale(name)
         self._set_attrs(ds, units, description, attrs)
 
+    def dimension(self, name: str) -> None:
+        """A growing dimension *without* coordinate values (netCDF-4: "a dimension but not a
+        variable"; xarray shows it without an index). For sample-rate axes whose coordinate is
+        implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
+        it takes the variables only."""
+        ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=">f4",
+                                    chunks=(1 << 16,), track_times=False)
+        ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
+        self._growing[name] = []
+        self._dim_only.add(name)
+
+    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
+        """Set attributes of the group itself."""
+        for key, value in attrs.items():
+            self._g.attrs[key] = _attr_value(value)
+
     def variable(self, name: str, dims: tuple[str, ...], *, units: str | None = None,
                  description: str, dtype: Any = np.float64, data: Any = None,
-                 attrs: Mapping[str, Any] | None = None) -> None:
+                 attrs: Mapping[str, Any] | None = None,
+                 filters: Mapping[str, Any] | None = None) -> None:
         """A variable over existing dimensions; along a growing dimension (first) it starts empty
-        and is filled by :meth:`append`, otherwise ``data`` gives its values."""
+        and is filled by :meth:`append`, otherwise ``data`` gives its values. ``filters`` are
+        HDF5 filter keywords of a growing variable (e.g. ``{"scaleoffset": 0}``: lossless
+        integer packing; only filters built into HDF5, so every netCDF-4 reader decodes them)."""
         scales = [self._g[d] for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
@@ -135,7 +157,7 @@ class GroupWriter:
             tail = tuple(len(s) for s in scales[1:])
             ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
                                         dtype=dtype, chunks=self._chunks(dtype, tail),
-                                        track_times=False)
+                                        track_times=False, **dict(filters or {}))
             self._growing[dims[0]].append(name)
         else:
             arr = np.asarray(data)
@@ -174,6 +196,8 @@ class GroupWriter:
             ds = self._g[v]
             ds.resize(start + m, axis=0)
             ds[start:start + m] = rows[v]
+        if dim in self._dim_only:
+            self._g[dim].resize(start + m, axis=0)
 
 
 class DatasetWriter:

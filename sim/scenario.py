@@ -20,8 +20,8 @@ from typing import Any, Callable
 import numpy as np
 
 from sim import presets
-from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_quantity,
-                        get_str, get_table, unit_keys)
+from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
+                        get_quantity, get_str, get_table, unit_keys)
 from sim.chamber import ChamberProgram
 from sim.earth import Site
 from sim.rng import generator
@@ -37,7 +37,13 @@ BLOCK_S = 600.0
 #: ``"module:Class.from_config"`` called as ``f(table, ctx)``; the result is stored in
 #: ``Device.parts[name]``. ``None`` = accepted as is (kept raw in ``Device.tables``). Sensor
 #: modules add their tables here (``"gyro": "sim.gyro:GyroModel.from_config"``, ...).
-DEVICE_TABLES: dict[str, str | None] = {}
+DEVICE_TABLES: dict[str, str | None] = {
+    "gyro": "sim.gyro:GyroModel.from_config",
+    "accelerometer": "sim.accelerometer:AccelerometerModel.from_config",
+    "uhfo": "sim.uhfo:UhfoModel.from_config",
+    "noise": "sim.noise:NoiseModel.from_config",
+    "tolerance": "sim.imu:Tolerance.from_config",
+}
 
 #: Keys of a device preset's ``[device]`` table.
 DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
@@ -130,6 +136,7 @@ class Acquisition:
     sample_rate_hz: float = 100.0   # IMU output rate [Hz]
     thermal_step_s: float = 1.0     # thermal grid step [s]
     chunk_s: float = 3600.0         # simulated time buffered per write [s]
+    truth_samples: bool = False     # also store the true increments per IMU sample (sim.imu)
 
 
 @dataclass(frozen=True)
@@ -148,7 +155,7 @@ def _parse_site(table: dict, ctx: Ctx) -> Site:
 
 
 def _parse_acquisition(table: dict, ctx: Ctx) -> Acquisition:
-    check_known_keys(table, ("sample_rate_hz", "thermal_step_s", "chunk_s"), ctx)
+    check_known_keys(table, ("sample_rate_hz", "thermal_step_s", "chunk_s", "truth_samples"), ctx)
     rate = get_float(table, "sample_rate_hz", ctx, 100.0, min=0.0, min_exclusive=True,
                      max=100000.0)
     if not _divides_block(rate, "sample"):
@@ -160,7 +167,8 @@ def _parse_acquisition(table: dict, ctx: Ctx) -> Acquisition:
         raise ctx.error("thermal_step_s", f"value {step:g} not allowed; must divide {BLOCK_S:g} s "
                                           f"exactly (e.g. 0.1, 0.5, 1, 2, 5, 10)")
     chunk = get_float(table, "chunk_s", ctx, 3600.0, min=0.0, min_exclusive=True)
-    return Acquisition(sample_rate_hz=rate, thermal_step_s=step, chunk_s=chunk)
+    return Acquisition(sample_rate_hz=rate, thermal_step_s=step, chunk_s=chunk,
+                       truth_samples=get_bool(table, "truth_samples", ctx, False))
 
 
 def _parse_power(table: dict, ctx: Ctx) -> PowerSchedule:

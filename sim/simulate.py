@@ -31,7 +31,10 @@ Adding a stage (issue 3: the IMU) — write a class with
   random draws from ``generator(seed, UNIT, purpose, channel, b)``;
 
 and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. Then add the
-group to docs/dataset.md. :class:`ProbeStage` is the worked example.
+group to docs/dataset.md. :class:`ProbeStage` is the worked example. A stage that writes several
+groups (the IMU: ``imu``, ``turntable``, ``truth``) sets ``groups = {name: description}``
+instead of ``group``/``description``; its ``declare`` then receives ``{name: group_writer}`` and
+its ``block`` returns ``{name: rows}``.
 """
 
 from __future__ import annotations
@@ -202,7 +205,13 @@ class ProbeStage(Stage):
 
 
 #: Stage factories run by :func:`simulate`, in order: ``f(scenario, timeline) -> Stage | None``.
-STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create]
+def _imu_stage(scenario, timeline: Timeline) -> Stage | None:
+    """The sensor stage (:class:`sim.imu.ImuStage`: groups imu, turntable, truth)."""
+    from sim.imu import ImuStage
+    return ImuStage.create(scenario, timeline)
+
+
+STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu_stage]
 
 
 # --------------------------------------------------------------------------- timeline group
@@ -292,8 +301,13 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
         writers[thermal.group] = w.group(thermal.group, thermal.description)
         thermal.declare(writers[thermal.group])
         for s in stages:
-            writers[s.group] = w.group(s.group, s.description)
-            s.declare(writers[s.group])
+            if hasattr(s, "groups"):                 # a stage writing several groups
+                for gname, gdesc in s.groups.items():
+                    writers[gname] = w.group(gname, gdesc)
+                s.declare({gname: writers[gname] for gname in s.groups})
+            else:
+                writers[s.group] = w.group(s.group, s.description)
+                s.declare(writers[s.group])
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]
         buffers: dict[str, dict[str, dict[str, list]]] = {}
@@ -324,7 +338,11 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                 buffer(thermal.group, thermal.rows(trace))
                 for i, s in enumerate(stages):
                     rows, s_states[i] = s.block(s_states[i], b, trace, motion)
-                    buffer(s.group, rows)
+                    if hasattr(s, "groups"):
+                        for gname, grows in rows.items():
+                            buffer(gname, grows)
+                    else:
+                        buffer(s.group, rows)
                 if (b + 1) % blocks_per_write == 0 or b == n_blocks - 1:
                     flush()
                 bar.update(round(m * step))

@@ -1,0 +1,647 @@
+"""The IMU: a *model* (nominal values + tolerances of a device preset) versus one drawn
+*realisation* (the truth of one unit), and the simulation stage that turns thermal state and
+motion into pulses, UHFO and ground truth.
+
+Model and realisation (as in pyins' ``sim`` or any Monte Carlo of a sensor lot): the device
+preset's ``[gyro]``, ``[accelerometer]``, ``[uhfo]`` and ``[noise]`` tables give nominal laws and
+noise levels; ``[tolerance]`` gives the unit-to-unit spread (1σ). :meth:`ImuModel.realise` draws
+one unit: every coefficient of every law of every axis, and the noise levels, from keyed
+sub-streams of the given generator (adding a coefficient never changes the others). The
+realisation is the truth of that unit — stored in the dataset's ``truth`` group as a table.
+
+The stage (:class:`ImuSimulator`) runs block by block inside :func:`sim.simulate.simulate`:
+
+1. UHFO on the thermal grid (:mod:`sim.uhfo`): the true excitation and its reading;
+2. gyro and accelerometer parameters on the thermal grid (:mod:`sim.gyro`,
+   :mod:`sim.accelerometer`; laws of :mod:`sim.tempco`) plus the slow noise (flicker, random
+   walk; :class:`sim.noise.SlowNoise`), which is part of the true bias;
+3. exact angle / velocity increments of the turntable motion (:mod:`sim.motion`), white noise
+   (:func:`sim.noise.white_increments`) and the phase increments of eqs. 17/20;
+4. pulse counting with carried remainders (:mod:`sim.pulses`).
+
+Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
+docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
+``gyro.white``/<axis>, accelerometer ``accel.white``/<axis>; slow noise ``gyro.flicker``,
+``gyro.rrw``, ``accel.flicker``, ``accel.rrw`` per axis; UHFO ``uhfo.wander``,
+``uhfo.readout``. Nothing depends on how blocks are grouped into writes.
+
+What truth is stored at the sample rate: the pulses are reproducible from the truth group's
+per-step parameters, the exact increments and the documented white-noise draws. The increments
+are a deterministic function of the turntable programme (stored in the ``timeline`` group) and
+the site, so by default the truth group stores them summed per thermal step (float64) and
+:func:`true_increments` recomputes the per-sample values bit for bit; ``truth_samples=True``
+stores them per sample as well (48 bytes per epoch — at 100 Hz over paper 000's 121 h
+programme that is 2 GB, several times the rest of the file, which is why it is not the
+default; see benchmarks/bench_sim.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from sim import pulses as pulse_counter
+from sim.accelerometer import AccelerometerModel, Accelerometers
+from sim.accelerometer import phase_increments as accel_increments
+from sim.config import Ctx, check_known_keys, get_float, get_table
+from sim.errors import UserInputError
+from sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
+from sim.gyro import phase_increments as gyro_increments
+from sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
+from sim.rng import generator
+from sim.uhfo import Uhfo, UhfoModel
+
+_NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """The ``[tolerance]`` preset table: unit-to-unit spreads (1σ).
+
+    Sub-tables ``gyro`` / ``accelerometer`` (one sub-table per law, same keys as the law),
+    ``uhfo`` (law keys, ``wander_rel``, ``noise_rel``) and ``noise`` (relative spreads
+    ``gyro_arw_rel``, ``gyro_bi_rel``, ``gyro_rrw_rel``, ``accel_vrw_rel``, ``accel_bi_rel``,
+    ``accel_rrw_rel``). Law sub-tables are checked against their laws when the model is built.
+    """
+
+    gyro: Mapping | None
+    accelerometer: Mapping | None
+    uhfo: Mapping | None
+    noise: Mapping[str, float]
+    ctx: Ctx
+
+    @classmethod
+    def from_config(cls, table: Mapping, ctx: Ctx) -> "Tolerance":
+        check_known_keys(table, ("gyro", "accelerometer", "uhfo", "noise"), ctx)
+        noise = get_table(table, "noise", ctx, {})
+        nctx = ctx.child("noise")
+        check_known_keys(noise, _NOISE_REL_KEYS, nctx)
+        rel = {k[:-4]: get_float(noise, k, nctx, 0.0, min=0.0, max=1.0) for k in _NOISE_REL_KEYS}
+        return cls(gyro=get_table(table, "gyro", ctx, None),
+                   accelerometer=get_table(table, "accelerometer", ctx, None),
+                   uhfo=get_table(table, "uhfo", ctx, None), noise=rel, ctx=ctx)
+
+
+def _keyed_draw(rng: np.random.Generator):
+    """``draw(name, shape)``: standard normals from a sub-stream keyed by ``name``."""
+    base = int(rng.integers(0, 2**63 - 1))
+
+    def draw(name: str, shape: tuple[int, ...]) -> np.ndarray:
+        sub = np.random.Generator(np.random.PCG64(
+            np.random.SeedSequence(entropy=base, spawn_key=(zlib.crc32(name.encode()),))))
+        return sub.standard_normal(shape)
+    return draw
+
+
+@dataclass(frozen=True)
+class ImuModel:
+    """A device's sensors: nominal laws + tolerances (the *model*, not a unit).
+
+    ``gyro`` always; ``accel`` and ``uhfo`` optional; ``noise`` levels; ``noise_rel`` relative
+    1σ spreads of the noise levels; ``source`` the preset file (for messages).
+    """
+
+    gyro: GyroModel
+    accel: AccelerometerModel | None
+    uhfo: UhfoModel | None
+    noise: NoiseModel
+    noise_rel: Mapping[str, float]
+    source: str = ""
+
+    @classmethod
+    def from_device(cls, device) -> "ImuModel | None":
+        """The model of a :class:`sim.scenario.Device` (None when it has no ``[gyro]``)."""
+        parts = dict(getattr(device, "parts", {}) or {})
+        tables = dict(getattr(device, "tables", {}) or {})
+        return cls.from_tables(tables, device.source, parts=parts)
+
+    @classmethod
+    def from_tables(cls, tables: Mapping[str, Mapping], source: str = "",
+                    parts: Mapping[str, Any] | None = None) -> "ImuModel | None":
+        """Build from raw preset tables (``gyro``, ``accelerometer``, ``uhfo``, ``noise``,
+        ``tolerance``); already validated ``parts`` are reused. Raises UserInputError."""
+        parts = dict(parts or {})
+        ctx = Ctx(source)
+
+        def part(name: str, cls_):
+            if name in parts:
+                return parts[name]
+            if name in tables:
+                return cls_.from_config(tables[name], ctx.child(name))
+            return None
+        gyro = part("gyro", GyroModel)
+        if gyro is None:
+            for other in ("accelerometer", "uhfo", "noise", "tolerance"):
+                if other in tables:
+                    raise ctx.error(other, "needs a [gyro] table in the same device preset")
+            return None
+        accel = part("accelerometer", AccelerometerModel)
+        uhfo = part("uhfo", UhfoModel)
+        noise = part("noise", NoiseModel) or NoiseModel()
+        tol = part("tolerance", Tolerance) or Tolerance(None, None, None, {}, ctx)
+        tctx = ctx.child("tolerance")
+        gyro = gyro.with_tolerance(tol.gyro, tctx.child("gyro"))
+        if tol.accelerometer is not None:
+            if accel is None:
+                raise tctx.error("accelerometer", "there is no [accelerometer] table to spread")
+            accel = accel.with_tolerance(tol.accelerometer, tctx.child("accelerometer"))
+        if uhfo is not None:
+            uhfo = uhfo.for_axes(len(gyro.axes)).with_tolerance(tol.uhfo, tctx.child("uhfo"))
+        elif tol.uhfo is not None:
+            raise tctx.error("uhfo", "there is no [uhfo] table to spread")
+        if gyro.bias.nominal["uhfo"].any() and uhfo is None:
+            raise ctx.child("gyro").child("bias").error(
+                "uhfo_deg_per_h_per_v", "the bias depends on UHFO but the device has no [uhfo]")
+        return cls(gyro=gyro, accel=accel, uhfo=uhfo, noise=noise,
+                   noise_rel=dict(tol.noise), source=source)
+
+    def realise(self, rng: np.random.Generator) -> "ImuRealisation":
+        """Draw one unit from ``rng`` (see the module docstring)."""
+        draw = _keyed_draw(rng)
+        gyros = self.gyro.realise(draw)
+        accels = self.accel.realise(draw) if self.accel is not None else None
+        uhfo = (self.uhfo.realise(draw, gyros.axes, gyros.blocks)
+                if self.uhfo is not None else None)
+        levels = {}
+        for key in NOISE_LEVELS:
+            n = gyros.n if key.startswith("gyro") else (accels.n if accels else 0)
+            rel = self.noise_rel.get(key, 0.0)
+            z = draw(f"noise.{key}", (n,)) if rel > 0 else np.zeros(n)
+            levels[key] = getattr(self.noise, key) * np.abs(1.0 + rel * z)
+        return ImuRealisation(gyros=gyros, accels=accels, uhfo=uhfo, noise=self.noise,
+                              levels=levels)
+
+
+@dataclass
+class ImuRealisation:
+    """One unit: realised gyros, accelerometers, UHFO and per-axis noise levels (SI)."""
+
+    gyros: Gyros
+    accels: Accelerometers | None
+    uhfo: Uhfo | None
+    noise: NoiseModel
+    levels: dict[str, np.ndarray]
+
+    def bind(self, node_names: Sequence[str], source: str = "") -> None:
+        """Resolve every law's nodes in the thermal network; a missing node is a
+        UserInputError naming the preset and the node."""
+        try:
+            self.gyros.bind(node_names)
+            if self.accels is not None:
+                self.accels.bind(node_names)
+            if self.uhfo is not None:
+                self.uhfo.bind(node_names)
+        except KeyError as exc:
+            raise UserInputError(
+                f"{source + ': ' if source else ''}sensor laws refer to thermal node "
+                f"{exc.args[0]!r}, which the device's thermal network does not have; nodes: "
+                f"{', '.join(node_names)}") from None
+
+    def coefficient_table(self) -> tuple[list[str], np.ndarray, list[str]]:
+        """(names, values, units) of every drawn coefficient, one row per component."""
+        names, values, unit_list = [], [], []
+
+        def add(law, comps: Sequence[str]):
+            for name, vals, unit in law.table():
+                for comp, v in zip(comps, vals):
+                    names.append(f"{name}[{comp}]")
+                    values.append(float(v))
+                    unit_list.append(unit)
+        g = self.gyros
+        gm = [f"{a}{o}" for a in g.axes for o in BODY_AXES if o != a]
+        add(g.bias, g.axes)
+        add(g.scale_factor, g.axes)
+        add(g.misalignment, gm)
+        for a in g.axes:
+            names.append(f"gyro.k0[{a}]")
+            values.append(g.k0)
+            unit_list.append("pulses/rad")
+        if self.accels is not None:
+            acc = self.accels
+            am = [f"{a}{o}" for a in acc.axes for o in BODY_AXES if o != a]
+            for law in acc.laws():
+                add(law, am if law is acc.misalignment else acc.axes)
+            for a in acc.axes:
+                names.append(f"accel.k0[{a}]")
+                values.append(acc.k0)
+                unit_list.append("pulses/(m/s)")
+        if self.uhfo is not None:
+            add(self.uhfo.law, self.uhfo.axes)
+            for a, w, e in zip(self.uhfo.axes, self.uhfo.wander_v, self.uhfo.noise_v):
+                names += [f"uhfo.wander_v[{a}]", f"uhfo.noise_v[{a}]"]
+                values += [float(w), float(e)]
+                unit_list += ["V", "V"]
+        si = {"gyro_arw": "rad/s^0.5", "gyro_bi": "rad/s", "gyro_rrw": "rad/s^1.5",
+              "accel_vrw": "m/s^1.5", "accel_bi": "m/s^2", "accel_rrw": "m/s^2.5"}
+        for key, vals in self.levels.items():
+            axes = g.axes if key.startswith("gyro") else (self.accels.axes if self.accels else ())
+            for a, v in zip(axes, vals):
+                names.append(f"noise.{key}[{a}]")
+                values.append(float(v))
+                unit_list.append(si[key])
+        return names, np.array(values), unit_list
+
+
+# --------------------------------------------------------------------------- the stage
+
+
+@dataclass
+class ImuState:
+    """Carried from block to block: pulse remainders (int64 fixed point, :mod:`sim.pulses`),
+    slow-noise states and the UHFO wander."""
+
+    gyro_remainder: np.ndarray
+    accel_remainder: np.ndarray
+    gyro_slow: Any
+    accel_slow: Any
+    uhfo_wander: np.ndarray
+
+
+class ImuSimulator:
+    """Pulses, UHFO, turntable angles and truth of one unit, block by block.
+
+    ``realisation`` (bound or not), ``node_names`` of the thermal network, ``seed``/``unit`` of
+    the seed tree, ``rate_hz`` the IMU sample rate, ``step_s`` the thermal step, ``motion`` a
+    :class:`sim.motion.Motion` (used when :meth:`block` gets no motion block), ``truth_samples``
+    store per-sample true increments too.
+    """
+
+    def __init__(self, realisation: ImuRealisation, node_names: Sequence[str], *, seed: int,
+                 unit: int, rate_hz: float, step_s: float, motion=None,
+                 truth_samples: bool = False, source: str = "") -> None:
+        self.r = realisation
+        self.node_names = tuple(node_names)
+        self.r.bind(self.node_names, source)
+        self.seed, self.unit = int(seed), int(unit)
+        self.rate_hz = float(rate_hz)
+        self.step_s = float(step_s)
+        self.sample_dt = 1.0 / self.rate_hz
+        self.motion = motion
+        self.truth_samples = bool(truth_samples)
+        g, a, lv = self.r.gyros, self.r.accels, self.r.levels
+        self.gyro_slow = SlowNoise(lv["gyro_bi"], lv["gyro_rrw"], self.step_s, self.r.noise,
+                                   g.axes, self.seed, self.unit, "gyro")
+        self.accel_slow = (SlowNoise(lv["accel_bi"], lv["accel_rrw"], self.step_s, self.r.noise,
+                                     a.axes, self.seed, self.unit, "accel")
+                           if a is not None else None)
+        #: white-noise standard deviation per sample: gyro [rad], accel [m/s]
+        self.gyro_white_sigma = lv["gyro_arw"] * math.sqrt(self.sample_dt)
+        self.accel_white_sigma = (lv["accel_vrw"] * math.sqrt(self.sample_dt)
+                                  if a is not None else np.zeros(0))
+
+    # ---- state ----------------------------------------------------------------------------
+    def initial_state(self) -> ImuState:
+        g, a = self.r.gyros, self.r.accels
+        return ImuState(
+            gyro_remainder=np.zeros(g.n, dtype=np.int64),
+            accel_remainder=np.zeros(a.n if a else 0, dtype=np.int64),
+            gyro_slow=self.gyro_slow.initial_state(),
+            accel_slow=self.accel_slow.initial_state() if self.accel_slow else None,
+            uhfo_wander=(self.r.uhfo.initial_state(self.seed, self.unit)
+                         if self.r.uhfo is not None else np.zeros(0)))
+
+    # ---- white noise ----------------------------------------------------------------------
+    def white(self, purpose: str, axes: Sequence[str], sigma: np.ndarray, b: int, n: int
+              ) -> np.ndarray | None:
+        """Standard normals (C, n) float32 of ``generator(seed, unit, purpose, axis, b)
+        .standard_normal(n, dtype=float32)`` per axis (None when every σ is 0); the white
+        increment of a sample is σ·z in float64."""
+        if not np.any(sigma > 0):
+            return None
+        z = np.empty((len(axes), n), dtype=np.float32)
+        for c, ax in enumerate(axes):
+            generator(self.seed, self.unit, purpose, ax, b).standard_normal(
+                n, dtype=np.float32, out=z[c])
+        return z
+
+    @staticmethod
+    def _count(inc: np.ndarray, remainder: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pulses (n, C) int32 and new remainders from increments (C, n) (overwritten)."""
+        c, n = inc.shape
+        out = np.empty((n, c), dtype=np.int32)
+        new = np.zeros(c, dtype=np.int64)
+        for s in range(c):
+            out[:, s], new[s] = pulse_counter.count_fixed(pulse_counter.quantise(inc[s]),
+                                                          int(remainder[s]))
+        return out, new
+
+    # ---- one block ------------------------------------------------------------------------
+    def block(self, state: ImuState, b: int, trace, motion_block=None
+              ) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], ImuState]:
+        """Rows of the ``imu``, ``turntable`` and ``truth`` groups for block ``b``.
+
+        ``trace`` a :class:`sim.simulate.ThermalTrace`; ``motion_block`` a
+        :class:`sim.motion.MotionBlock` for the block's samples (computed from ``motion`` when
+        None).
+        """
+        dt = self.step_s
+        m = len(trace.t_s)
+        t0 = float(trace.t_s[0]) - dt
+        n = int(round(m * dt * self.rate_hz))
+        if motion_block is None:
+            motion_block = self.motion.increments(t0, n, self.rate_hz)
+        idx = sample_step_index(n, m, self.rate_hz, dt)
+        nodes, start = np.asarray(trace.nodes_c), np.asarray(trace.start_c)
+        power = np.asarray(trace.power)
+        g, acc, uh = self.r.gyros, self.r.accels, self.r.uhfo
+
+        # UHFO and the discharge excitation
+        uhfo_dev = None
+        imu_time: dict[str, np.ndarray] = {"time": trace.t_s}
+        truth_time: dict[str, np.ndarray] = {"time": trace.t_s}
+        wander = state.uhfo_wander
+        if uh is not None:
+            u_true, u_read, wander = uh.block(state.uhfo_wander, self.seed, self.unit, b, nodes,
+                                              start, dt, power)
+            uhfo_dev = u_true - uh.u0[None, :]
+            imu_time["uhfo"] = u_read
+            truth_time["uhfo_true"] = u_true
+
+        # gyros
+        slow, gyro_slow = self.gyro_slow.block(state.gyro_slow, b, m)
+        gp = g.parameters(nodes, start, dt, slow, uhfo_dev)
+        dth = motion_block.dtheta_rad
+        dth_t = np.ascontiguousarray(dth.T)
+        z = self.white("gyro.white", g.axes, self.gyro_white_sigma, b, n)
+        inc = gyro_increments(gp.scale_factor, gp.bias, gp.installation, dth_t, z,
+                              self.gyro_white_sigma, self.sample_dt, idx, power)
+        gyro_pulses, g_rem = self._count(inc, state.gyro_remainder)
+        imu_sample = {"gyro_pulses": gyro_pulses}
+        truth_time.update(gyro_bias=gp.bias, gyro_bias_random=gp.bias_random,
+                          gyro_scale_factor=gp.scale_factor,
+                          gyro_installation=gp.installation)
+
+        # accelerometers
+        a_rem, accel_slow = state.accel_remainder, state.accel_slow
+        dv = motion_block.dv_m_per_s
+        dv_t = np.ascontiguousarray(dv.T)
+        if acc is not None:
+            aslow, accel_slow = self.accel_slow.block(state.accel_slow, b, m)
+            ap = acc.parameters(nodes, start, dt, aslow)
+            z = self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
+            inc = accel_increments(ap.scale_factor_pos, ap.scale_factor_neg, ap.bias,
+                                   ap.installation, dv_t, z,
+                                   self.accel_white_sigma, self.sample_dt, idx, power)
+            accel_pulses, a_rem = self._count(inc, state.accel_remainder)
+            imu_sample["accel_pulses"] = accel_pulses
+            truth_time.update(accel_bias=ap.bias, accel_bias_random=ap.bias_random,
+                              accel_scale_factor_pos=ap.scale_factor_pos,
+                              accel_scale_factor_neg=ap.scale_factor_neg,
+                              accel_installation=ap.installation)
+
+        # true inputs summed per thermal step
+        truth_time["dtheta_step"] = _step_sums(dth_t, idx, m)
+        truth_time["dv_step"] = _step_sums(dv_t, idx, m)
+        rows = {"imu": {"sample": imu_sample, "time": imu_time},
+                "truth": {"time": truth_time}}
+        if self.truth_samples:
+            rows["truth"]["sample"] = {"dtheta": dth, "dv": dv}
+        # turntable angles and motion index at the end of each thermal step
+        last = _last_sample_of_step(idx, m, n)
+        rows["turntable"] = {"time": {"time": trace.t_s,
+                                      "outer_angle": motion_block.outer_deg[last],
+                                      "inner_angle": motion_block.inner_deg[last],
+                                      "motion_index": motion_block.segment[last].astype(np.int32)}}
+        return rows, ImuState(g_rem, a_rem, gyro_slow, accel_slow, wander)
+
+
+def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int) -> np.ndarray:
+    """Sums of per-sample values ``x_t`` (k, n) over each thermal step: (m, k).
+
+    numpy's pairwise summation over each step's samples (contiguous rows)."""
+    k, n = x_t.shape
+    if isinstance(idx, int):
+        return x_t.reshape(k, m, idx).sum(axis=2).T.copy()
+    out = np.zeros((m, k))
+    np.add.at(out, idx, x_t.T)
+    return out
+
+
+def _last_sample_of_step(idx: np.ndarray | int, m: int, n: int) -> np.ndarray:
+    """Index of the last sample whose mid-point lies in each step (the step's end sample)."""
+    if isinstance(idx, int):
+        return np.arange(1, m + 1) * idx - 1
+    last = np.searchsorted(idx, np.arange(m), side="right") - 1
+    return np.clip(last, 0, n - 1)
+
+
+# --------------------------------------------------------------------------- simulate stage
+
+
+class ImuStage:
+    """The sensor stage of :func:`sim.simulate.simulate`: groups ``imu`` (pulses, UHFO),
+    ``turntable`` (table angles, motion labels) and ``truth`` (true parameters, inputs and the
+    drawn unit). docs/dataset.md describes every variable."""
+
+    needs_motion = True
+
+    groups = {
+        "imu": "what the hardware outputs: gyro and accelerometer pulses per sample (int32) and "
+               "the UHFO voltage on the thermal grid",
+        "turntable": "turntable angles and motion index at the end of each thermal step, and the "
+                     "table of motions (labels for calibration)",
+        "truth": "ground truth: every true sensor parameter on the thermal grid, the true inputs "
+                 "and the drawn device realisation",
+    }
+
+    def __init__(self, scenario, timeline, model: ImuModel, *, unit: int = 0) -> None:
+        from sim.motion import Motion
+        network = scenario.device.thermal.network
+        if network is None:
+            raise UserInputError(f"{scenario.device.source}: the device has sensor tables but "
+                                 f"no thermal network; sensors need node temperatures")
+        self.scenario = scenario
+        self.timeline = timeline
+        self.model = model
+        self.unit = int(unit)
+        self.realisation = model.realise(generator(scenario.seed, self.unit, "realisation",
+                                                   "imu", 0))
+        self.turntable_segments = [s for s in timeline.segments if s.track == "turntable"]
+        self.motion = Motion(self.turntable_segments, scenario.site)
+        self.truth_samples = bool(getattr(scenario.acquisition, "truth_samples", False))
+        self.sim = ImuSimulator(self.realisation, network.node_names, seed=scenario.seed,
+                                unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
+                                step_s=timeline.step_s, motion=self.motion,
+                                truth_samples=self.truth_samples,
+                                source=scenario.device.source)
+
+    @classmethod
+    def create(cls, scenario, timeline) -> "ImuStage | None":
+        """The stage for ``scenario`` (None when its device has no ``[gyro]`` table)."""
+        from sim.simulate import UNIT
+        model = ImuModel.from_device(scenario.device)
+        if model is None:
+            return None
+        return cls(scenario, timeline, model, unit=UNIT)
+
+    # ---- dataset layout -------------------------------------------------------------------
+    def declare(self, writers: Mapping[str, Any]) -> None:
+        """Declare the three groups' dimensions and variables (docs/dataset.md)."""
+        r = self.realisation
+        g, acc, uh = r.gyros, r.accels, r.uhfo
+        rate = self.sim.rate_hz
+        time_desc = "time since the start of the run at the end of each thermal step"
+        pulses = {"scaleoffset": 0}        # lossless integer packing (HDF5 scale-offset)
+
+        imu = writers["imu"]
+        imu.set_attrs({"sample_rate_hz": rate, "thermal_step_s": self.sim.step_s,
+                       "sample_time": "sample k covers [k/f, (k+1)/f); its time is (k+1)/f s "
+                                      "(f = sample_rate_hz); no coordinate is stored"})
+        imu.dimension("sample")
+        imu.coordinate("time", growing=True, units="s", description=time_desc)
+        imu.coordinate("gyro", g.axes, description="gyro input axis (body axis)")
+        imu.variable("gyro_pulses", ("sample", "gyro"), units="1", dtype=np.int32,
+                     filters=pulses,
+                     description="gyro pulses counted in each sample interval (paper 000 eq. 17)")
+        if acc is not None:
+            imu.coordinate("accel", acc.axes, description="accelerometer input axis (body axis)")
+            imu.variable("accel_pulses", ("sample", "accel"), units="1", dtype=np.int32,
+                         filters=pulses,
+                         description="accelerometer pulses counted in each sample interval "
+                                     "(paper 000 eq. 20)")
+        if uh is not None:
+            imu.variable("uhfo", ("time", "gyro"), units="V", dtype=np.float32,
+                         description="high-frequency-oscillator voltage of each gyro's "
+                                     "light-intensity loop as logged (read-out noise, ADC step)")
+
+        tt = writers["turntable"]
+        segs = self.turntable_segments
+        tt.coordinate("time", growing=True, units="s", description=time_desc)
+        tt.variable("outer_angle", ("time",), units="degree",
+                    description="outer-axis angle at the end of the step (sim.turntable)")
+        tt.variable("inner_angle", ("time",), units="degree",
+                    description="inner-axis angle at the end of the step")
+        tt.variable("motion_index", ("time",), units="1", dtype=np.int32,
+                    description="index (dimension motion) of the turntable motion in which the "
+                                "step ends")
+        tt.coordinate("motion", np.arange(len(segs), dtype=np.int32), units="1", dtype=np.int32,
+                      description="turntable motion index (timeline track 'turntable')")
+        attr = [dict(s.attrs) for s in segs]
+
+        def col(key, default):
+            return [a.get(key) if a.get(key) is not None else default for a in attr]
+        tt.variable("motion_t0", ("motion",), units="s", data=np.array([s.t0_s for s in segs]),
+                    description="start of the motion")
+        tt.variable("motion_t1", ("motion",), units="s", data=np.array([s.t1_s for s in segs]),
+                    description="end of the motion")
+        tt.variable("motion_label", ("motion",), dtype=str, data=[s.label for s in segs],
+                    description="label of the motion")
+        tt.variable("motion_kind", ("motion",), dtype=str, data=col("kind", "static"),
+                    description="'static' or 'rotate'")
+        tt.variable("motion_axis", ("motion",), dtype=str, data=col("axis", ""),
+                    description="rotating table axis ('outer', 'inner', '' when static)")
+        tt.variable("motion_rate", ("motion",), units="degree s-1",
+                    data=np.array(col("rate_deg_s", 0.0), dtype=float),
+                    description="signed table rate during the motion")
+        tt.variable("motion_position", ("motion",), units="1", dtype=np.int32,
+                    data=np.array(col("position", -1), dtype=np.int32),
+                    description="1-based position within the programme (-1: none)")
+        tt.variable("motion_window", ("motion",), units="1", dtype=np.int32,
+                    data=np.array(col("window", -1), dtype=np.int32),
+                    description="calibration window (-1: not a calibration)")
+
+        tr = writers["truth"]
+        names, values, unit_list = r.coefficient_table()
+        tr.set_attrs({
+            "seed": np.int64(self.scenario.seed), "unit": np.int64(self.unit),
+            "sample_rate_hz": rate, "thermal_step_s": self.sim.step_s,
+            "parameter_hold": "every parameter row holds over the samples of its thermal step "
+                              "(samples whose mid-point lies in [time - thermal_step_s, time))",
+            "white_noise": "block b (600 s) of axis a: z = sim.rng.generator(seed, unit, "
+                           "'gyro.white' | 'accel.white', a, b).standard_normal(n_b, "
+                           "dtype=float32); increment = float64(z) * white_sigma",
+            "gyro_equation": "u = ((E_x dth_x + E_y dth_y) + E_z dth_z) + bias*dt; u = u + "
+                             "sigma*z; inc = K*u [pulses]; pulses: sim.pulses fixed point",
+            "accel_equation": "u = ((E_x dv_x + E_y dv_y) + E_z dv_z) + bias*dt; u = u + "
+                              "sigma*z; inc = (K+ if u >= 0 else K-)*u [pulses]",
+        })
+        tr.coordinate("time", growing=True, units="s", description=time_desc)
+        tr.coordinate("body", BODY_AXES, description="body (measurement) axis")
+        tr.coordinate("gyro", g.axes, description="gyro input axis (body axis)")
+        tr.coordinate("coefficient", names,
+                      description="drawn coefficient of the unit: <law>.<term>[<axis>]")
+        tr.variable("coefficient_value", ("coefficient",), data=values,
+                    units="per coefficient: see coefficient_units",
+                    description="value of the drawn coefficient")
+        tr.variable("coefficient_units", ("coefficient",), dtype=str, data=unit_list,
+                    description="unit of the coefficient (preset units)")
+        tr.variable("gyro_bias", ("time", "gyro"), units="rad s-1",
+                    description="true gyro bias D_g (temperature law + flicker + rate random "
+                                "walk), held over the step")
+        tr.variable("gyro_bias_random", ("time", "gyro"), units="rad s-1",
+                    description="the flicker + rate-random-walk part of gyro_bias")
+        tr.variable("gyro_scale_factor", ("time", "gyro"), units="rad-1",
+                    description="true gyro scale factor K_g [pulses/rad]")
+        tr.variable("gyro_installation", ("time", "gyro", "body"), units="1",
+                    description="true gyro installation matrix rows E_g (1 on the own axis, "
+                                "misalignment angles [rad] off it)")
+        tr.variable("gyro_white_sigma", ("gyro",), units="rad", data=self.sim.gyro_white_sigma,
+                    description="standard deviation of the white angle increment per sample "
+                                "(ARW·sqrt(1/f))")
+        if acc is not None:
+            tr.coordinate("accel", acc.axes, description="accelerometer input axis (body axis)")
+            tr.variable("accel_bias", ("time", "accel"), units="m s-2",
+                        description="true accelerometer bias D_a (law + flicker + random walk)")
+            tr.variable("accel_bias_random", ("time", "accel"), units="m s-2",
+                        description="the flicker + random-walk part of accel_bias")
+            tr.variable("accel_scale_factor_pos", ("time", "accel"), units="s m-1",
+                        description="true positive-input scale factor K_a+ [pulses/(m/s)]")
+            tr.variable("accel_scale_factor_neg", ("time", "accel"), units="s m-1",
+                        description="true negative-input scale factor K_a- [pulses/(m/s)]")
+            tr.variable("accel_installation", ("time", "accel", "body"), units="1",
+                        description="true accelerometer installation matrix rows E_a")
+            tr.variable("accel_white_sigma", ("accel",), units="m s-1",
+                        data=self.sim.accel_white_sigma,
+                        description="standard deviation of the white velocity increment per "
+                                    "sample (VRW·sqrt(1/f))")
+        if uh is not None:
+            tr.variable("uhfo_true", ("time", "gyro"), units="V",
+                        description="true light-intensity-loop voltage (law + discharge wander), "
+                                    "before read-out noise and ADC")
+            tr.variable("uhfo_u0", ("gyro",), units="V", data=uh.u0,
+                        description="U_0: the excitation the bias law's UHFO term is relative to")
+        tr.variable("dtheta_step", ("time", "body"), units="rad",
+                    description="true angle increment ∫ω_ib^b dt summed over the step's samples")
+        tr.variable("dv_step", ("time", "body"), units="m s-1",
+                    description="true velocity increment ∫f^b dt summed over the step's samples")
+        if self.truth_samples:
+            tr.dimension("sample")
+            tr.variable("dtheta", ("sample", "body"), units="rad",
+                        description="true angle increment ∫ω_ib^b dt over each sample interval")
+            tr.variable("dv", ("sample", "body"), units="m s-1",
+                        description="true velocity increment ∫f^b dt over each sample interval")
+
+    # ---- running --------------------------------------------------------------------------
+    def initial_state(self) -> ImuState:
+        return self.sim.initial_state()
+
+    def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
+        """Rows ``{group: {dim: {variable: array}}}`` of block ``b``; ``motion`` the run's
+        :class:`sim.motion.Motion` (the stage's own when None)."""
+        if motion is not None and motion is not self.sim.motion:
+            self.sim.motion = motion
+        return self.sim.block(state, b, trace)
+
+
+def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample true (Δθ (n, 3) [rad], Δv (n, 3) [m/s]) of ``n`` samples from ``t0_s``,
+    recomputed from a dataset's timeline (turntable track) and site — bit for bit what the run
+    used (:class:`sim.motion.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
+    from sim.earth import Site
+    from sim.motion import Motion, TurntableSegment
+
+    def text(v):
+        return v.decode() if isinstance(v, bytes) else str(v)
+    tl = dataset["timeline"]
+    segs = [TurntableSegment(float(a), float(b), "turntable", text(lab), json.loads(text(at)))
+            for a, b, tr, lab, at in zip(tl["t0"][...], tl["t1"][...], tl["track"][...],
+                                         tl["label"][...], tl["attrs"][...])
+            if text(tr) == "turntable"]
+    site = Site(float(dataset.attrs["latitude_deg"]), float(dataset.attrs["height_m"]))
+    mb = Motion(segs, site).increments(t0_s, n, float(dataset.attrs["sample_rate_hz"]))
+    return mb.dtheta_rad, mb.dv_m_per_s

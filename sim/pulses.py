@@ -1,0 +1,75 @@
+"""Pulse counting with a carried fractional remainder: no pulse is ever lost or invented.
+
+A laser gyro's fringe counter (or a quartz accelerometer's current-to-frequency converter) emits
+one pulse each time the accumulated phase crosses an integer (paper 000 §3.3, eqs. 17 and 20:
+the computer counts the pulses in each sampling interval). With ``inc_j`` the phase increment of
+sample ``j`` in pulses (float64, from the measurement equation):
+
+    q_j = rint(inc_j · 2^30)                       int64 fixed point, 2^-30 pulse resolution
+    Φ_j = ρ + q_0 + q_1 + … + q_j                  ρ ∈ [0, 2^30): remainder carried in
+    c_j = Φ_j >> 30  (= floor(Φ_j / 2^30)),        pulses_j = c_j − c_{j−1},  c_{−1} = 0
+    ρ'  = Φ_last − (c_last << 30)                  remainder carried out
+
+so the pulses of a block sum to floor((ρ + Σq)/2^30) and, chained over blocks, **the sum of all
+pulses is exactly the floor of the total phase** (integer arithmetic is associative, so this
+holds whatever the grouping). The integer part is removed at every block end, keeping Φ small.
+
+Why fixed point rather than a float64 running phase: float64 sums round differently when the
+same increments are grouped differently, so "sum of pulses == floor(total phase)" would hold
+only up to rounding at integer crossings; the int64 running sum is exact and associative, and
+numpy's int64 prefix sum is ~10× faster than its float64 one. The resolution, 2^-30 pulse
+(≈ 4·10⁻¹⁰ arcsec for a 2.14 pulse/arcsec gyro), is far below any physical effect: even a
+constant increment that always rounds the same way drifts by at most 2^-31 pulse per sample
+(≈ 2·10⁻⁸ °/h at 100 Hz). A block may hold up to 2^33 pulses (≈ 1800 °/s for 600 s at 2.14
+pulses/arcsec).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Fractional bits of the fixed-point phase.
+FRACTION_BITS = 30
+#: Fixed-point units per pulse.
+ONE = 1 << FRACTION_BITS
+
+
+def quantise(inc: np.ndarray) -> np.ndarray:
+    """Fixed-point phase increments rint(inc·2^30) as int64 (``inc`` float64 [pulses],
+    overwritten)."""
+    np.multiply(inc, float(ONE), out=inc)
+    np.rint(inc, out=inc)
+    return inc.astype(np.int64)
+
+
+def count_fixed(q: np.ndarray, remainder: int) -> tuple[np.ndarray, int]:
+    """Pulses (n,) int32 and the new remainder for fixed-point increments ``q`` (n,) int64
+    (overwritten) and the carried ``remainder`` ∈ [0, 2^30)."""
+    n = q.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int32), int(remainder)
+    q[0] += remainder
+    np.cumsum(q, out=q)                                # Φ_j
+    last = int(q[-1])
+    np.right_shift(q, FRACTION_BITS, out=q)            # c_j
+    pulses = np.empty(n, dtype=np.int32)
+    np.subtract(q[1:], q[:-1], out=pulses[1:], casting="unsafe")
+    pulses[0] = q[0]
+    return pulses, last - (int(q[-1]) << FRACTION_BITS)
+
+
+def count(inc: np.ndarray, remainder: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pulses (n, C) int32 and new remainders (C,) int64 for float64 increments ``inc`` (n, C)
+    [pulses] and carried remainders (C,) int64 in [0, 2^30) (see the module docstring)."""
+    n, c = inc.shape
+    out = np.empty((n, c), dtype=np.int32)
+    new = np.zeros(c, dtype=np.int64)
+    for s in range(c):
+        q = quantise(np.array(inc[:, s], dtype=float))
+        out[:, s], new[s] = count_fixed(q, int(remainder[s]))
+    return out, new
+
+
+def total_phase(remainder: np.ndarray, pulses_so_far: np.ndarray) -> np.ndarray:
+    """The accumulated phase [pulses] from the pulse total and the carried remainder."""
+    return np.asarray(pulses_so_far, dtype=float) + np.asarray(remainder, dtype=float) / ONE
