@@ -425,3 +425,15 @@ def test_from_config_errors_name_the_key(edit, key):
 def test_index_suggests_close_names(imu):
     with pytest.raises(KeyError, match="gx.A"):
         imu.index("gx.a")
+
+
+def test_derivative_by_hand():
+    """Eq. (3) written out for two nodes: C1 T1' = G(T2 − T1) + g1(Ta − T1) + P1, ..."""
+    net = ThermalNetwork(("a", "b"), [10.0, 40.0], [[0, 0.5], [0.5, 0]], [0.2, 0.0], [1.0, 3.0])
+    T = np.array([[25.0, 21.0], [20.0, 20.0]])
+    got = net.derivative(T, np.array([18.0, 20.0]), np.array([1.0, 0.0]))
+    want = np.array([[(0.5 * (21 - 25) + 0.2 * (18 - 25) + 1.0) / 10.0, (0.5 * (25 - 21) + 3.0) / 40.0],
+                     [0.0, 0.0]])
+    np.testing.assert_allclose(got, want, rtol=1e-15)
+    assert net.heat_to_ambient_w(T[0], 18.0) == pytest.approx(0.2 * 7.0)
+    np.testing.assert_allclose(net.stiffness_w_per_k(), [[0.7, -0.5], [-0.5, 0.5]])
