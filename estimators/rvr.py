@@ -28,6 +28,11 @@ folds); building the kernel from cached squared distances here makes that afford
 future fastrvm release drops the compiled entry point, the public ``fastrvm.RVR`` with a
 precomputed kernel is used instead (same algorithm, same mean; the covariance is then rebuilt).
 
+Above ``max_basis`` training points (default 1000) the candidate basis functions are kernels
+centred on ``max_basis`` points evenly spaced in row order (every point still enters the
+likelihood): memory N x max_basis instead of N^2, and the core stays numerically sound (see
+:class:`RVR`).
+
 Targets are divided by their standard deviation before the fit and the results scaled back (the
 model is scale-equivariant): fastrvm floors the initial noise at 1e-6 target units, which would
 break SI-unit targets such as gyro bias in rad/s (~1e-8).
@@ -62,6 +67,14 @@ def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def rbf_from_sqdist(D2: np.ndarray, width: float) -> np.ndarray:
     """RBF kernel exp(-D2 / width^2) from squared distances ``D2`` (``width`` in units of X)."""
     return np.exp(D2 * (-1.0 / (width * width)))
+
+
+def basis_centres(n_samples: int, max_basis: int | None) -> np.ndarray:
+    """Rows whose kernels are the candidate basis functions: all rows, or ``max_basis`` of them
+    evenly spaced in row (time) order when there are more."""
+    if max_basis is None or n_samples <= max_basis:
+        return np.arange(n_samples)
+    return np.unique(np.linspace(0, n_samples - 1, max_basis).round().astype(np.intp))
 
 
 def scale_width(X: np.ndarray) -> float:
@@ -141,10 +154,18 @@ def sparse_bayes_fit(basis: np.ndarray, t: np.ndarray, fit_intercept: bool = Tru
     try:
         idx, mean, alpha_core, beta, cov, n_iter, status = _core_inference(
             basis, t / scale, fit_intercept, max_iter)
-    except RuntimeError:           # "no relevant basis function at initialization"
-        return _degenerate_fit(t, fit_intercept)
+    except RuntimeError as exc:
+        if "no relevant basis" in str(exc):        # nothing explains the targets
+            return _degenerate_fit(t, fit_intercept)
+        raise FloatingPointError(f"the Tipping-Faul fit failed numerically ({exc}); the "
+                                 "candidate basis functions are nearly collinear — use a "
+                                 "smaller max_basis or another width") from exc
     rel = idx[:-1] if fit_intercept else idx       # the bias is the last column, always kept
-    if rel.size + fit_intercept == 0 or not (np.all(np.isfinite(mean)) and np.isfinite(beta)):
+    if not (beta > 0 and np.isfinite(beta) and np.all(np.isfinite(mean))):
+        raise FloatingPointError(f"the Tipping-Faul fit diverged (noise precision {beta:g}); "
+                                 "the candidate basis functions are nearly collinear — use a "
+                                 "smaller max_basis or another width")
+    if rel.size + fit_intercept == 0:
         return _degenerate_fit(t, fit_intercept)
     # The core normalises every column to unit norm s before the fit; the precision of the
     # weight of the un-normalised column is alpha_norm * s^2, while the core reports
@@ -175,11 +196,19 @@ class RVR(RegressorMixin, BaseEstimator):
         Add the bias as a free (never pruned) basis function.
     max_iter : int, default 10000
         Iteration cap of the Tipping-Faul loop (one add/re-estimate/delete per iteration).
+    max_basis : int or None, default 1000
+        Most candidate basis functions: with more training points, kernels centred on
+        ``max_basis`` of them (evenly spaced in row order) are the candidates, while every
+        point still enters the likelihood. ``None``: every point (Tipping's RVR). Tipping &
+        Faul's algorithm accepts any candidate set; the cap keeps memory at N x max_basis
+        instead of N^2 and avoids a numerical breakdown of the core on dense, nearly collinear
+        candidates (1-D ramp, N = 1e4, width 10 K: beta < 0 or a wrong noise level, depending
+        on the seed; with 1000 candidates the fit is sound in ~1 s).
 
     Attributes
     ----------
     width_ : kernel width used (units of X).
-    relevance_ : indices of the relevance vectors in the training data.
+    relevance_ : indices of the relevance vectors in the training data (ascending).
     relevance_vectors_ : the relevance vectors, shape (n_relevance, n_features).
     dual_coef_ : posterior mean weights of the relevance vectors (units of y).
     intercept_ : posterior mean bias (units of y; 0 without intercept).
@@ -189,10 +218,12 @@ class RVR(RegressorMixin, BaseEstimator):
     n_iter_ : iterations run; ``converged_``: whether the loop stopped before ``max_iter``.
     """
 
-    def __init__(self, width="scale", fit_intercept: bool = True, max_iter: int = 10000):
+    def __init__(self, width="scale", fit_intercept: bool = True, max_iter: int = 10000,
+                 max_basis: int | None = 1000):
         self.width = width
         self.fit_intercept = fit_intercept
         self.max_iter = max_iter
+        self.max_basis = max_basis
 
     def fit(self, X, y):
         """Fit on ``X`` (n_samples, n_features) and ``y`` (n_samples,); returns self."""
@@ -201,9 +232,10 @@ class RVR(RegressorMixin, BaseEstimator):
         check_min_samples(X.shape[0], 2, "RVR")
         check_not_constant(X)
         self.width_ = scale_width(X) if self.width == "scale" else float(self.width)
-        K = rbf_from_sqdist(squared_distances(X, X), self.width_)
+        centres = basis_centres(X.shape[0], self.max_basis)
+        K = rbf_from_sqdist(squared_distances(X, X[centres]), self.width_)
         fit = sparse_bayes_fit(K, y, self.fit_intercept, self.max_iter)
-        self._set_posterior(X, fit)
+        self._set_posterior(X, fit, centres)
         return self
 
     def _check_params(self) -> None:
@@ -215,10 +247,13 @@ class RVR(RegressorMixin, BaseEstimator):
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, Integral) \
                 or self.max_iter < 1:
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
+        m = self.max_basis
+        if m is not None and (isinstance(m, bool) or not isinstance(m, Integral) or m < 1):
+            raise ValueError(f"max_basis must be None or an integer >= 1, got {m!r}")
 
-    def _set_posterior(self, X: np.ndarray, fit: SparseBayesFit) -> None:
-        self.relevance_ = fit.relevant
-        self.relevance_vectors_ = X[fit.relevant]
+    def _set_posterior(self, X: np.ndarray, fit: SparseBayesFit, centres: np.ndarray) -> None:
+        self.relevance_ = centres[fit.relevant]
+        self.relevance_vectors_ = X[self.relevance_]
         self.dual_coef_ = fit.weights
         self.intercept_ = fit.bias
         self.alpha_ = fit.alpha

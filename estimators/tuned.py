@@ -36,7 +36,8 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from ._validation import check_min_samples, check_not_constant
 from .cv import validation_splits
 from .optimize import harris_hawks, particle_swarm
-from .rvr import RVR, rbf_from_sqdist, scale_width, sparse_bayes_fit, squared_distances
+from .rvr import (RVR, basis_centres, rbf_from_sqdist, scale_width, sparse_bayes_fit,
+                  squared_distances)
 
 OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
 
@@ -131,7 +132,9 @@ class HHORVR(OptimizerTunedRegressor):
     width_bounds : (low, high) or None
         Search range of the width in units of X (log-uniform). ``None``: 0.01 to 10 times
         sqrt(n_features var(X)) (paper 000's range was lost in the text extraction).
-    fit_intercept, rvr_max_iter : passed to :class:`~estimators.rvr.RVR`.
+    fit_intercept, rvr_max_iter, max_basis : passed to :class:`~estimators.rvr.RVR`
+        (``max_iter``, ``max_basis``); in each fold the candidate basis functions are those of
+        its training rows (at most ``max_basis`` of them, evenly spaced).
     optimizer : "hho" (default) or "pso".
     n_agents, max_iter, max_evals : population size, iterations, evaluation budget.
     validation : int k >= 2 for k-fold CV (default 5) or a hold-out fraction in (0, 1).
@@ -156,12 +159,13 @@ class HHORVR(OptimizerTunedRegressor):
     _model_name = "HHO-RVR"
 
     def __init__(self, width_bounds=None, fit_intercept: bool = True, rvr_max_iter: int = 10000,
-                 optimizer: str = "hho", n_agents: int = 30, max_iter: int | None = 500,
+                 max_basis: int | None = 1000, optimizer: str = "hho", n_agents: int = 30, max_iter: int | None = 500,
                  max_evals: int | None = None, validation=5, shuffle: bool = False,
                  width_resolution: float | None = 1e-3, random_state=None):
         self.width_bounds = width_bounds
         self.fit_intercept = fit_intercept
         self.rvr_max_iter = rvr_max_iter
+        self.max_basis = max_basis
         self.optimizer = optimizer
         self.n_agents = n_agents
         self.max_iter = max_iter
@@ -175,6 +179,7 @@ class HHORVR(OptimizerTunedRegressor):
         if self.width_bounds is not None:
             _check_bounds_pair(self.width_bounds, "width_bounds")
         _check_int(self.rvr_max_iter, "rvr_max_iter", 1)
+        _check_int(self.max_basis, "max_basis", 1, allow_none=True)
         r = self.width_resolution
         if r is not None and not (isinstance(r, Real) and np.isfinite(r) and r > 0):
             raise ValueError(f"width_resolution must be a positive number of decades or None, "
@@ -189,18 +194,29 @@ class HHORVR(OptimizerTunedRegressor):
         return ["width"], [np.log10(lo)], [np.log10(hi)]
 
     def _make_fitness(self, X, y, splits):
-        D2 = squared_distances(X, X)          # cached across all evaluations
+        # candidate centres of each fold, as columns of one cached squared-distance matrix
+        fold_centres = [tr[basis_centres(tr.size, self.max_basis)] for tr, _ in splits]
+        used = np.unique(np.concatenate(fold_centres))
+        column = np.full(X.shape[0], -1, dtype=np.intp)
+        column[used] = np.arange(used.size)
+        D2 = squared_distances(X, X[used])     # cached across all evaluations
         n_test = sum(te.size for _, te in splits)
-        blocks = [(tr, te, np.ix_(tr, tr)) for tr, te in splits]
+        blocks = [(tr, te, np.ix_(tr, column[c]), column[c])
+                  for (tr, te), c in zip(splits, fold_centres)]
         cache: dict = {}
         res = self.width_resolution
 
         def cv_rmse(log_w: float) -> float:
             K = rbf_from_sqdist(D2, 10.0 ** log_w)
             sse = 0.0
-            for tr, te, trtr in blocks:
-                fit = sparse_bayes_fit(K[trtr], y[tr], self.fit_intercept, self.rvr_max_iter)
-                pred = K[np.ix_(te, tr[fit.relevant])] @ fit.weights + fit.bias
+            for tr, te, fit_block, cols in blocks:
+                try:
+                    fit = sparse_bayes_fit(K[fit_block], y[tr], self.fit_intercept,
+                                           self.rvr_max_iter)
+                except FloatingPointError:      # a diverged fit scores worst
+                    self.n_fits_ += 1
+                    return np.inf
+                pred = K[np.ix_(te, cols[fit.relevant])] @ fit.weights + fit.bias
                 sse += float(np.sum((pred - y[te]) ** 2))
             self.n_fits_ += 1
             return float(np.sqrt(sse / n_test))
@@ -221,7 +237,7 @@ class HHORVR(OptimizerTunedRegressor):
 
     def _refit(self, X, y, params):
         return RVR(width=params["width"], fit_intercept=self.fit_intercept,
-                   max_iter=self.rvr_max_iter).fit(X, y)
+                   max_iter=self.rvr_max_iter, max_basis=self.max_basis).fit(X, y)
 
     def fit(self, X, y):
         super().fit(X, y)

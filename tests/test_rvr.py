@@ -160,3 +160,28 @@ def test_bad_parameters(params, match):
     X, y = sinc_data(n=20)
     with pytest.raises(ValueError, match=match):
         RVR(**params).fit(X, y)
+
+
+def test_max_basis_limits_candidates_and_keeps_the_fit():
+    X, y = sinc_data(n=300, seed=7)
+    full = RVR(width=2.0, max_basis=None).fit(X, y)
+    capped = RVR(width=2.0, max_basis=60).fit(X, y)
+    centres = np.unique(np.linspace(0, 299, 60).round().astype(int))
+    assert np.all(np.isin(capped.relevance_, centres))
+    assert np.all(np.diff(capped.relevance_) > 0)
+    Xq = np.linspace(-10, 10, 200)[:, None]
+    assert np.sqrt(np.mean((capped.predict(Xq) - full.predict(Xq)) ** 2)) < 0.2 * NOISE
+    assert capped.noise_std_ == pytest.approx(full.noise_std_, rel=0.1)
+
+
+def test_diverged_core_fit_raises_instead_of_returning_garbage(monkeypatch):
+    import estimators.rvr as rvr
+
+    def broken(basis, ts, fit_intercept, max_iter):
+        return (np.array([3, basis.shape[1]]), np.array([4.5e4, 1.0]), np.array([1.0, 0.0]),
+                -0.017, np.eye(2), 3310, 0)
+
+    monkeypatch.setattr(rvr, "_core_inference", broken)
+    X, y = sinc_data(n=30)
+    with pytest.raises(FloatingPointError, match="diverged.*max_basis"):
+        RVR(width=2.0).fit(X, y)

@@ -82,20 +82,23 @@ def test_hho_rvr_ties_cubic_on_pure_cubic():
     assert rmse_cubic == pytest.approx(SIGMA, rel=0.05)
 
 
-def test_hho_rvr_fitness_equals_independent_cross_validation():
-    """The cached-distance fast path scores exactly what fitting RVR per fold scores."""
+@pytest.mark.parametrize("max_basis", [1000, 40])
+def test_hho_rvr_fitness_equals_independent_cross_validation(max_basis):
+    """The cached-distance fast path scores exactly what fitting RVR per fold scores (also
+    with fewer candidate basis functions than training rows)."""
     T, y, _ = ramp(nonpolynomial, seed=2, n=120)
     X = T[:, None]
-    model = HHORVR(n_agents=5, max_iter=5, random_state=3).fit(X, y)
+    model = HHORVR(n_agents=5, max_iter=5, max_basis=max_basis, random_state=3).fit(X, y)
     w = model.width_
     sse, n = 0.0, 0
     for tr, te in KFold(5).split(X):
-        pred = RVR(width=w).fit(X[tr], y[tr]).predict(X[te])
+        pred = RVR(width=w, max_basis=max_basis).fit(X[tr], y[tr]).predict(X[te])
         sse += np.sum((pred - y[te]) ** 2)
         n += te.size
     assert model.best_score_ == pytest.approx(np.sqrt(sse / n), rel=1e-6)
     assert model.estimator_.width_ == w
-    assert np.array_equal(model.predict(X), RVR(width=w).fit(X, y).predict(X))
+    assert np.array_equal(model.predict(X),
+                          RVR(width=w, max_basis=max_basis).fit(X, y).predict(X))
 
 
 def test_hho_rvr_reports_and_is_reproducible():
