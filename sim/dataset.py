@@ -144,20 +144,22 @@ class GroupWriter:
     def variable(self, name: str, dims: tuple[str, ...], *, units: str | None = None,
                  description: str, dtype: Any = np.float64, data: Any = None,
                  attrs: Mapping[str, Any] | None = None,
-                 filters: Mapping[str, Any] | None = None) -> None:
+                 storage: Mapping[str, Any] | None = None) -> None:
         """A variable over existing dimensions; along a growing dimension (first) it starts empty
-        and is filled by :meth:`append`, otherwise ``data`` gives its values. ``filters`` are
-        HDF5 filter keywords of a growing variable (e.g. ``{"scaleoffset": 0}``: lossless
-        integer packing; only filters built into HDF5, so every netCDF-4 reader decodes them)."""
+        and is filled by :meth:`append`, otherwise ``data`` gives its values. ``storage``: extra
+        h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
+        filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
+        ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
         scales = [self._g[d] for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
             dtype = _STR
         if dims and dims[0] in self._growing:
             tail = tuple(len(s) for s in scales[1:])
+            extra = dict(storage or {})
+            chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
             ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
-                                        dtype=dtype, chunks=self._chunks(dtype, tail),
-                                        track_times=False, **dict(filters or {}))
+                                        dtype=dtype, chunks=chunks, track_times=False, **extra)
             self._growing[dims[0]].append(name)
         else:
             arr = np.asarray(data)

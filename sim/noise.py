@@ -259,24 +259,36 @@ class SlowNoise:
                 fs[:, c] = self.flicker.q[:, c] * rng.standard_normal(fs.shape[0])
         return fs, self.walk.initial_state()
 
-    def block(self, state: tuple[np.ndarray, np.ndarray], b: int, m: int
-              ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-        """The slow noise (m, C) in SI at the step ends of block ``b`` and the new state."""
-        fs, ws = state
-        out = np.zeros((m, len(self.axes)))
+    def draws(self, b: int, m: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The standard-normal drives of block ``b`` (``m`` steps): flicker (J, C, m) and
+        random walk (m, C), None when the term is off. Independent of any state, so they may be
+        drawn ahead (in another thread)."""
+        wf = wr = None
         if self.has_flicker:
-            fb = self.flicker
-            w = np.empty((fb.q.shape[0], len(self.axes), m))
+            j = self.flicker.q.shape[0]
+            wf = np.empty((j, len(self.axes), m))
             for c, a in enumerate(self.axes):
-                w[:, c, :] = self._gen(self.seed, self.unit, f"{self.purpose}.flicker", a,
-                                       b).standard_normal((fb.q.shape[0], m))
-            x, fs = fb.block_from(fs, w)
-            out += x
+                wf[:, c, :] = self._gen(self.seed, self.unit, f"{self.purpose}.flicker", a,
+                                        b).standard_normal((j, m))
         if self.has_walk:
-            w = np.empty((m, len(self.axes)))
+            wr = np.empty((m, len(self.axes)))
             for c, a in enumerate(self.axes):
-                w[:, c] = self._gen(self.seed, self.unit, f"{self.purpose}.rrw", a,
-                                    b).standard_normal(m)
-            x, ws = self.walk.block_from(ws, w)
+                wr[:, c] = self._gen(self.seed, self.unit, f"{self.purpose}.rrw", a,
+                                     b).standard_normal(m)
+        return wf, wr
+
+    def block(self, state: tuple[np.ndarray, np.ndarray], b: int, m: int,
+              draws: tuple[np.ndarray | None, np.ndarray | None] | None = None
+              ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The slow noise (m, C) in SI at the step ends of block ``b`` and the new state
+        (``draws``: :meth:`draws` of this block, drawn now when None)."""
+        fs, ws = state
+        wf, wr = draws if draws is not None else self.draws(b, m)
+        out = np.zeros((m, len(self.axes)))
+        if wf is not None:
+            x, fs = self.flicker.block_from(fs, wf)
+            out += x
+        if wr is not None:
+            x, ws = self.walk.block_from(ws, wr)
             out += x
         return out, (fs, ws)

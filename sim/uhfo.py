@@ -124,24 +124,33 @@ class Uhfo:
                                                       0).standard_normal()
                          for c, a in enumerate(self.axes)])
 
+    def draws(self, seed: int, unit: int, b: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """Standard-normal drives of block ``b``: wander (C, m) and read-out (C, m)."""
+        w = np.stack([generator(seed, unit, "uhfo.wander", a, b).standard_normal(m)
+                      for a in self.axes])
+        e = np.stack([generator(seed, unit, "uhfo.readout", a, b).standard_normal(m)
+                      for a in self.axes])
+        return w, e
+
     def block(self, state: np.ndarray, seed: int, unit: int, b: int, nodes_c: np.ndarray,
-              start_c: np.ndarray, dt: float, power: np.ndarray
+              start_c: np.ndarray, dt: float, power: np.ndarray,
+              draws: tuple[np.ndarray, np.ndarray] | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(U_true (m, C) [V], UHFO reading (m, C) [V] float32, new wander state (C,))."""
+        """(U_true (m, C) [V], UHFO reading (m, C) [V] float32, new wander state (C,));
+        ``draws`` from :meth:`draws` (drawn now when None)."""
         m = nodes_c.shape[0]
+        w_all, e_all = draws if draws is not None else self.draws(seed, unit, b, m)
         u = self.law.evaluate(nodes_c, start_c, dt)
         phi = math.exp(-dt / self.wander_tau_s)
         new = np.array(state, dtype=float, copy=True)
         read = np.empty_like(u)
-        for c, a in enumerate(self.axes):
+        for c in range(len(self.axes)):
             if self.wander_v[c] > 0:
-                w = generator(seed, unit, "uhfo.wander", a, b).standard_normal(m)
-                x, _ = lfilter([self.wander_v[c] * math.sqrt(1.0 - phi * phi)], [1.0, -phi], w,
-                               zi=[phi * new[c]])
+                x, _ = lfilter([self.wander_v[c] * math.sqrt(1.0 - phi * phi)], [1.0, -phi],
+                               w_all[c], zi=[phi * new[c]])
                 u[:, c] += x
                 new[c] = x[-1]
-            e = generator(seed, unit, "uhfo.readout", a, b).standard_normal(m) * self.noise_v[c]
-            read[:, c] = u[:, c] + e
+            read[:, c] = u[:, c] + e_all[c] * self.noise_v[c]
         if self.lsb_v > 0:
             read = np.round(read / self.lsb_v) * self.lsb_v
         on = power[:, None] > 0

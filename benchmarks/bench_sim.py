@@ -1,0 +1,84 @@
+"""End-to-end simulator speed: the paper-000 programme at 100 Hz written to HDF5.
+
+paper000_ramp: the RLG-IMU (three gyros, three accelerometers, UHFO) through a 4 h soak and a
+7000 min chamber ramp on the turntable's continuous 19-position calibration sequence —
+120.7 h, 43.4 million IMU epochs — with the thermal network, the probes and the truth groups.
+Prints epochs/s, simulated/wall time, CPU time, peak memory (``resource.getrusage``; the
+process's maximum resident set) and the file size, with the machine line
+(``benchmarks/_machine.py``). Targets on the 2-core development machine: ≥ 3 million epochs/s
+end to end and < 500 MB peak memory, independent of the duration (compare ``--hours 12``).
+
+Usage: ``python benchmarks/bench_sim.py [--hours H] [--truth-samples] [--chunk-s S]
+[--out PATH] [--keep]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import resource
+import sys
+import tempfile
+import time
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+from _machine import machine  # noqa: E402
+from sim import presets  # noqa: E402
+from sim.scenario import parse_scenario  # noqa: E402
+from sim.simulate import simulate  # noqa: E402
+
+
+def scenario_text(hours: float | None, truth_samples: bool) -> str:
+    """paper000_ramp's text, optionally cut to ``hours`` and with per-sample truth."""
+    text = presets.load_scenario_file("paper000_ramp").text
+    if truth_samples:
+        text = text.replace("[acquisition]", "[acquisition]\ntruth_samples = true", 1)
+    if hours is not None:                     # a top-level key: before the first table
+        text = f"duration_h = {hours}\n" + text
+    return text
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hours", type=float, default=None, help="cut the run (default: all)")
+    ap.add_argument("--truth-samples", action="store_true",
+                    help="also store the per-sample true increments (48 B/epoch)")
+    ap.add_argument("--chunk-s", type=float, default=None, help="simulated s per write")
+    ap.add_argument("--out", default=None, help="output file (default: a temporary file)")
+    ap.add_argument("--keep", action="store_true", help="keep the output file")
+    args = ap.parse_args(argv)
+
+    sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
+    epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
+    tmpdir = tempfile.mkdtemp(prefix="rlgsim-bench-")
+    out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    simulate(sc, out, chunk_s=args.chunk_s, progress=False)
+    wall = time.perf_counter() - wall0
+    cpu = time.process_time() - cpu0
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    size_mb = out.stat().st_size / 1e6
+    print(f"machine: {machine()}")
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(f"scenario: paper000_ramp (device rlg_imu_000), {sc.duration_s / 3600:.2f} h at "
+          f"{sc.acquisition.sample_rate_hz:g} Hz, truth_samples={sc.acquisition.truth_samples}")
+    print(f"epochs: {epochs:,} (6 sensor channels, UHFO, probes, truth)")
+    print(f"wall time: {wall:.2f} s  (CPU {cpu:.2f} s)")
+    print(f"epochs/s: {epochs / wall / 1e6:.2f} million")
+    print(f"simulated/wall: {sc.duration_s / wall:,.0f}×")
+    print(f"peak memory (max RSS): {peak_mb:.0f} MB")
+    print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
+    if not args.keep:
+        out.unlink(missing_ok=True)
+        try:
+            os.rmdir(tmpdir)
+        except OSError:
+            pass
+
+
+if __name__ == "__main__":
+    main()
