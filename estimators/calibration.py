@@ -282,15 +282,14 @@ class DatasetReader:
             "scale_factor_pulses_per_s_per_g", DEFAULT_ACCEL_SF_PULSE_PER_S_PER_G))
         return SensorModel.nominal(kg / ARCSEC, ka / G0)
 
-    def noise(self) -> tuple[float | None, float | None]:
-        """Nominal ARW [°/√h] and VRW [µg/√Hz] from the device preset's ``[noise]`` table
-        (None where it names none)."""
+    def noise(self) -> dict[str, float]:
+        """Nominal noise levels from the device preset's ``[noise]`` table (sim/noise.py keys:
+        ``gyro_arw_deg_per_sqrt_h``, ``accel_vrw_ug_per_sqrt_hz``,
+        ``gyro_bias_instability_deg_per_h``, ``gyro_rrw_deg_per_h_per_sqrt_h``,
+        ``accel_bias_instability_ug``, ``accel_rrw_ug_per_sqrt_s``); absent keys are left out."""
         t = self._device.get("noise", {})
-        arw = next((float(v) for k, v in t.items() if k.startswith("gyro_arw")
-                    and not k.endswith("_rel") and isinstance(v, (int, float))), None)
-        vrw = next((float(v) for k, v in t.items() if k.startswith("accel_vrw")
-                    and not k.endswith("_rel") and isinstance(v, (int, float))), None)
-        return arw, vrw
+        return {k: float(v) for k, v in t.items()
+                if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
     def segments(self) -> list[dict]:
         if "timeline" not in self.f:
@@ -372,13 +371,19 @@ class CampaignSettings:
 def _filter_settings(reader: DatasetReader, cs: CampaignSettings) -> FilterSettings:
     if cs.filter is not None:
         return cs.filter
-    arw, vrw = reader.noise()
-    arw = cs.arw_deg_per_sqrt_h if cs.arw_deg_per_sqrt_h is not None else (
-        arw if arw is not None else DEFAULT_ARW_DEG_PER_SQRT_H)
-    vrw = cs.vrw_ug_per_sqrt_hz if cs.vrw_ug_per_sqrt_hz is not None else (
-        vrw if vrw is not None else DEFAULT_VRW_UG_PER_SQRT_HZ)
-    return FilterSettings(arw_rad_per_sqrt_s=arw * math.pi / 180 / 60,
-                          vrw_m_per_s_per_sqrt_s=vrw * UG)
+    nz = reader.noise()
+    arw = cs.arw_deg_per_sqrt_h if cs.arw_deg_per_sqrt_h is not None else nz.get(
+        "gyro_arw_deg_per_sqrt_h", DEFAULT_ARW_DEG_PER_SQRT_H)
+    vrw = cs.vrw_ug_per_sqrt_hz if cs.vrw_ug_per_sqrt_hz is not None else nz.get(
+        "accel_vrw_ug_per_sqrt_hz", DEFAULT_VRW_UG_PER_SQRT_HZ)
+    return FilterSettings(
+        arw_rad_per_sqrt_s=arw * math.pi / 180 / 60, vrw_m_per_s_per_sqrt_s=vrw * UG,
+        gyro_bias_instability_rad_per_s=nz.get("gyro_bias_instability_deg_per_h", 0.0)
+        * DEG_PER_H,
+        gyro_rrw_rad_per_s_per_sqrt_s=nz.get("gyro_rrw_deg_per_h_per_sqrt_h", 0.0)
+        * DEG_PER_H / 60.0,
+        accel_bias_instability_m_per_s2=nz.get("accel_bias_instability_ug", 0.0) * UG,
+        accel_rrw_m_per_s2_per_sqrt_s=nz.get("accel_rrw_ug_per_sqrt_s", 0.0) * UG)
 
 
 def calibrate_one(reader: DatasetReader, spec: WindowSpec, settings: FilterSettings,

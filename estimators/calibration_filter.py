@@ -53,6 +53,11 @@ random walk w_g (PSD ARW² per axis) into φ through −C, accelerometer velocit
     Q_φφ = Q_g T,   Q_vφ = F Q_g T²/2,   Q_vv = Q_a T + F Q_g Fᵀ T³/3,
     Q_g = C diag(ARW²) Cᵀ,  Q_a = C diag(VRW²) Cᵀ,  F = [f^n×]
 
+Slow bias noise: with bias instability or rate random walk in the settings, 18 more states
+carry the bias wander per axis — a fast and a slow Gauss–Markov process standing for the flicker
+decades (Keshner 1982) plus the random walk, and their running mean over the window — and the
+reported biases are window means (docs/calibration.md, "Slow bias noise").
+
 Measurement: z = v̂(t_k) at KF step ends that lie inside a static dwell (minus a margin after
 and before the table moves), H = [0 I 0], R = σ_v² I.
 
@@ -90,6 +95,15 @@ PHI, DV, BG, SG, MG, BA, SAP, SAN, MA, PHI0 = (slice(0, 3), slice(3, 6), slice(6
                                                slice(21, 24), slice(24, 27), slice(27, 30),
                                                slice(30, 33))
 PARAMS = slice(6, 30)
+#: Optional slow-bias-noise states (when the settings give bias instability or rate random
+#: walk), per gyro [°/h] and accelerometer [µg] axis: a fast Gauss–Markov process f (the
+#: flicker decades below a minute, stationary), a slow one s (the decades up to the window
+#: length plus the random walk, starting at 0: its start value is the constant bias b), and the
+#: running mean η = (1/T_w)∫(f + s) dt; the reported bias is b + η(T_w), the window mean.
+FG, FA, SLG, SLA, ETA_G, ETA_A = (slice(33, 36), slice(36, 39), slice(39, 42), slice(42, 45),
+                                  slice(45, 48), slice(48, 51))
+N_STATES_WANDER = 51
+SCALE_WANDER = np.array(([DEG_PER_H] * 3 + [UG] * 3) * 3)
 #: Gyro misalignment states (row, column) of E_g, and accelerometer ones of E_a.
 GYRO_MIS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 ACCEL_MIS = ((1, 0), (2, 0), (2, 1))
@@ -134,6 +148,10 @@ class FilterSettings:
     to a turn; ``align_s`` levelling time at the start of the first dwell; prior 1σ of the
     states in the filter's units (``prior``: dict name → σ for φ, b_g, s_g, Γ_g, b_a, s_a, Γ_a);
     ``param_random_walk`` (24,) optional random walk of the parameters [unit/√s];
+    ``gyro_bias_instability_rad_per_s``, ``gyro_rrw_rad_per_s_per_sqrt_s``,
+    ``accel_bias_instability_m_per_s2``, ``accel_rrw_m_per_s2_per_sqrt_s``: the slow bias
+    noise (flicker, random walk); when any is > 0 the filter carries the bias wander and its
+    running mean (12 more states) and reports the window-mean biases;
     ``max_iterations``; convergence when every parameter correction is below
     ``tol_sigma`` × its σ or ``tol_abs`` (filter units).
     """
@@ -150,6 +168,10 @@ class FilterSettings:
         gyro_mis_arcsec=300.0, accel_bias_ug=1000.0, accel_sf_ppm=1000.0,
         accel_mis_arcsec=300.0))
     param_random_walk: np.ndarray | None = None
+    gyro_bias_instability_rad_per_s: float = 0.0
+    gyro_rrw_rad_per_s_per_sqrt_s: float = 0.0
+    accel_bias_instability_m_per_s2: float = 0.0
+    accel_rrw_m_per_s2_per_sqrt_s: float = 0.0
     max_iterations: int = 10
     tol_sigma: float = 1e-2
     tol_abs: float = 1e-4
@@ -162,6 +184,34 @@ class FilterSettings:
         if not self.kf_step_s > 0 or self.substeps < 1 or (
                 self.velocity_sigma_m_per_s is not None and not self.velocity_sigma_m_per_s > 0):
             raise ValueError("kf_step_s, substeps and velocity_sigma_m_per_s must be positive")
+
+    flicker_fast_tau_s: float = 20.0
+    flicker_fast_decades: float = 2.0
+    flicker_slow_tau_s: float = 2000.0
+    flicker_slow_decades: float = 2.0
+
+    def slow_noise(self) -> dict[str, tuple[float, float]]:
+        """Per sensor group ('gyro', 'accel'): (σ_f² of the fast process, drive PSD q_s² of
+        the slow one) in SI² and SI²/s.
+
+        Flicker of bias instability B is a continuum of Gauss–Markov processes with variance
+        B²·ln10/π per decade of correlation time (Keshner 1982; sim/noise.py builds it the same
+        way). The fast process (τ_f = 20 s) stands for the two decades 2–200 s
+        (σ_f² = 2·B²·ln10/π), the slow one (τ_s = 2000 s) for the two decades 200 s–20 000 s,
+        which inside a window grow from their start value (part of the bias b) like a random
+        walk of intensity 2σ_s²/τ_s; the rate random walk K adds K². Slower decades are
+        constant within a window. Checked against the simulator's flicker bank (many seeds:
+        NEES inside the χ² band, tests/test_calibration.py)."""
+        c = math.log(10.0) / math.pi
+        out = {}
+        for name, b, k in (("gyro", self.gyro_bias_instability_rad_per_s,
+                            self.gyro_rrw_rad_per_s_per_sqrt_s),
+                           ("accel", self.accel_bias_instability_m_per_s2,
+                            self.accel_rrw_m_per_s2_per_sqrt_s)):
+            out[name] = (self.flicker_fast_decades * c * b * b,
+                         2.0 * (self.flicker_slow_decades * c * b * b) / self.flicker_slow_tau_s
+                         + k * k)
+        return out
 
     def velocity_sigma(self, nominal: SensorModel) -> float:
         """σ of the navigated-velocity measurement [m/s]: the given value, else the
@@ -347,28 +397,56 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     mask = measurement_mask(motions, t_end, settings.margin_s)
     v_meas = nav.v[(np.arange(n_steps) + 1) * per_step - 1]
 
-    inv = 1.0 / SCALE
-    kf = KalmanFilter(dim_x=N_STATES, dim_z=3)
-    sig0 = settings.prior_sigma()
+    T = per_step * dt
+    window_s = n_steps * T
+    slow = settings.slow_noise()
+    wander = any(v > 0 for pair in slow.values() for v in pair)
+    n_x = N_STATES_WANDER if wander else N_STATES
+    scale = np.concatenate([SCALE, SCALE_WANDER]) if wander else SCALE
+    inv = 1.0 / scale
+    kf = KalmanFilter(dim_x=n_x, dim_z=3)
+    sig0 = np.concatenate([settings.prior_sigma(), np.zeros(n_x - N_STATES)])
+    if wander:                              # the fast process is stationary from the start
+        sig0[FG] = math.sqrt(slow["gyro"][0]) / DEG_PER_H
+        sig0[FA] = math.sqrt(slow["accel"][0]) / UG
     P0 = np.diag(sig0 ** 2)
     P0[PHI, PHI0] = P0[PHI0, PHI] = np.diag(sig0[PHI] ** 2)          # φ(0) = φ₀
     kf.P = P0
-    kf.x = np.zeros((N_STATES, 1)) if x0 is None else np.asarray(x0, float).reshape(-1, 1)
-    H = np.zeros((3, N_STATES))
+    x_init = np.zeros(n_x)
+    if x0 is not None:
+        x_init[:N_STATES] = x0
+    kf.x = x_init.reshape(-1, 1)
+    H = np.zeros((3, n_x))
     H[:, DV] = np.eye(3)
     kf.H = H
     kf.R = np.eye(3) * (velocity_sigma / 1e-3) ** 2
-    F = np.eye(N_STATES)
-    F[0:6, 0:6] = inv[0:6, None] * phi_xx * SCALE[None, 0:6]
-    Q = np.zeros((N_STATES, N_STATES))
+    F = np.eye(n_x)
+    F[0:6, 0:6] = inv[0:6, None] * phi_xx * scale[None, 0:6]
+    Q = np.zeros((n_x, n_x))
     if settings.param_random_walk is not None:
-        Q[PARAMS, PARAMS] = np.diag(np.asarray(settings.param_random_walk) ** 2
-                                    * settings.kf_step_s)
-    scale_xp = inv[0:6, None] * SCALE[None, PARAMS]
+        Q[PARAMS, PARAMS] = np.diag(np.asarray(settings.param_random_walk) ** 2 * T)
+    if wander:
+        # Gauss–Markov f and s per axis (exact discretisation at the KF step; s has τ_s and
+        # drive q_s²), running mean η += (T/T_w)(f + s) with the step-start values
+        I3 = np.eye(3)
+        af = math.exp(-T / settings.flicker_fast_tau_s)
+        as_ = math.exp(-T / settings.flicker_slow_tau_s)
+        for fs, ss, eta, name, sc in ((FG, SLG, ETA_G, "gyro", DEG_PER_H),
+                                      (FA, SLA, ETA_A, "accel", UG)):
+            var_f, q_s = slow[name]
+            F[fs, fs] = I3 * af
+            F[ss, ss] = I3 * as_
+            F[eta, fs] = F[eta, ss] = I3 * (T / window_s)
+            Q[fs, fs] = I3 * var_f * (1 - af * af) / sc ** 2
+            Q[ss, ss] = I3 * q_s * settings.flicker_slow_tau_s / 2 * (1 - as_ * as_) / sc ** 2
+    scale_xp = inv[0:6, None] * scale[None, PARAMS]
     scale_q = inv[0:6, None] * inv[None, 0:6]
     nis = []
     for k in range(n_steps):
         F[0:6, PARAMS] = phi_xp[k] * scale_xp
+        if wander:                          # the wander enters like the bias it adds to
+            F[0:6, FG] = F[0:6, SLG] = F[0:6, BG]
+            F[0:6, FA] = F[0:6, SLA] = F[0:6, BA]
         Q[0:6, 0:6] = q[k] * scale_q
         kf.predict(F=F, Q=Q)
         if mask[k]:
@@ -432,7 +510,7 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         x0[PHI] = x0[PHI0] = -phi_fed
         x, P, diag = run_filter(nav, dtheta, dv, rate_hz, motions, g, w_ie, settings, sigma_v,
                                 x0)
-        model = apply_correction(model, x)
+        model = apply_correction(model, x[:N_STATES])
         c0 = rotation_matrix(x[PHI0] * ARCSEC) @ c0
         phi_fed += x[PHI0]
         corr = x[PARAMS]
@@ -441,6 +519,14 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         if np.all(np.abs(corr) <= np.maximum(settings.tol_sigma * sig, settings.tol_abs)):
             converged = True
             break
+    if x.size > N_STATES:
+        # report the window-mean biases b + η(T_w) and their covariance
+        M = np.eye(x.size)
+        M[BG, ETA_G] = np.eye(3)
+        M[BA, ETA_A] = np.eye(3)
+        P = (M @ P @ M.T)[:N_STATES, :N_STATES]
+        model = model.with_(d_g=model.d_g + x[ETA_G] * DEG_PER_H,
+                            d_a=model.d_a + x[ETA_A] * UG)
     return WindowResult(model=model, sigma=np.sqrt(np.diag(P)), covariance=P, c0=c0,
                         iterations=it, converged=converged, corrections=corrections,
                         residual_rms_m_per_s=diag["residual_rms"],

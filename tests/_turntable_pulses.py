@@ -75,6 +75,42 @@ def window(truth: SensorModel, program: TurntableProgram | None = None, *, rate_
     return ng, na, commanded(segs), blk
 
 
+def window_slow_noise(truth: SensorModel, program: TurntableProgram, *, rate_hz=100.0,
+                      arw_deg_sqrt_h=0.0, vrw_ug_sqrt_hz=0.0, gyro_bi_deg_h=0.0,
+                      gyro_rrw_deg_h_sqrt_h=0.0, accel_bi_ug=0.0, accel_rrw_ug_sqrt_s=0.0,
+                      seed=0, step_s=1.0):
+    """As :func:`window` with integer pulses, plus bias instability (flicker, the simulator's
+    :class:`sim.noise.FlickerBank`) and rate random walk on every bias, held per ``step_s``
+    like the simulator's thermal step. Returns pulses, motions and the model whose biases are
+    the true window means."""
+    from sim.noise import FlickerBank, RandomWalk
+    segs = segments_from_program(program, program.duration_s)
+    n = int(round(program.duration_s * rate_hz))
+    blk = Motion(segs, SITE).increments(0.0, n, rate_hz)
+    dt = 1.0 / rate_hz
+    rng = np.random.default_rng(seed)
+    m = int(round(program.duration_s / step_s))
+    per = n // m
+    bias = {}
+    for name, bi, rrw, unit in (("g", gyro_bi_deg_h, gyro_rrw_deg_h_sqrt_h / 60.0, DEG_H),
+                                ("a", accel_bi_ug, accel_rrw_ug_sqrt_s, UG)):
+        fb = FlickerBank(np.full(3, bi * unit), step_s)
+        fl, _ = fb.block(fb.initial_state(rng), rng, m)
+        rw, _ = RandomWalk(np.full(3, rrw * unit), step_s).block(np.zeros(3), rng, m)
+        bias[name] = np.repeat(fl + rw, per, axis=0)                 # (n, 3) per sample
+    dth = blk.dtheta_rad + rng.normal(0, arw_deg_sqrt_h * math.pi / 180 / 60 * math.sqrt(dt),
+                                      (n, 3)) + bias["g"] * dt
+    dv = blk.dv_m_per_s + rng.normal(0, vrw_ug_sqrt_hz * UG * math.sqrt(dt), (n, 3)) \
+        + bias["a"] * dt
+    # biases enter before E (sim: u = D·Δt + E·Δθ): move the extra increments through E⁻¹
+    dth = dth + (np.linalg.solve(truth.e_g, (bias["g"] * dt).T).T - bias["g"] * dt)
+    dv = dv + (np.linalg.solve(truth.e_a, (bias["a"] * dt).T).T - bias["a"] * dt)
+    ng, na = truth.pulses(dth, dv, dt)
+    ng, na = count(ng, rng.uniform(0, 1, 3)), count(na, rng.uniform(0, 1, 3))
+    mean = truth.with_(d_g=truth.d_g + bias["g"].mean(0), d_a=truth.d_a + bias["a"].mean(0))
+    return ng, na, commanded(segs), mean
+
+
 def count(inc: np.ndarray, remainder0: np.ndarray) -> np.ndarray:
     """Integer pulses from real-valued increments, fractional remainder carried."""
     total = np.floor(np.cumsum(inc, axis=0) + remainder0)

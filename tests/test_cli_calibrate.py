@@ -64,3 +64,25 @@ def test_calibrate_user_errors(run_h5, tmp_path, capsys):
     assert main(["calibrate", str(run_h5), "--workers", "0"]) == 2
     assert main(["calibrate", str(run_h5), "-o", str(tmp_path / "no" / "t.csv")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_calibrate_a_simulated_run_end_to_end(tmp_path, capsys):
+    """rlgsim run (the full simulator: thermal network, sensor laws, flicker, pulses) → rlgsim
+    calibrate: every window calibrated, errors against the stored truth within a few σ."""
+    scenario = tmp_path / "cal.toml"
+    scenario.write_text(
+        'name = "cal"\ndevice = "rlg_imu_000"\nseed = 3\nduration_s = 1138\n'
+        '[acquisition]\nsample_rate_hz = 50\n'
+        '[chamber]\nstart_c = 20.0\n[[chamber.segments]]\ntype = "hold"\nduration_s = 1138\n'
+        '[turntable]\nprogram = "calibration19"\ndwell_s = 25\nfirst_dwell_s = 38\n')
+    h5 = tmp_path / "cal.h5"
+    assert main(["run", str(scenario), "-o", str(h5), "-q"]) == 0
+    out = tmp_path / "cal.csv"
+    assert main(["calibrate", str(h5), "-o", str(out), "-q", "--workers", "1"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 2 and [r["status"] for r in rows] == ["ok", "ok"]
+    from estimators.calibration import PARAMETERS
+    z = np.array([[float(r[f"{p.name}_error"]) / float(r[f"{p.name}_sigma"]) for p in PARAMETERS]
+                  for r in rows])
+    assert np.abs(z).max() < 5.0 and np.sqrt((z ** 2).mean()) < 1.6
+    assert 2.0 < float(rows[0]["nis"]) < 4.0
