@@ -34,7 +34,7 @@ import numpy as np
 
 from sim import units
 from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
-from sim.gyro import axis_indices, expand, installation_rows
+from sim.gyro import row_times, axis_indices, expand, installation_rows
 from sim.tempco import Law, LawSpec
 
 _ACCEL_KEYS = ("axes", "nodes", "scale_factor_pulses_per_s_per_g", "node", "t_ref_c", "bias",
@@ -161,26 +161,25 @@ class Accelerometers:
 def phase_increments(kpos: np.ndarray, kneg: np.ndarray, bias: np.ndarray,
                      installation: np.ndarray, dv_t: np.ndarray, z: np.ndarray | None,
                      sigma: np.ndarray, sample_dt: float, idx: np.ndarray | int,
-                     power: np.ndarray | None = None) -> np.ndarray:
+                     power: np.ndarray | None = None,
+                     own_axis: np.ndarray | None = None) -> np.ndarray:
     """Phase increments [pulses] (C, n) of eq. 20 for one block, float64.
 
     ``kpos``/``kneg`` (m, C) [pulses/(m/s)], ``bias`` (m, C) [m/s²], ``installation``
     (m, C, 3), ``dv_t`` (3, n) [m/s], ``z`` (C, n) float32 standard normals or None, ``sigma``
-    (C,) [m/s]. Per sample, in this order: ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``,
+    (C,) [m/s], ``own_axis`` as in :func:`sim.gyro.phase_increments`. Per sample, in this
+    order: ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``,
     ``u = u + σ·z``, ``inc = (K⁺ if u ≥ 0 else K⁻)·u``.
     """
     a = bias * sample_dt
     n = dv_t.shape[1]
     c = bias.shape[1]
+    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
     out = np.empty((c, n))
     tmp = np.empty(n)
     for s in range(c):
         u = out[s]
-        np.multiply(expand(installation[:, s, 0], idx), dv_t[0], out=u)
-        np.multiply(expand(installation[:, s, 1], idx), dv_t[1], out=tmp)
-        u += tmp
-        np.multiply(expand(installation[:, s, 2], idx), dv_t[2], out=tmp)
-        u += tmp
+        row_times(u, tmp, installation[:, s], dv_t, own[s], idx)
         u += expand(a[:, s], idx)
         if z is not None:
             np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)

@@ -219,16 +219,35 @@ class Gyros:
                               installation=installation_rows(mis, self.axis_idx))
 
 
+def row_times(u: np.ndarray, tmp: np.ndarray, row: np.ndarray, x_t: np.ndarray, own: int,
+               idx: np.ndarray | int) -> None:
+    """u = (row_x·x_x + row_y·x_y) + row_z·x_z per sample, the row (m, 3) held over each step.
+
+    Column ``own`` (the sensor's own axis, −1: none) is exactly 1 (:func:`installation_rows`),
+    so its product is the input itself — the same float64 result without the multiplication."""
+    for j in range(3):
+        dst = u if j == 0 else tmp
+        if j == own:
+            np.copyto(dst, x_t[j])
+        else:
+            np.multiply(expand(row[:, j], idx), x_t[j], out=dst)
+        if j:
+            u += tmp
+
+
 def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: np.ndarray,
                      dtheta_t: np.ndarray, z: np.ndarray | None, sigma: np.ndarray,
                      sample_dt: float, idx: np.ndarray | int,
-                     power: np.ndarray | None = None) -> np.ndarray:
+                     power: np.ndarray | None = None,
+                     own_axis: np.ndarray | None = None) -> np.ndarray:
     """Phase increments [pulses] (C, n) of eq. 17 for one block, float64.
 
     ``scale_factor`` (m, C) [pulses/rad], ``bias`` (m, C) [rad/s], ``installation`` (m, C, 3),
     ``dtheta_t`` (3, n) [rad] (body x, y, z rows), ``z`` (C, n) float32 standard normals or
     None, ``sigma`` (C,) white-noise standard deviation per sample [rad], ``sample_dt`` = 1/f
-    [s], ``idx`` from :func:`sample_step_index`, ``power`` (m,) 0/1 or None (= on).
+    [s], ``idx`` from :func:`sample_step_index`, ``power`` (m,) 0/1 or None (= on),
+    ``own_axis`` (C,) each gyro's body axis, whose installation entry is exactly 1 (skips that
+    multiplication; same result).
 
     Per sample, in this order (float64): ``u = ((E_x·Δθ_x + E_y·Δθ_y) + E_z·Δθ_z) + D·Δt``,
     ``u = u + σ·z``, ``inc = K·u`` — with E, D·Δt and K the values of the sample's thermal step.
@@ -236,15 +255,12 @@ def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: n
     a = bias * sample_dt
     n = dtheta_t.shape[1]
     c = bias.shape[1]
+    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
     out = np.empty((c, n))
     tmp = np.empty(n)
     for s in range(c):
         u = out[s]
-        np.multiply(expand(installation[:, s, 0], idx), dtheta_t[0], out=u)
-        np.multiply(expand(installation[:, s, 1], idx), dtheta_t[1], out=tmp)
-        u += tmp
-        np.multiply(expand(installation[:, s, 2], idx), dtheta_t[2], out=tmp)
-        u += tmp
+        row_times(u, tmp, installation[:, s], dtheta_t, own[s], idx)
         u += expand(a[:, s], idx)
         if z is not None:
             np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)

@@ -257,8 +257,7 @@ class ImuState:
 
     gyro_remainder: np.ndarray
     accel_remainder: np.ndarray
-    gyro_slow: Any
-    accel_slow: Any
+    slow: Any
     uhfo_wander: np.ndarray
 
 
@@ -289,11 +288,13 @@ class ImuSimulator:
         self._pool = None
         self._ahead = None
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
-        self.gyro_slow = SlowNoise(lv["gyro_bi"], lv["gyro_rrw"], self.step_s, self.r.noise,
-                                   g.axes, self.seed, self.unit, "gyro")
-        self.accel_slow = (SlowNoise(lv["accel_bi"], lv["accel_rrw"], self.step_s, self.r.noise,
-                                     a.axes, self.seed, self.unit, "accel")
-                           if a is not None else None)
+        # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
+        acc_axes = a.axes if a is not None else ()
+        self.n_gyro = g.n
+        self.slow = SlowNoise(np.concatenate([lv["gyro_bi"], lv["accel_bi"]]),
+                              np.concatenate([lv["gyro_rrw"], lv["accel_rrw"]]), self.step_s,
+                              self.r.noise, g.axes + acc_axes, self.seed, self.unit,
+                              ("gyro",) * g.n + ("accel",) * len(acc_axes))
         #: white-noise standard deviation per sample: gyro [rad], accel [m/s]
         self.gyro_white_sigma = lv["gyro_arw"] * math.sqrt(self.sample_dt)
         self.accel_white_sigma = (lv["accel_vrw"] * math.sqrt(self.sample_dt)
@@ -305,8 +306,7 @@ class ImuSimulator:
         return ImuState(
             gyro_remainder=np.zeros(g.n, dtype=np.int64),
             accel_remainder=np.zeros(a.n if a else 0, dtype=np.int64),
-            gyro_slow=self.gyro_slow.initial_state(),
-            accel_slow=self.accel_slow.initial_state() if self.accel_slow else None,
+            slow=self.slow.initial_state(),
             uhfo_wander=(self.r.uhfo.initial_state(self.seed, self.unit)
                          if self.r.uhfo is not None else np.zeros(0)))
 
@@ -347,10 +347,9 @@ class ImuSimulator:
             "motion": mb, "dth_t": np.ascontiguousarray(mb.dtheta_rad.T),
             "dv_t": np.ascontiguousarray(mb.dv_m_per_s.T),
             "zg": self.white("gyro.white", g.axes, self.gyro_white_sigma, b, n),
-            "slow_g": self.gyro_slow.draws(b, m)}
+            "slow": self.slow.draws(b, m)}
         if acc is not None:
             out["za"] = self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
-            out["slow_a"] = self.accel_slow.draws(b, m)
         if uh is not None:
             out["uhfo"] = uh.draws(self.seed, self.unit, b, m)
         return out
@@ -414,12 +413,14 @@ class ImuSimulator:
             imu_time["uhfo"] = u_read
             truth_time["uhfo_true"] = u_true
 
+        # slow noise (flicker, random walk) of every channel, part of the true biases
+        slow, slow_state = self.slow.block(state.slow, b, m, inputs["slow"])
+
         # gyros
-        slow, gyro_slow = self.gyro_slow.block(state.gyro_slow, b, m, inputs["slow_g"])
-        gp = g.parameters(nodes, start, dt, slow, uhfo_dev)
+        gp = g.parameters(nodes, start, dt, slow[:, :self.n_gyro], uhfo_dev)
         dth_t = inputs["dth_t"]
         inc = gyro_increments(gp.scale_factor, gp.bias, gp.installation, dth_t, inputs["zg"],
-                              self.gyro_white_sigma, self.sample_dt, idx, power)
+                              self.gyro_white_sigma, self.sample_dt, idx, power, g.axis_idx)
         gyro_pulses, g_rem = self._count(inc, state.gyro_remainder)
         imu_sample = {"gyro_pulses": gyro_pulses}
         truth_time.update(gyro_bias=gp.bias, gyro_bias_random=gp.bias_random,
@@ -427,14 +428,14 @@ class ImuSimulator:
                           gyro_installation=gp.installation)
 
         # accelerometers
-        a_rem, accel_slow = state.accel_remainder, state.accel_slow
+        a_rem = state.accel_remainder
         dv_t = inputs["dv_t"]
         if acc is not None:
-            aslow, accel_slow = self.accel_slow.block(state.accel_slow, b, m, inputs["slow_a"])
-            ap = acc.parameters(nodes, start, dt, aslow)
+            ap = acc.parameters(nodes, start, dt, slow[:, self.n_gyro:])
             inc = accel_increments(ap.scale_factor_pos, ap.scale_factor_neg, ap.bias,
                                    ap.installation, dv_t, inputs["za"],
-                                   self.accel_white_sigma, self.sample_dt, idx, power)
+                                   self.accel_white_sigma, self.sample_dt, idx, power,
+                                   acc.axis_idx)
             accel_pulses, a_rem = self._count(inc, state.accel_remainder)
             imu_sample["accel_pulses"] = accel_pulses
             truth_time.update(accel_bias=ap.bias, accel_bias_random=ap.bias_random,
@@ -456,7 +457,7 @@ class ImuSimulator:
             "time": trace.t_s, "outer_angle": motion_block.outer_deg[last],
             "inner_angle": motion_block.inner_deg[last],
             "motion_index": motion_block.segment[last].astype(np.int32)}}
-        return rows, ImuState(g_rem, a_rem, gyro_slow, accel_slow, wander)
+        return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
 def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int) -> np.ndarray:

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.signal import lfilter
@@ -227,22 +227,26 @@ NOISE_LEVELS = ("gyro_arw", "gyro_bi", "gyro_rrw", "accel_vrw", "accel_bi", "acc
 
 
 class SlowNoise:
-    """Flicker + random walk of one sensor triad on the thermal grid, with carried state.
+    """Flicker + random walk of sensor channels on the thermal grid, with carried state.
 
     ``bi`` (C,) bias instabilities and ``rrw`` (C,) random-walk coefficients in SI; ``axes``
-    names the channels. Draws: block ``b`` uses ``generator(seed, unit, f"{purpose}.flicker",
-    axis, b)`` and ``generator(seed, unit, f"{purpose}.rrw", axis, b)`` per axis; the flicker
-    bank's stationary start uses ``generator(seed, unit, f"{purpose}.flicker_start", axis, 0)``.
-    One :class:`FlickerBank` serves all axes, so each of its ``lfilter`` calls runs the whole
-    triad.
+    names the channels and ``purpose`` their sensor ("gyro", "accel"; one name for all or one
+    per channel). Draws: block ``b`` uses ``generator(seed, unit, f"{purpose}.flicker", axis,
+    b)`` and ``generator(seed, unit, f"{purpose}.rrw", axis, b)`` per channel; the flicker bank's
+    stationary start uses ``generator(seed, unit, f"{purpose}.flicker_start", axis, 0)``. One
+    :class:`FlickerBank` serves all channels (gyros and accelerometers together), so each of
+    its ``lfilter`` calls runs every channel at once.
     """
 
     def __init__(self, bi: np.ndarray, rrw: np.ndarray, dt: float, model: NoiseModel,
-                 axes: tuple[str, ...], seed: int, unit: int, purpose: str) -> None:
+                 axes: Sequence[str], seed: int, unit: int,
+                 purpose: str | Sequence[str]) -> None:
         from sim.rng import generator
         self._gen = generator
         self.axes = tuple(axes)
-        self.seed, self.unit, self.purpose = seed, unit, purpose
+        self.seed, self.unit = seed, unit
+        self.purposes = ((purpose,) * len(self.axes) if isinstance(purpose, str)
+                         else tuple(purpose))
         self.bi = np.asarray(bi, float).reshape(len(self.axes))
         self.rrw = np.asarray(rrw, float).reshape(len(self.axes))
         self.flicker = FlickerBank(self.bi, dt, model.flicker_tau_min_s,
@@ -254,8 +258,8 @@ class SlowNoise:
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         fs = np.zeros(self.flicker.q.shape)
         if self.has_flicker:
-            for c, a in enumerate(self.axes):
-                rng = self._gen(self.seed, self.unit, f"{self.purpose}.flicker_start", a, 0)
+            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
+                rng = self._gen(self.seed, self.unit, f"{p}.flicker_start", a, 0)
                 fs[:, c] = self.flicker.q[:, c] * rng.standard_normal(fs.shape[0])
         return fs, self.walk.initial_state()
 
@@ -267,14 +271,13 @@ class SlowNoise:
         if self.has_flicker:
             j = self.flicker.q.shape[0]
             wf = np.empty((j, len(self.axes), m))
-            for c, a in enumerate(self.axes):
-                wf[:, c, :] = self._gen(self.seed, self.unit, f"{self.purpose}.flicker", a,
+            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
+                wf[:, c, :] = self._gen(self.seed, self.unit, f"{p}.flicker", a,
                                         b).standard_normal((j, m))
         if self.has_walk:
             wr = np.empty((m, len(self.axes)))
-            for c, a in enumerate(self.axes):
-                wr[:, c] = self._gen(self.seed, self.unit, f"{self.purpose}.rrw", a,
-                                     b).standard_normal(m)
+            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
+                wr[:, c] = self._gen(self.seed, self.unit, f"{p}.rrw", a, b).standard_normal(m)
         return wf, wr
 
     def block(self, state: tuple[np.ndarray, np.ndarray], b: int, m: int,

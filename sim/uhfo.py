@@ -143,14 +143,12 @@ class Uhfo:
         u = self.law.evaluate(nodes_c, start_c, dt)
         phi = math.exp(-dt / self.wander_tau_s)
         new = np.array(state, dtype=float, copy=True)
-        read = np.empty_like(u)
-        for c in range(len(self.axes)):
-            if self.wander_v[c] > 0:
-                x, _ = lfilter([self.wander_v[c] * math.sqrt(1.0 - phi * phi)], [1.0, -phi],
-                               w_all[c], zi=[phi * new[c]])
-                u[:, c] += x
-                new[c] = x[-1]
-            read[:, c] = u[:, c] + e_all[c] * self.noise_v[c]
+        if np.any(self.wander_v > 0):            # one recursion for every gyro's wander
+            drive = w_all * (self.wander_v * math.sqrt(1.0 - phi * phi))[:, None]
+            x, _ = lfilter([1.0], [1.0, -phi], drive, axis=-1, zi=(phi * new)[:, None])
+            u += x.T
+            new = x[:, -1].copy()
+        read = u + (e_all * self.noise_v[:, None]).T
         if self.lsb_v > 0:
             read = np.round(read / self.lsb_v) * self.lsb_v
         on = power[:, None] > 0
