@@ -267,12 +267,14 @@ class ImuSimulator:
     ``realisation`` (bound or not), ``node_names`` of the thermal network, ``seed``/``unit`` of
     the seed tree, ``rate_hz`` the IMU sample rate, ``step_s`` the thermal step, ``motion`` a
     :class:`sim.motion.Motion`, ``truth_samples`` store per-sample true increments too,
-    ``prefetch`` draw the next block's random numbers and increments in a worker thread.
+    ``prefetch`` draw the next block's random numbers and increments in a worker thread,
+    ``n_steps`` the run's length in thermal steps (the thread stops after the last block).
     """
 
     def __init__(self, realisation: ImuRealisation, node_names: Sequence[str], *, seed: int,
                  unit: int, rate_hz: float, step_s: float, motion=None,
-                 truth_samples: bool = False, source: str = "", prefetch: bool = True) -> None:
+                 truth_samples: bool = False, source: str = "", prefetch: bool = True,
+                 n_steps: int | None = None) -> None:
         self.r = realisation
         self.node_names = tuple(node_names)
         self.r.bind(self.node_names, source)
@@ -285,6 +287,7 @@ class ImuSimulator:
         #: compute the next block's state-free inputs in a worker thread (numpy releases the
         #: GIL), overlapping them with this block's arithmetic on a second core
         self.prefetch = bool(prefetch)
+        self.n_steps = n_steps                  # thermal steps of the run (None: open-ended)
         self._pool = None
         self._ahead = None
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
@@ -366,7 +369,9 @@ class ImuSimulator:
             if ahead is not None:
                 ahead[1].cancel()
             inputs = self._inputs(*key)
-        if self.prefetch:
+        if self.n_steps is not None and k0 + m >= self.n_steps:
+            self.close()                        # the last block: nothing to prefetch
+        elif self.prefetch:
             if self._pool is None:
                 from concurrent.futures import ThreadPoolExecutor
                 self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
@@ -516,7 +521,7 @@ class ImuStage:
                                 unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
                                 step_s=timeline.step_s, motion=None,
                                 truth_samples=self.truth_samples,
-                                source=scenario.device.source)
+                                source=scenario.device.source, n_steps=timeline.n_steps)
 
     @classmethod
     def create(cls, scenario, timeline) -> "ImuStage | None":
