@@ -16,7 +16,9 @@ import argparse
 import math
 import os
 import pathlib
+import signal
 import sys
+import threading
 import time
 from typing import Sequence
 
@@ -76,7 +78,8 @@ def _run(scenario_ref: str, output: str | None, chunk_s: float | None, quiet: bo
     from sim.simulate import simulate
     scenario = load_scenario(scenario_ref)
     t0 = time.perf_counter()
-    path = simulate(scenario, output, chunk_s=chunk_s, progress=not quiet)
+    path = simulate(scenario, output, chunk_s=chunk_s, progress=not quiet,
+                    should_stop=_stop_requested)
     wall = time.perf_counter() - t0
     if not quiet:
         sim_s = scenario.duration_s
@@ -103,8 +106,36 @@ def format_error(exc: UserInputError) -> str:
     return f"{PROG}: error: {' '.join(str(exc).split())}"
 
 
+#: The signal that asked the CLI to stop (SIGTERM), if any.
+_stop_signal: list[int] = []
+
+
+def _terminated(signum, frame):
+    """SIGTERM: stop, deleting the temporary file of a run being written. The SystemExit raised
+    here can be lost when the signal lands inside a finaliser (``__del__``), so a run also polls
+    :func:`_stop_requested` before every block."""
+    _stop_signal.append(signum)
+    raise SystemExit(128 + signum)
+
+
+def _stop_requested() -> bool:
+    return bool(_stop_signal)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rlgsim`` console script; returns the exit code."""
+    previous = None
+    _stop_signal.clear()
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return _main(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     try:
         args = _parser().parse_args(argv)
         if args.command == "run":
@@ -131,6 +162,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(format_error(exc), file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
+        if _stop_signal:                 # SIGTERM noticed between two blocks
+            return 128 + _stop_signal[0]
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly

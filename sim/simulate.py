@@ -252,11 +252,14 @@ def default_output(scenario) -> pathlib.Path:
 
 
 def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | None = None,
-             progress: bool = True) -> pathlib.Path:
+             progress: bool = True, should_stop: Callable[[], bool] | None = None
+             ) -> pathlib.Path:
     """Simulate ``scenario`` and stream it to ``out_path`` (default ``./<name>.h5``).
 
     ``chunk_s`` (default: the scenario's ``acquisition.chunk_s``) is how much simulated time is
-    buffered before each write; it never changes the stored arrays. Returns the written path.
+    buffered before each write; it never changes the stored arrays. ``should_stop`` is asked
+    before every block; when it returns true the run stops with KeyboardInterrupt and its
+    temporary file is deleted (the CLI's SIGTERM handler uses it). Returns the written path.
     """
     out = check_writable(out_path if out_path is not None else default_output(scenario))
     chunk = float(chunk_s if chunk_s is not None else scenario.acquisition.chunk_s)
@@ -332,6 +335,8 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
         limits = threadpool_limits(limits=1, user_api="blas")
         try:
             for b in range(n_blocks):
+                if should_stop is not None and should_stop():
+                    raise KeyboardInterrupt("stop requested")
                 k0 = b * per_block
                 m = min(per_block, n_steps - k0)
                 trace, t_state = thermal.block(t_state, b, k0, m)

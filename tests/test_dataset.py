@@ -156,30 +156,45 @@ def test_unwritable_output_is_a_user_error(tmp_path):
             dataset.check_writable(target)
 
 
-def test_killed_run_leaves_no_file_at_the_output_path(tmp_path):
+def _start_long_run(tmp_path):
     scenario = tmp_path / "long.toml"
     scenario.write_text(_quickstart_text(duration_h="5000.0").replace(
         "[acquisition]", "[acquisition]\nchunk_s = 600"))
     out = tmp_path / "long.h5"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    err = open(tmp_path / "stderr.txt", "w+")       # a file: a full pipe would block the run
     proc = subprocess.Popen([sys.executable, "-m", "sim.cli", "run", str(scenario), "-o",
-                             str(out), "--quiet"], env=env, cwd=tmp_path,
-                            stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 60
+                             str(out), "--quiet"], env=env, cwd=tmp_path, stderr=err)
+    proc.err_text = lambda: (err.seek(0), err.read())[1]
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:        # wait until the temporary file is growing
+        tmp = list(tmp_path.glob("long.h5.tmp-*"))
+        if tmp and tmp[0].stat().st_size > 50_000:
+            return proc, out
+        if proc.poll() is not None:
+            pytest.fail(proc.err_text())
+        time.sleep(0.02)
+    proc.kill()
+    pytest.fail("the run never started writing")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_killed_run_leaves_no_file_at_the_output_path(tmp_path, sig):
+    proc, out = _start_long_run(tmp_path)
+    proc.send_signal(sig)
     try:
-        while time.monotonic() < deadline:        # wait until the temporary file is growing
-            tmp = list(tmp_path.glob("long.h5.tmp-*"))
-            if tmp and tmp[0].stat().st_size > 200_000:
-                break
-            assert proc.poll() is None, proc.stderr.read().decode()
-            time.sleep(0.02)
-        else:
-            pytest.fail("the run never started writing")
+        proc.wait(timeout=120)
     finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
-    assert proc.returncode == -signal.SIGKILL
+        if proc.poll() is None:         # never leave a run behind
+            proc.kill()
+            proc.wait()
     assert not out.exists()
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL
+    else:       # a terminated run also removes its temporary file
+        assert proc.returncode == 128 + signal.SIGTERM
+        assert "Traceback" not in proc.err_text()
+        assert not list(tmp_path.glob("long.h5.tmp-*"))
 
 
 class _CountingStage(simulate_module.Stage):
