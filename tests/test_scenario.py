@@ -291,3 +291,41 @@ def test_cli_not_an_rlgsim_dataset(tmp_path, capsys):
     assert main(["info", str(p)]) == 2
     err = capsys.readouterr().err
     assert "not an rlgsim dataset" in err and str(p) in err and err.count("\n") == 1
+
+
+# --------------------------------------------------------------------------- device presets
+
+DEVICE = tomllib.loads((ROOT / "scenarios" / "devices" / "rlg8_003.toml").read_text())
+DEVICE_PATHS = list(_paths(DEVICE))
+
+
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(path=st.sampled_from(DEVICE_PATHS), value=toml_values)
+def test_any_value_in_a_device_preset_loads_or_is_a_clear_error(tmp_path, path, value):
+    dev = tmp_path / "dev.toml"
+    dev.write_text(to_toml(_set(DEVICE, path, value)))
+    try:
+        _load(_set(BASE, ("device",), str(dev)))
+    except UserInputError as exc:
+        line = format_error(exc)
+        assert "\n" not in line and str(dev) in line, line
+
+
+THERMAL = tomllib.loads((ROOT / "scenarios" / "thermal" / "rlg_single.toml").read_text())
+THERMAL_PATHS = list(_paths(THERMAL))
+
+
+@settings(max_examples=100, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(path=st.sampled_from(THERMAL_PATHS), value=toml_values)
+def test_any_value_in_a_thermal_preset_loads_or_is_a_clear_error(tmp_path, path, value):
+    thermal = tmp_path / "thermal.toml"
+    thermal.write_text(to_toml(_set(THERMAL, path, value)))
+    dev = tmp_path / "dev.toml"
+    dev.write_text(to_toml(_set(DEVICE, ("device", "thermal_preset"), str(thermal))))
+    try:
+        _load(_set(BASE, ("device",), str(dev)))
+    except UserInputError as exc:
+        line = format_error(exc)
+        assert "\n" not in line and (str(thermal) in line or str(dev) in line), line
