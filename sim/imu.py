@@ -16,8 +16,12 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`sim.simulate
    :mod:`sim.accelerometer`; laws of :mod:`sim.tempco`) plus the slow noise (flicker, random
    walk; :class:`sim.noise.SlowNoise`), which is part of the true bias;
 3. exact angle / velocity increments of the turntable motion (:mod:`sim.motion`), white noise
-   (:func:`sim.noise.white_increments`) and the phase increments of eqs. 17/20;
+   (float32 standard normals × σ, as :func:`sim.noise.white_increments`) and the phase
+   increments of eqs. 17/20;
 4. pulse counting with carried remainders (:mod:`sim.pulses`).
+
+The state-free inputs of the next block (increments, normals, slow-noise and UHFO drives) are
+computed in a worker thread while the current block runs (:meth:`ImuSimulator._get_inputs`).
 
 Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
 docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
