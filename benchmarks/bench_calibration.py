@@ -7,8 +7,9 @@
    (default min(2, CPUs) processes), seconds in total and per window.
 
 The campaign dataset is synthesised here in the rlgsim layout (docs/dataset.md) from the exact
-turntable kinematics (sim/motion.py) through the paper-000 pulse equations with navigation-grade
-noise and integer pulses (tests/_turntable_pulses.py), streamed window by window; pass
+turntable kinematics (sim/motion.py) through the paper-000 pulse equations with the rlg_imu_000
+preset's noise (white, flicker bias instability, random walk — so the filter runs its 51-state
+form) and integer pulses (tests/_turntable_pulses.py), streamed window by window; pass
 ``--dataset run.h5`` to time a dataset made by ``rlgsim run paper000_campaign`` instead.
 
     python benchmarks/bench_calibration.py [--windows 175] [--workers 2] [--dataset PATH]
@@ -31,15 +32,20 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from _machine import machine  # noqa: E402
-from _turntable_pulses import (SITE, UG, count, nominal, random_truth,  # noqa: E402
-                               window)
+from _turntable_pulses import (SITE, UG, nominal, random_truth, window,  # noqa: E402
+                               window_slow_noise)
 from estimators import calibration_filter as cf  # noqa: E402
 from estimators.calibration import CampaignSettings, run_campaign  # noqa: E402
 from estimators.strapdown import navigate, normal_gravity, earth_rate_enu  # noqa: E402
 from sim.motion import Motion, segments_from_program  # noqa: E402
 from sim.turntable import TurntableProgram  # noqa: E402
 
-ARW, VRW = 0.002, 10.0
+#: The rlg_imu_000 preset's noise (scenarios/devices/rlg_imu_000.toml [noise]).
+NOISE = dict(arw_deg_sqrt_h=0.0015, vrw_ug_sqrt_hz=10.0, gyro_bi_deg_h=0.003,
+             gyro_rrw_deg_h_sqrt_h=0.0005, accel_bi_ug=5.0, accel_rrw_ug_sqrt_s=0.05)
+DEVICE_NOISE = ("[noise]\ngyro_arw_deg_per_sqrt_h = 0.0015\naccel_vrw_ug_per_sqrt_hz = 10.0\n"
+                "gyro_bias_instability_deg_per_h = 0.003\ngyro_rrw_deg_per_h_per_sqrt_h = 0.0005\n"
+                "accel_bias_instability_ug = 5.0\naccel_rrw_ug_per_sqrt_s = 0.05\n")
 
 
 def best(f, repeat=3):
@@ -57,15 +63,20 @@ def best(f, repeat=3):
 
 def one_window() -> None:
     truth = random_truth(np.random.default_rng(1))
-    ng, na, motions, _ = window(truth, arw_deg_sqrt_h=ARW, vrw_ug_sqrt_hz=VRW, quantise=True)
-    st = cf.FilterSettings(arw_rad_per_sqrt_s=ARW * math.pi / 180 / 60,
-                           vrw_m_per_s_per_sqrt_s=VRW * UG)
+    prog = TurntableProgram.calibration19()
+    ng, na, motions, _ = window_slow_noise(truth, prog, **NOISE)
+    dh = math.pi / 180 / 3600
+    st = cf.FilterSettings(arw_rad_per_sqrt_s=0.0015 * math.pi / 180 / 60,
+                           vrw_m_per_s_per_sqrt_s=10.0 * UG,
+                           gyro_bias_instability_rad_per_s=0.003 * dh,
+                           gyro_rrw_rad_per_s_per_sqrt_s=0.0005 * dh / 60,
+                           accel_bias_instability_m_per_s2=5.0 * UG,
+                           accel_rrw_m_per_s2_per_sqrt_s=0.05 * UG)
     res = cf.calibrate_window(ng, na, 100.0, motions, nominal(), 34.0, settings=st)
     t_nom = best(lambda: cf.calibrate_window(ng, na, 100.0, motions, nominal(), 34.0,
                                              settings=st))
     w_nom = best.wall
-    ng2, na2, _, _ = window(truth, arw_deg_sqrt_h=ARW, vrw_ug_sqrt_hz=VRW, quantise=True,
-                            seed=7)
+    ng2, na2, _, _ = window_slow_noise(truth, prog, seed=7, **NOISE)
     chained = cf.calibrate_window(ng2, na2, 100.0, motions, nominal(), 34.0, settings=st,
                                   start=res.model)
     t_chain = best(lambda: cf.calibrate_window(ng2, na2, 100.0, motions, nominal(), 34.0,
@@ -83,27 +94,27 @@ def one_window() -> None:
     t_nav = best(lambda: navigate(dth, dv, 0.01, c0, 34.0, breaks=br))
     t_tr = best(lambda: cf._transition_pieces(nav, dth, dv, 100, 20, 0.01, g, w, st))
     t_kf = best(lambda: cf.run_filter(nav, dth, dv, 100.0, motions, g, w, st, sv)) - t_tr
+    n_x = cf.N_STATES_WANDER if any(v > 0 for pair in st.slow_noise().values()
+                                   for v in pair) else cf.N_STATES
     print(f"one 40-min window at 100 Hz ({len(ng):,} samples), one core (CPU s; wall s):")
     print(f"  from the nominal model : {t_nom:6.2f} s  (wall {w_nom:.2f} s; "
           f"{res.iterations} passes)")
     print(f"  chained (campaign)     : {t_chain:6.2f} s  (wall {w_chain:.2f} s; "
           f"{chained.iterations} passes)")
     print(f"  one pass: compensate {t_comp:.3f} s, navigate {t_nav:.3f} s, transition "
-          f"matrices {t_tr:.3f} s, filterpy loop {t_kf:.3f} s")
+          f"matrices {t_tr:.3f} s, filterpy loop ({n_x} states) {t_kf:.3f} s")
     print(f"  load average while measuring: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 
 
 def synth_dataset(path: pathlib.Path, n_windows: int, rate_hz: float = 100.0) -> None:
-    """A paper-000-sized campaign dataset, streamed window by window (constant device)."""
+    """A paper-000-sized campaign dataset, streamed window by window: a constant device with the
+    rlg_imu_000 noise (white, flicker, random walk; integer pulses)."""
     import h5py
     prog = TurntableProgram.calibration19()
     duration = n_windows * prog.duration_s
     segs = segments_from_program(prog, duration)
     per = int(round(prog.duration_s * rate_hz))
-    one = Motion(segments_from_program(prog, prog.duration_s), SITE).increments(0.0, per, rate_hz)
     truth = random_truth(np.random.default_rng(2))
-    rng = np.random.default_rng(3)
-    dt = 1.0 / rate_hz
     cal = [dict(t0=w * prog.duration_s, t1=(w + 1) * prog.duration_s, w=w)
            for w in range(n_windows)]
     with h5py.File(path, "w") as f:
@@ -112,8 +123,7 @@ def synth_dataset(path: pathlib.Path, n_windows: int, rate_hz: float = 100.0) ->
                        sample_rate_hz=rate_hz, duration_s=duration,
                        device_text="[gyro]\nscale_factor_pulses_per_arcsec = 2.14\n"
                                    "[accelerometer]\nscale_factor_pulses_per_s_per_g = 5000.0\n"
-                                   f"[noise]\ngyro_arw_deg_per_sqrt_h = {ARW}\n"
-                                   f"accel_vrw_ug_per_sqrt_hz = {VRW}\n")
+                                   + DEVICE_NOISE)
         tl = f.create_group("timeline")
         rows = ([(s.t0_s, s.t1_s, "turntable", s.label, json.dumps(s.attrs, default=float))
                  for s in segs]
@@ -129,16 +139,10 @@ def synth_dataset(path: pathlib.Path, n_windows: int, rate_hz: float = 100.0) ->
         n = n_windows * per
         g_ds = imu.create_dataset("gyro_pulses", (n, 3), dtype=np.int32, chunks=(65536, 3))
         a_ds = imu.create_dataset("accel_pulses", (n, 3), dtype=np.int32, chunks=(65536, 3))
-        rg, ra = rng.uniform(0, 1, 3), rng.uniform(0, 1, 3)
         for w in range(n_windows):
-            dth = one.dtheta_rad + rng.normal(0, ARW * math.pi / 180 / 60 * math.sqrt(dt),
-                                              (per, 3))
-            dv = one.dv_m_per_s + rng.normal(0, VRW * UG * math.sqrt(dt), (per, 3))
-            ng, na = truth.pulses(dth, dv, dt)
-            cg, ca = np.cumsum(ng, axis=0) + rg, np.cumsum(na, axis=0) + ra
-            g_ds[w * per:(w + 1) * per] = count(ng, rg)
-            a_ds[w * per:(w + 1) * per] = count(na, ra)
-            rg, ra = cg[-1] - np.floor(cg[-1]), ca[-1] - np.floor(ca[-1])
+            ng, na, _, _ = window_slow_noise(truth, prog, seed=w, **NOISE)
+            g_ds[w * per:(w + 1) * per] = ng
+            a_ds[w * per:(w + 1) * per] = na
         t_th = np.arange(1, int(duration) + 1, dtype=float)
         pr = f.create_group("probes")
         pr["time"] = t_th

@@ -6,10 +6,12 @@ value is zero — is the measurement during the static dwells. A Kalman filter (
 :class:`~filterpy.kalman.KalmanFilter` for the discrete predict/update) estimates the sensor
 errors from it; the estimates are fed back into the pulse model and the whole window is
 navigated again, until the corrections stop changing (iterated, feedback calibration:
-Cai Q. et al., Sensors 16(6):940, 2016; Yang X. & Huang Y., J. Chinese Inertial Tech. 2009).
+Cai Q. et al., "Systematic calibration for ultra-high accuracy inertial measurement units",
+Sensors 16(6):940, 2016).
 
-State vector (33), in the filter's scaled units (docs/calibration.md)
---------------------------------------------------------------------
+State vector (33; 51 with the slow bias noise below), in the filter's scaled units
+(docs/calibration.md)
+------------------------------------------------------------------------------------
 ====== ========== ==========================================================================
 index  unit       state
 ====== ========== ==========================================================================

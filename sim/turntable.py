@@ -48,11 +48,12 @@ The 19-position systematic-calibration sequence
 -----------------------------------------------
 Systematic (navigation-based) calibration runs the strapdown navigation on the static turntable
 and lets a Kalman filter estimate the sensor errors from the velocity errors they cause during
-static dwells between rotations (Yang Xiaoxia & Huang Yun, "Systematic calibration method for
-laser SINS", J. Chinese Inertial Technology 2009, which introduced the 19-position sequence of
-±90° turns about the three body axes; Cai Q. et al., "Systematic calibration for ultra-high
-accuracy inertial measurement units", Sensors 16(6):940, 2016). The sequence here follows the
-same pattern, arranged for this two-axis table: 18 turns of ±90° at 20 °/s and 19 static dwells.
+static dwells between rotations (Cai Q. et al., "Systematic calibration for ultra-high
+accuracy inertial measurement units", Sensors 16(6):940, 2016, and the work it reviews, where
+the 19-position sequence of ±90° turns about the three body axes is the usual scheme for laser
+SINS). The sequence here is this project's arrangement of that pattern for a two-axis table —
+not a copy of a published table: 18 turns of ±90° at 20 °/s and 19 static dwells, chosen so
+that the observability conditions below hold (checked numerically by the calibration tests).
 
 * turns 1–5: outer +90° ×5 with inner = 0° → five turns about body x (x stays East, horizontal);
   body y and z each point Up and Down.
