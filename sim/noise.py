@@ -27,7 +27,8 @@ byte):
   Gauss–Markov process of variance q² and correlation time τ has the one-sided PSD
   4q²τ / (1 + (2πfτ)²); a continuum of them with equal q² and density 1/Δ in ln τ sums to
   q² / (Δ f) between 1/(2πτ_max) and 1/(2πτ_min). Matching the one-sided flicker PSD
-  2·B²/(2πf) = B²/(πf) gives q² = B²·Δ/π with Δ = ln(10)/per_decade (Keshner, "1/f noise",
+  2·B²/(2πf) = B²/(πf) gives q² = B²·Δ/π with Δ the spacing in ln τ, ≈ ln(10)/per_decade,
+  the two end processes carrying half (Keshner, "1/f noise",
   Proc. IEEE 70(3), 1982; the same construction is used by Kasdin's review, Proc. IEEE 83(5),
   1995, §IV). Each process is propagated exactly at the step Δt:
   x_k = φ x_{k−1} + q√(1−φ²) w_k, φ = exp(−Δt/τ), with :func:`scipy.signal.lfilter` and its
