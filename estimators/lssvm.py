@@ -369,6 +369,10 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         sigma2 = check_positive(self.sigma2, "sigma2")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
+        if isinstance(self.n_landmarks, bool) or not isinstance(self.n_landmarks,
+                                                                (int, np.integer)) \
+                or self.n_landmarks < 1:
+            raise ValueError(f"n_landmarks must be an integer >= 1, got {self.n_landmarks!r}")
         X, y = validate_fit_input(self, X, y)
         self.x_mean_, self.x_scale_ = standardisation(X, self.standardize)
         Xs = (X - self.x_mean_) / self.x_scale_
@@ -377,7 +381,9 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         if solver == "auto":
             solver = "dense" if n <= MAX_DENSE_SAMPLES else "nystroem"
         self.solver_ = solver
-        with blas_threads_for(n):
+        # the Nyström solver's matrices are m x m and chunk x m: their size is the landmarks'
+        size = n if solver == "dense" else min(int(self.n_landmarks), n)
+        with blas_threads_for(size):
             if solver == "dense":
                 self._fit_dense(Xs, y, gamma, sigma2)
             else:
@@ -397,9 +403,6 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
             self.loo_residuals_ = cholesky_cv_residuals(sol, None)
 
     def _fit_nystroem(self, Xs: np.ndarray, y: np.ndarray, gamma: float, sigma2: float) -> None:
-        if isinstance(self.n_landmarks, bool) or not isinstance(self.n_landmarks, (int, np.integer)) \
-                or self.n_landmarks < 1:
-            raise ValueError(f"n_landmarks must be an integer >= 1, got {self.n_landmarks!r}")
         n = Xs.shape[0]
         m = int(min(self.n_landmarks, n))
         rng = check_random_state(self.random_state)
