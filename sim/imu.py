@@ -517,8 +517,8 @@ class ImuStage:
         self.timeline = timeline
         self.model = model
         self.unit = int(unit)
-        self.realisation = model.realise(generator(scenario.seed, self.unit, "realisation",
-                                                   "imu", 0))
+        self.realisation = model.realise(generator(scenario.realisation_seed, self.unit,
+                                                   "realisation", "imu", 0))
         self.turntable_segments = [s for s in timeline.segments if s.track == "turntable"]
         self.truth_samples = bool(getattr(scenario.acquisition, "truth_samples", False))
         self.sim = ImuSimulator(self.realisation, network.node_names, seed=scenario.seed,
@@ -530,11 +530,10 @@ class ImuStage:
     @classmethod
     def create(cls, scenario, timeline) -> "ImuStage | None":
         """The stage for ``scenario`` (None when its device has no ``[gyro]`` table)."""
-        from sim.simulate import UNIT
         model = ImuModel.from_device(scenario.device)
         if model is None:
             return None
-        return cls(scenario, timeline, model, unit=UNIT)
+        return cls(scenario, timeline, model, unit=scenario.unit)
 
     # ---- dataset layout -------------------------------------------------------------------
     def declare(self, writers: Mapping[str, Any]) -> None:

@@ -49,7 +49,7 @@ DEVICE_TABLES: dict[str, str | None] = {
 DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
 
 #: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
-SCENARIO_KEYS = ("name", "description", "seed", "device", *unit_keys("duration", TIME_UNITS),
+SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device", *unit_keys("duration", TIME_UNITS),
                  "site", "acquisition", "power", "chamber", "turntable")
 
 _TOLERANCE = 1e-9
@@ -203,6 +203,15 @@ class Scenario:
     turntable: TurntableProgram  # program = "static" when the scenario has no [turntable]
     duration_s: float            # on the thermal grid
     tables: dict = field(default_factory=dict, repr=False)   # the parsed TOML, for later issues
+    device_seed: int | None = None   # seed of the unit's drawn realisation (None: ``seed``)
+    unit: int = 0                    # Monte Carlo unit index in the seed tree (runs: 0)
+
+    @property
+    def realisation_seed(self) -> int:
+        """Seed of the device realisation: ``device_seed`` if given, else ``seed``. Two runs
+        with the same device seed and unit are the same physical unit (paper 001's train and
+        test runs), while their noise (keyed by ``seed``) differs."""
+        return self.seed if self.device_seed is None else self.device_seed
 
     def chamber_rng(self) -> np.random.Generator:
         """The generator that expands the chamber programme (repeat/random segments)."""
@@ -223,6 +232,7 @@ def parse_scenario(text: str, source: str = "<string>", *,
     name = get_str(data, "name", ctx, default_name)
     description = get_str(data, "description", ctx, "")
     seed = get_int(data, "seed", ctx, 0, min=0, max=2**63 - 1)
+    device_seed = get_int(data, "device_seed", ctx, None, min=0, max=2**63 - 1)
     device = load_device(get_str(data, "device", ctx), base_dir=base_dir,
                          context=f"{source}: device")
     site = _parse_site(get_table(data, "site", ctx, {}), ctx.child("site"))
@@ -246,7 +256,8 @@ def parse_scenario(text: str, source: str = "<string>", *,
                                     f"(more than 1e9 steps)")
     return Scenario(name=name, description=description, source=source, text=text, seed=seed,
                     device=device, site=site, acquisition=acquisition, power=power,
-                    chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data)
+                    chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data,
+                    device_seed=device_seed)
 
 
 def load_scenario(ref: str) -> Scenario:

@@ -28,7 +28,7 @@ Adding a stage (issue 3: the IMU) — write a class with
 * ``block(state, b, trace, motion) -> (rows, state)`` — ``rows`` maps each growing dimension to
   ``{variable: array}`` holding every variable along it (the coordinate included), for this
   block only: block ``b`` covers ``[b·BLOCK_S, b·BLOCK_S + len(trace.t_s)·trace.step_s)``;
-  random draws from ``generator(seed, UNIT, purpose, channel, b)``;
+  random draws from ``generator(seed, scenario.unit, purpose, channel, b)``;
 
 and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. Then add the
 group to docs/dataset.md. :class:`ProbeStage` is the worked example. A stage that writes several
@@ -56,8 +56,6 @@ from sim.thermal_integrator import ThermalIntegrator
 #: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
 BLOCK_S = 600.0
 
-#: The unit index of a single run in the seed tree (Monte Carlo runs use 0, 1, 2, ...).
-UNIT = 0
 
 
 @dataclass(frozen=True)
@@ -156,7 +154,7 @@ class ThermalPart:
 
 class ProbeStage(Stage):
     """Thermometer probes on the network nodes (lag, noise, resolution): what the compensators
-    see. Random draws: ``generator(seed, UNIT, "probes", "noise", b)``."""
+    see. Random draws: ``generator(seed, unit, "probes", "noise", b)``."""
 
     group = "probes"
     description = "thermometer probe readings on the thermal grid (what hardware would log)"
@@ -165,6 +163,7 @@ class ProbeStage(Stage):
         self.probes = scenario.device.thermal.probes
         self.network = scenario.device.thermal.network
         self.seed = scenario.seed
+        self.unit = scenario.unit
         self.step = timeline.step_s
 
     @classmethod
@@ -199,7 +198,7 @@ class ProbeStage(Stage):
     def block(self, state, b, trace, motion):
         if state is None:
             state = self.probes.initial_state(trace.start_c)
-        rng = generator(self.seed, UNIT, "probes", "noise", b)
+        rng = generator(self.seed, self.unit, "probes", "noise", b)
         readings, state = self.probes.read(state, trace.nodes_c, trace.step_s, rng)
         return {"time": {"time": trace.t_s, "temperature": readings}}, state
 
@@ -289,7 +288,8 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
         "device_text": scenario.device.text,
         "thermal_preset_text": scenario.device.thermal.text,
         "seed": np.int64(scenario.seed),
-        "unit": np.int64(UNIT),
+        "unit": np.int64(scenario.unit),
+        "device_seed": np.int64(scenario.realisation_seed),
         "duration_s": float(timeline.duration_s),
         "thermal_step_s": float(step),
         "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
