@@ -29,7 +29,8 @@ from importlib import resources
 from sim.errors import UserInputError
 
 #: Sub-folder of the ``scenarios`` package for each kind of file ("" = the package itself).
-KINDS: dict[str, str] = {"scenario": "", "device": "devices", "thermal": "thermal"}
+KINDS: dict[str, str] = {"scenario": "", "device": "devices", "thermal": "thermal",
+                        "study": "studies"}
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.-]+$")
 
@@ -109,7 +110,7 @@ def _unknown_name(kind: str, ref: str, context: str | None) -> UserInputError:
     hint = f" (did you mean '{close[0]}'?)" if close else ""
     where = f"{context}: " if context else ""
     label = {"scenario": "scenario", "device": "device preset",
-             "thermal": "thermal preset"}[kind]
+             "thermal": "thermal preset", "study": "study"}[kind]
     return UserInputError(
         f"{where}unknown {label} {ref!r}{hint}; shipped: {', '.join(names) or '(none)'}"
         f" (or give a path to a .toml file)")

@@ -1,0 +1,166 @@
+"""Studies: replay an experiment end to end on simulated hardware and score it against truth.
+
+A study file (TOML, shipped in ``scenarios/studies/`` or given by path) has a ``[study]`` table::
+
+    [study]
+    name = "paper001"                 # default: the file name
+    description = "one line for 'rlgsim study --list'"
+    paper = "001"                     # which paper it replays (shared/papers/README.md), or ""
+    recipe = "bias_compensation"      # how it runs: a module sim/studies/<recipe>.py
+    device_seed = 1001                # optional: the unit simulated (default: each scenario's)
+
+and further tables that belong to its *recipe*. A recipe is a module in ``sim/studies/`` with
+
+    check(study: Study) -> config
+        validate the recipe's tables (raise :class:`~sim.errors.UserInputError` naming
+        file/key/value) and return whatever the recipe needs;
+    run(study: Study, config, workdir: pathlib.Path, *, unit: int, progress: bool,
+        make_report: bool) -> StudyResult
+        simulate, fit, score; ``workdir`` holds datasets and (with ``make_report``) the report.
+
+The study runner (this module) and the CLI are the only places that join ``sim`` and
+``estimators``. :func:`study_unit` is the Monte Carlo unit function: the same study for unit
+``i`` (another drawn device, other noise), without the report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import pathlib
+import tempfile
+from dataclasses import dataclass, field
+from typing import Any
+
+from sim import presets
+from sim.config import Ctx, check_known_keys, get_int, get_str, get_table
+from sim.errors import UserInputError
+from sim.report import Report
+
+STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
+RECIPES = ("bias_compensation", "paper000_system")
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study file. ``tables`` holds the parsed TOML for the recipe."""
+
+    name: str
+    description: str
+    paper: str
+    recipe: str
+    source: str
+    text: str
+    base_dir: pathlib.Path | None
+    device_seed: int | None = None
+    tables: dict = field(default_factory=dict, repr=False)
+
+    def ctx(self, *path: str) -> Ctx:
+        """A :class:`~sim.config.Ctx` for messages about ``path`` in this study's file."""
+        return Ctx(self.source, ".".join(path))
+
+
+@dataclass
+class StudyResult:
+    """What a study run gives back: its report (or None) and the scores of every compensator.
+
+    ``rows`` are (compensator, metric, value) — the Monte Carlo results table — and ``params``
+    the drawn device parameters worth showing next to a unit's scores (name → value)."""
+
+    rows: list[tuple[str, str, float]]
+    params: dict[str, float] = field(default_factory=dict)
+    report: Report | None = None
+
+
+def parse_study(text: str, source: str = "<string>", *, base_dir: pathlib.Path | None = None,
+                default_name: str = "study") -> Study:
+    """Parse and validate the ``[study]`` table, then the recipe's own tables."""
+    data = presets.parse_toml(text, source)
+    ctx = Ctx(source)
+    table = get_table(data, "study", ctx)
+    sctx = ctx.child("study")
+    check_known_keys(table, STUDY_KEYS, sctx)
+    study = Study(
+        name=get_str(table, "name", sctx, default_name),
+        description=get_str(table, "description", sctx, ""),
+        paper=get_str(table, "paper", sctx, ""),
+        recipe=get_str(table, "recipe", sctx, choices=RECIPES),
+        source=source, text=text, base_dir=base_dir,
+        device_seed=get_int(table, "device_seed", sctx, None, min=0, max=2**63 - 1),
+        tables=data)
+    recipe_module(study).check(study)
+    return study
+
+
+def load_study(ref: str) -> Study:
+    """A study by shipped name (``rlgsim study --list``) or by path."""
+    f = presets.load(ref, "study")
+    return parse_study(f.text, f.source, base_dir=f.base_dir, default_name=f.name)
+
+
+def list_studies() -> list[tuple[str, str]]:
+    """(name, one-line description) of every shipped study."""
+    out = []
+    for name in presets.list_names("study"):
+        f = presets.load(name, "study")
+        desc = f.data.get("study", {}).get("description", "") if isinstance(f.data, dict) else ""
+        out.append((name, " ".join(str(desc).split())))
+    return out
+
+
+def recipe_module(study: Study):
+    return importlib.import_module(f"sim.studies.{study.recipe}")
+
+
+def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = None):
+    """Load scenario ``ref`` (name, or path relative to the study file) for this study's unit.
+
+    The study's ``device_seed`` (if any) replaces the scenario's, so all runs of a study are
+    the same physical unit; ``unit`` selects the Monte Carlo unit (another drawn device and
+    other noise)."""
+    from sim.scenario import load_scenario
+
+    path = (study.base_dir / ref) if study.base_dir is not None else None
+    try:
+        scenario = load_scenario(str(path) if path is not None and path.is_file() else ref)
+    except UserInputError as exc:
+        where = f"{(ctx or study.ctx()).source}: {(ctx.path if ctx else '') or 'scenario'}"
+        raise UserInputError(f"{where}: {exc}") from None
+    changes: dict[str, Any] = {"unit": int(unit)}
+    if study.device_seed is not None:
+        changes["device_seed"] = study.device_seed
+    return dataclasses.replace(scenario, **changes)
+
+
+def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True
+              ) -> pathlib.Path:
+    """Run ``study`` (unit 0) and write its report folder; returns the path of report.md."""
+    out_dir = pathlib.Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"{out_dir}: cannot create the output folder "
+                             f"({exc.strerror or exc})") from None
+    recipe = recipe_module(study)
+    config = recipe.check(study)
+    result = recipe.run(study, config, out_dir, unit=0, progress=progress, make_report=True)
+    if result.report is None:
+        raise RuntimeError(f"recipe {study.recipe} returned no report")
+    result.report.heading("Study file", 2)
+    result.report.verbatim(study.text, title=study.source, language="toml")
+    return result.report.write(out_dir)
+
+
+def study_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
+    """Monte Carlo unit function (see :mod:`sim.montecarlo`): run the study for ``unit`` in a
+    temporary folder and return its scores and drawn parameters. ``payload`` carries the study
+    text and source so that workers need no access to the user's files."""
+    study = parse_study(payload["text"], payload["source"],
+                        base_dir=pathlib.Path(payload["base_dir"]) if payload.get("base_dir")
+                        else None, default_name=payload.get("name", "study"))
+    recipe = recipe_module(study)
+    config = recipe.check(study)
+    with tempfile.TemporaryDirectory(prefix=f"rlgsim-unit{unit}-") as tmp:
+        result = recipe.run(study, config, pathlib.Path(tmp), unit=unit, progress=False,
+                            make_report=False)
+    return {"rows": result.rows, "params": result.params}
