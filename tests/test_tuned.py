@@ -167,6 +167,14 @@ def test_pso_svr_epsilon_tuning_kfold_and_reproducibility():
     assert a.best_params_ == b.best_params_
     assert 1e-3 <= a.best_params_["epsilon"] <= 1.0
     assert a.estimator_.regressor_[-1].epsilon == a.best_params_["epsilon"]
+    assert 0 <= a.n_capped_fits_ <= 3 * a.n_fits_
+
+
+def test_pso_svr_counts_fits_stopped_by_the_search_cap():
+    X, y = svr_data(seed=2, n=120)
+    m = PSOSVR(n_agents=3, max_iter=2, search_max_iter=3, random_state=0).fit(X, y)
+    assert m.n_capped_fits_ == m.n_fits_ == 9      # every search fit hits 3 SMO iterations
+    assert m.estimator_.regressor_[-1].max_iter == -1          # the refit is never capped
 
 
 # ------------------------------------------------------------------------------- bad input
