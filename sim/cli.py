@@ -2,7 +2,8 @@
 
     rlgsim run SCENARIO [-o out.h5] [--chunk-s S] [--quiet]   simulate to an HDF5 dataset
     rlgsim info FILE                                         summarise a dataset
-    rlgsim demo                                              the quickstart run, into ./rlgsim-demo/
+    rlgsim demo                                              the demo study, into ./rlgsim-demo/
+    rlgsim study STUDY [-o DIR] | --list                     run a study into a report folder
     rlgsim list                                              shipped scenarios and devices
 
 Every user mistake (:class:`~sim.errors.UserInputError`, bad arguments) is printed as one line
@@ -25,7 +26,6 @@ from typing import Sequence
 from sim.errors import UserInputError
 
 PROG = "rlgsim"
-DEMO_SCENARIO = "quickstart"
 DEMO_DIR = "rlgsim-demo"
 
 
@@ -63,12 +63,14 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
     i = sub.add_parser("info", help="summarise an rlgsim dataset")
     i.add_argument("file", metavar="FILE")
-    d = sub.add_parser("demo", help=f"run the '{DEMO_SCENARIO}' scenario into ./{DEMO_DIR}/ "
-                                    f"and summarise it")
+    d = sub.add_parser("demo", help=f"run the demo study into ./{DEMO_DIR}/ (report.md, "
+                                    f"report.html)")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list the shipped scenarios and device presets")
     from sim.cli_calibrate import add_subparser as add_calibrate
     add_calibrate(sub)                     # rlgsim calibrate (sim/cli_calibrate.py)
+    from sim.cli_study import add_subparser as add_study
+    add_study(sub)                         # rlgsim study (sim/cli_study.py)
     return p
 
 
@@ -144,18 +146,11 @@ def _main(argv: Sequence[str] | None) -> int:
             from sim.dataset import summary
             print(summary(args.file))
         elif args.command == "demo":
-            out_dir = pathlib.Path(DEMO_DIR)
-            try:
-                out_dir.mkdir(exist_ok=True)
-            except OSError as exc:
-                raise UserInputError(f"{out_dir}: cannot create the demo directory "
-                                     f"({exc.strerror or exc})") from None
-            path = _run(DEMO_SCENARIO, str(out_dir / f"{DEMO_SCENARIO}.h5"), None, args.quiet)
-            from sim.dataset import summary
-            print(summary(path))
+            from sim.cli_study import demo
+            demo(args.quiet)
         elif args.command == "list":
             _list()
-        elif args.command == "calibrate":
+        elif args.command in ("calibrate", "study"):
             return args.handler(args)
         return 0
     except UserInputError as exc:

@@ -24,12 +24,13 @@ def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
 def test_demo_runs_end_to_end(tmp_path):
     r = _cli("demo", "--quiet", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    out = tmp_path / "rlgsim-demo" / "quickstart.h5"
-    assert out.is_file()
-    assert "group thermal" in r.stdout and "scenario: quickstart" in r.stdout
-    with h5py.File(out) as f:
-        assert f.attrs["scenario_name"] == "quickstart"
-        assert f["thermal/time"].shape[0] == 7200
+    out = tmp_path / "rlgsim-demo"
+    assert (out / "report.md").is_file() and (out / "report.html").is_file()
+    assert "rlgsim-demo/report.md" in r.stdout and "rlgsim-demo/report.html" in r.stdout
+    (train,) = (out / "data").glob("demo_cycle-seed7001.h5")
+    with h5py.File(train) as f:
+        assert f.attrs["scenario_name"] == "demo_cycle"
+        assert f["thermal/time"].shape[0] == 8 * 3600
 
 
 def test_list_shows_shipped_scenarios_and_devices(capsys):

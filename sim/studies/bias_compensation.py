@@ -1,0 +1,857 @@
+"""Recipe ``bias_compensation``: single-gyro temperature compensation of the bias (papers 001-003).
+
+A study with ``recipe = "bias_compensation"`` (see :mod:`sim.study`) has these tables::
+
+    [data]
+    train = ["paper001_train"]        # scenario names or paths (relative to the study file),
+    test = ["paper001_test"]          # or tables {scenario = "demo_cycle", seed = 7}
+    window_s = 100                    # averaging window [s] (papers 001-003: 100 s)
+    gyro = "z"                        # gyro input axis (default: the device's only gyro)
+
+    [features]                        # the compensator inputs, computed per window
+    temperature = "g.A"               # probe giving input "T" (window mean) and "dT/dt" (K/s)
+    uhfo = true                       # input "U": the gyro's UHFO voltage [V] (window mean)
+    probes = ["housing"]              # further probes as inputs named by the probe [°C]
+    gradients = ["g.A", "g.B"]        # pairwise differences "g.A-g.B" [K] (paper 003)
+
+    [[compensator]]
+    name = "LS cubic T"               # unique label in the report
+    kind = "polynomial"               # see KINDS
+    inputs = ["T"]                    # feature names
+    params = { degree = 3 }           # estimator constructor keywords
+    table = "Table 2"                 # optional: the paper table it re-creates
+    published = { stability_deg_per_h = 0.01194, improvement_pct = 35.46 }
+
+    [metrics]
+    cluster_s = 100                   # bias-stability cluster [s] (a multiple of window_s)
+    ddof = 1                          # of the bias-stability std (the papers do not say)
+    baseline = "raw"                  # "before" series: the raw bias, or a compensator's name
+
+    [published]                       # optional: the paper's numbers not tied to a compensator
+    stability_before_deg_per_h = 0.0185
+    correlation = { T = 0.71, "dT/dt" = -0.43, U = -0.82 }
+
+How the series are built (paper 001 §3 and §4.1): the gyro's rate is its pulse count per window
+divided by the nominal scale factor (truth group ``gyro.k0``) and the window length; the
+"TRPLG bias" is that rate minus the Earth-rate projection on the gyro axis (the table's known
+input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
+Inputs are window means of the probe readings and the logged UHFO, and the least-squares slope
+of the temperature in each window (:mod:`estimators.features`). Windows in which the device was
+not powered over the whole window are dropped. The truth series is the window mean of the true
+bias ``truth/gyro_bias`` (what the simulator added to the rate), and ``truth/gyro_bias_random``
+its flicker + random-walk part, which no temperature model can predict.
+
+Each compensator is fitted on the train runs (windows stacked) and applied to each test run.
+Scores per test run (rows of :class:`~sim.study.StudyResult`, all in °/h unless stated):
+
+* ``stability_before`` / ``stability_after``: bias stability (std of ``cluster_s`` means,
+  ``ddof``) of the measured bias ``y`` and of the compensated series ``y − ŷ``;
+  ``improvement_pct`` = 100·(before − after)/before (paper 001 Tables 2-5);
+* ``rmse_true``, ``mae_true``, ``r2_true``: the predicted bias ``ŷ`` against the true bias
+  ``b`` (window means); ``b`` excludes the constant the output adds through the scale-factor
+  error and misalignment times the Earth rate, which the compensators fold into their constant;
+* ``resid_std_true`` = std(ŷ − b): what is left of the true bias after compensation, offset-free
+  (the bias stability a noise-free gyro would show after compensation);
+* ``law_resid_std`` = std(ŷ − (b − r)), r the random part: the error of the learnt temperature
+  law alone.
+
+The row ``truth: temperature law`` is the oracle ``ŷ = b − r``: the best any input-driven model
+can do; its ``stability_after`` is the floor the others approach.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import itertools
+import math
+import pathlib
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str,
+                        get_table)
+from sim.errors import UserInputError
+from sim.report import Report, Table
+from sim.study import Study, StudyResult, scenario_for
+
+TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
+DATA_KEYS = ("train", "test", "window_s", "gyro")
+RUN_KEYS = ("scenario", "seed")
+FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
+COMPENSATOR_KEYS = ("name", "kind", "inputs", "params", "table", "published")
+PUBLISHED_COMP_KEYS = ("stability_deg_per_h", "improvement_pct", "c", "sigma2")
+METRIC_KEYS = ("cluster_s", "ddof", "baseline")
+PUBLISHED_KEYS = ("stability_before_deg_per_h", "correlation")
+
+#: Compensator kinds: (module, class, extra keys the recipe itself understands).
+KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "polynomial": ("estimators.polynomial", "PolynomialRegressor", ()),
+    "stepwise": ("estimators.stepwise", "StepwiseRegressor", ()),
+    "mlr_bic": ("estimators.mlr", "MLRBICRegressor", ()),
+    "lssvm": ("estimators.lssvm_cv", "LSSVMRegressorCV", ()),
+    "ir_lssvm": ("estimators.robust_lssvm", "RobustLSSVMRegressor",
+                 ("gammas", "sigma2s", "tune_cv", "tune_scoring")),
+    "rvr": ("estimators.rvr", "RVR", ()),
+    "hho_rvr": ("estimators.tuned", "HHORVR", ()),
+    "pso_svr": ("estimators.tuned", "PSOSVR", ()),
+    "rbf": ("estimators.rbf_network", "RBFNetwork", ()),
+    "rbf_modified": ("estimators.rbf_modified", "ModifiedRBFNetwork", ()),
+}
+
+#: Kinds whose fitted model prints an equation (estimators.term_model).
+EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
+
+ORACLE = "truth: temperature law"
+RAW = "raw"
+DEG_PER_H_PER_RAD_PER_S = 180.0 / math.pi * 3600.0
+
+
+# ------------------------------------------------------------------------------ configuration
+@dataclass(frozen=True)
+class RunSpec:
+    ref: str
+    seed: int | None
+    ctx: Ctx
+
+    @property
+    def label(self) -> str:
+        stem = pathlib.Path(self.ref).name
+        stem = stem[:-5] if stem.endswith(".toml") else stem
+        return stem if self.seed is None else f"{stem}-seed{self.seed}"
+
+
+@dataclass(frozen=True)
+class CompensatorSpec:
+    name: str
+    kind: str
+    inputs: tuple[str, ...]
+    params: dict
+    table: str
+    published: dict
+    ctx: Ctx
+
+
+@dataclass(frozen=True)
+class Config:
+    train: tuple[RunSpec, ...]
+    test: tuple[RunSpec, ...]
+    window_s: float
+    gyro: str | None
+    temperature: str | None
+    uhfo: bool
+    probes: tuple[str, ...]
+    gradients: tuple[str, ...]
+    compensators: tuple[CompensatorSpec, ...]
+    cluster_s: float
+    ddof: int
+    baseline: str
+    published: dict = field(default_factory=dict)
+
+    def feature_names(self) -> list[str]:
+        names = []
+        if self.temperature:
+            names += ["T", "dT/dt"]
+        if self.uhfo:
+            names.append("U")
+        names += list(self.probes)
+        names += [f"{a}-{b}" for a, b in itertools.combinations(self.gradients, 2)]
+        return names
+
+
+def _estimator_class(kind: str):
+    module, cls, _ = KINDS[kind]
+    return getattr(importlib.import_module(module), cls)
+
+
+def _runs(table: dict, key: str, ctx: Ctx) -> tuple[RunSpec, ...]:
+    items = get_list(table, key, ctx, min_len=1)
+    out = []
+    for i, item in enumerate(items):
+        ictx = ctx.child(key).item(i)
+        if isinstance(item, str):
+            if not item.strip():
+                raise ctx.error(f"{key}[{i}]", "expected a scenario name or path, got an "
+                                               "empty string")
+            out.append(RunSpec(item, None, ictx))
+        elif isinstance(item, dict):
+            check_known_keys(item, RUN_KEYS, ictx)
+            out.append(RunSpec(get_str(item, "scenario", ictx),
+                               get_int(item, "seed", ictx, None, min=0, max=2**63 - 1), ictx))
+        else:
+            raise ctx.error(f"{key}[{i}]", f"expected a scenario name or a table "
+                                           f"{{scenario = ..., seed = ...}}, got {item!r}")
+    labels = [r.label for r in out]
+    dup = {x for x in labels if labels.count(x) > 1}
+    if dup:
+        raise ctx.error(key, f"run {sorted(dup)[0]!r} is listed twice")
+    return tuple(out)
+
+
+def _str_list(table: dict, key: str, ctx: Ctx, min_len: int = 0) -> tuple[str, ...]:
+    values = get_list(table, key, ctx, [], min_len=min_len)
+    for v in values:
+        if not isinstance(v, str) or not v:
+            raise ctx.error(key, f"expected an array of non-empty strings, got {v!r}")
+    if len(set(values)) != len(values):
+        raise ctx.error(key, f"value {values!r} not allowed; names must be distinct")
+    return tuple(values)
+
+
+def _compensator(item: Any, i: int, ctx: Ctx, features: list[str]) -> CompensatorSpec:
+    cctx = ctx.item(i)
+    if not isinstance(item, dict):
+        raise Ctx(ctx.source).error(cctx.path, f"expected a table, got {item!r}")
+    check_known_keys(item, COMPENSATOR_KEYS, cctx)
+    name = get_str(item, "name", cctx)
+    if not name.strip() or name in (RAW, ORACLE):
+        raise cctx.error("name", f"value {name!r} not allowed (empty or reserved)")
+    kind = get_str(item, "kind", cctx, choices=KINDS)
+    inputs = _str_list(item, "inputs", cctx, min_len=1)
+    for x in inputs:
+        if x not in features:
+            raise cctx.error("inputs", f"unknown input {x!r}; the [features] table gives: "
+                                       f"{', '.join(features) or '(none)'}")
+    params = get_table(item, "params", cctx, {})
+    allowed = set(_estimator_class(kind)().get_params()) | set(KINDS[kind][2])
+    allowed.discard("feature_names")
+    check_known_keys(params, sorted(allowed), cctx.child("params"))
+    published = get_table(item, "published", cctx, {})
+    pctx = cctx.child("published")
+    check_known_keys(published, PUBLISHED_COMP_KEYS, pctx)
+    for k in published:
+        get_float(published, k, pctx)
+    return CompensatorSpec(name=name, kind=kind, inputs=inputs, params=params,
+                           table=get_str(item, "table", cctx, ""), published=published,
+                           ctx=cctx)
+
+
+def check(study: Study) -> Config:
+    """Validate the recipe's tables; :class:`UserInputError` naming file/key/value."""
+    data = study.tables
+    ctx = study.ctx()
+    check_known_keys(data, TOP_KEYS, ctx)
+    dtable = get_table(data, "data", ctx)
+    dctx = ctx.child("data")
+    check_known_keys(dtable, DATA_KEYS, dctx)
+    train = _runs(dtable, "train", dctx)
+    test = _runs(dtable, "test", dctx)
+    window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
+    gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
+    for spec in train + test:          # every scenario must exist and parse
+        scenario_for(study, spec.ref, ctx=spec.ctx)
+
+    ftable = get_table(data, "features", ctx, {})
+    fctx = ctx.child("features")
+    check_known_keys(ftable, FEATURE_KEYS, fctx)
+    temperature = get_str(ftable, "temperature", fctx, None)
+    uhfo = get_bool(ftable, "uhfo", fctx, False)
+    probes = _str_list(ftable, "probes", fctx)
+    gradients = _str_list(ftable, "gradients", fctx)
+    if len(gradients) == 1:
+        raise fctx.error("gradients", "give at least 2 probes (or none)")
+    config_features = Config((), (), window_s, gyro, temperature, uhfo, probes, gradients, (),
+                             window_s, 1, RAW).feature_names()
+    if not config_features:
+        raise fctx.error("temperature", "no inputs: give at least one of temperature, uhfo, "
+                                        "probes, gradients")
+
+    items = data.get("compensator")
+    if not isinstance(items, list) or not items:
+        raise ctx.error("compensator", "missing: give at least one [[compensator]] table")
+    comps = tuple(_compensator(item, i, ctx.child("compensator"), config_features)
+                  for i, item in enumerate(items))
+    names = [c.name for c in comps]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise ctx.error("compensator", f"name {sorted(dup)[0]!r} is used twice")
+
+    mtable = get_table(data, "metrics", ctx, {})
+    mctx = ctx.child("metrics")
+    check_known_keys(mtable, METRIC_KEYS, mctx)
+    cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
+    ratio = cluster_s / window_s
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise mctx.error("cluster_s", f"value {cluster_s:g} not allowed; must be a whole "
+                                      f"multiple of data.window_s = {window_s:g}")
+    ddof = get_int(mtable, "ddof", mctx, 1, min=0, max=1)
+    baseline = get_str(mtable, "baseline", mctx, RAW, choices=[RAW] + names)
+
+    ptable = get_table(data, "published", ctx, {})
+    pctx = ctx.child("published")
+    check_known_keys(ptable, PUBLISHED_KEYS, pctx)
+    published: dict[str, Any] = {}
+    if "stability_before_deg_per_h" in ptable:
+        published["stability_before"] = get_float(ptable, "stability_before_deg_per_h", pctx)
+    corr = get_table(ptable, "correlation", pctx, {})
+    cctx = pctx.child("correlation")
+    check_known_keys(corr, config_features, cctx)
+    published["correlation"] = {k: get_float(corr, k, cctx, min=-1.0, max=1.0) for k in corr}
+    return Config(train=train, test=test, window_s=window_s, gyro=gyro,
+                  temperature=temperature, uhfo=uhfo, probes=probes, gradients=gradients,
+                  compensators=comps, cluster_s=cluster_s, ddof=ddof, baseline=baseline,
+                  published=published)
+
+
+# ------------------------------------------------------------------------------ datasets
+def _dataset_matches(path: pathlib.Path, scenario) -> bool:
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            a = f.attrs
+
+            def text(key: str) -> str:
+                v = a.get(key, "")
+                return v.decode() if isinstance(v, bytes) else str(v)
+            return (text("scenario_text") == scenario.text
+                    and int(a.get("seed", -1)) == scenario.seed
+                    and int(a.get("unit", -1)) == scenario.unit
+                    and int(a.get("device_seed", -1)) == scenario.realisation_seed
+                    and text("device_text") == scenario.device.text
+                    and text("thermal_preset_text") == scenario.device.thermal.text)
+    except (OSError, KeyError, ValueError, TypeError):
+        return False
+
+
+def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int,
+                progress: bool) -> tuple[pathlib.Path, Any, bool]:
+    """Simulate ``spec`` into ``workdir/data/<label>.h5`` unless a matching file is there.
+    Returns (path, scenario, reused)."""
+    from sim.simulate import simulate
+    scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
+    if spec.seed is not None:
+        scenario = dataclasses.replace(scenario, seed=spec.seed)
+    folder = workdir / "data"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{spec.label}.h5"
+    if path.is_file() and _dataset_matches(path, scenario):
+        return path, scenario, True
+    simulate(scenario, path, progress=progress)
+    return path, scenario, False
+
+
+def _strings(values) -> list[str]:
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
+
+
+@dataclass
+class RunSeries:
+    """The 100 s window series of one run (°/h for rates, °C, K/s, V)."""
+
+    label: str
+    path: pathlib.Path
+    seed: int
+    device_seed: int
+    time_s: np.ndarray          # window end times
+    y: np.ndarray               # measured bias: output − Earth projection [°/h]
+    true_bias: np.ndarray       # b: window mean of truth/gyro_bias [°/h]
+    true_random: np.ndarray     # r: its flicker + random-walk part [°/h]
+    X: Any                      # estimators.columns.Columns of the inputs
+    earth_deg_per_h: float
+    coefficients: dict[str, float]
+
+
+def read_run(path: pathlib.Path, config: Config, label: str, ctx: Ctx) -> RunSeries:
+    """Build the window series of one dataset (see the module docstring)."""
+    import h5py
+
+    from estimators.columns import Columns
+    from estimators.features import pairwise_gradients, samples_per_window, temperature_rate, \
+        window_average
+
+    W = config.window_s
+    with h5py.File(path, "r") as f:
+        gyros = _strings(f["imu/gyro"][:])
+        axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
+        if axis is None or axis not in gyros:
+            raise ctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
+                                    f"axes are {', '.join(gyros)}" if config.gyro else
+                            f"missing: the device has several gyros ({', '.join(gyros)})")
+        gi = gyros.index(axis)
+        rate = float(f["imu"].attrs["sample_rate_hz"])
+        step = float(f.attrs["thermal_step_s"])
+        try:
+            m_s = samples_per_window(rate, W)
+            m_t = samples_per_window(1.0 / step, W)
+        except ValueError as exc:
+            raise Ctx(ctx.source, "data").error("window_s", str(exc)) from None
+        coeff = dict(zip(_strings(f["truth/coefficient"][:]),
+                         map(float, f["truth/coefficient_value"][:])))
+        k0 = coeff[f"gyro.k0[{axis}]"]
+        pulses = f["imu/gyro_pulses"][:, gi]
+        n_win = min(pulses.shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
+        counts = pulses[: n_win * m_s].astype(np.int64).reshape(n_win, m_s).sum(axis=1)
+        rate_out = counts / (k0 * W)                                           # rad/s
+        body = _strings(f["truth/body"][:])
+        dtheta = f["truth/dtheta_step"][: n_win * m_t, body.index(axis)]
+        earth = dtheta.reshape(n_win, m_t).sum(axis=1) / W                     # rad/s
+        y = (rate_out - earth) * DEG_PER_H_PER_RAD_PER_S
+        tb = f["truth/gyro_bias"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
+        tr = f["truth/gyro_bias_random"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
+        power = f["thermal/power_on"][: n_win * m_t].reshape(n_win, m_t).min(axis=1) > 0
+        probes = _strings(f["probes/probe"][:])
+        temps = f["probes/temperature"][: n_win * m_t, :]
+        uhfo = f["imu/uhfo"][: n_win * m_t, gi].astype(np.float64) if config.uhfo else None
+        if config.uhfo and "imu/uhfo" not in f:
+            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
+        seed = int(f.attrs["seed"])
+        device_seed = int(f.attrs.get("device_seed", seed))
+
+    def probe(name: str, key: str) -> np.ndarray:
+        if name not in probes:
+            raise Ctx(ctx.source, "features").error(
+                key, f"unknown probe {name!r}; the device's probes are {', '.join(probes)}")
+        return temps[:, probes.index(name)].astype(np.float64)
+
+    thermal_rate = 1.0 / step
+    cols: dict[str, np.ndarray] = {}
+    if config.temperature:
+        T = probe(config.temperature, "temperature")
+        cols["T"] = window_average(T, thermal_rate, W)
+        cols["dT/dt"] = temperature_rate(T, thermal_rate, W)
+    if config.uhfo:
+        cols["U"] = window_average(uhfo, thermal_rate, W)
+    for name in config.probes:
+        cols[name] = window_average(probe(name, "probes"), thermal_rate, W)
+    if config.gradients:
+        means = Columns({g: window_average(probe(g, "gradients"), thermal_rate, W)
+                         for g in config.gradients})
+        cols.update(pairwise_gradients(means).items())
+    keep = power
+    X = Columns({k: v[keep] for k, v in cols.items()})
+    time_s = ((np.arange(n_win) + 1) * W)[keep]
+    return RunSeries(label=label, path=path, seed=seed, device_seed=device_seed,
+                     time_s=time_s, y=y[keep],
+                     true_bias=window_average(tb, thermal_rate, W)[keep],
+                     true_random=window_average(tr, thermal_rate, W)[keep],
+                     X=X, earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
+                     coefficients=coeff)
+
+
+# ------------------------------------------------------------------------------ fitting
+def make_estimator(spec: CompensatorSpec, random_state: int):
+    """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
+    cls = _estimator_class(spec.kind)
+    params = {k: v for k, v in spec.params.items() if k not in KINDS[spec.kind][2]}
+    if "random_state" in cls().get_params() and "random_state" not in params:
+        params["random_state"] = random_state
+    return cls(**params)
+
+
+@dataclass
+class Fitted:
+    spec: CompensatorSpec
+    model: Any
+    fit_s: float
+    hyper: dict[str, float]
+
+
+def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int) -> Fitted:
+    """Fit ``spec`` on the train windows. A ValueError from the estimator (a bad parameter
+    value in the study file) becomes a UserInputError naming the compensator."""
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+    t0 = time.perf_counter()
+    Xi = X.select(spec.inputs)
+    hyper: dict[str, float] = {}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model = make_estimator(spec, random_state)
+            if spec.kind == "ir_lssvm" and not ("gamma" in spec.params and "sigma2" in spec.params):
+                from estimators.lssvm_cv import LSSVMRegressorCV
+                p = spec.params
+                kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
+                tuner = LSSVMRegressorCV(cv=p.get("tune_cv", 10),
+                                         scoring=p.get("tune_scoring", "mse"),
+                                         random_state=random_state, **kw).fit(Xi, y)
+                model.set_params(gamma=tuner.gamma_, sigma2=tuner.sigma2_)
+            model.fit(Xi, y)
+    except (ValueError, TypeError) as exc:
+        raise spec.ctx.error("params", f"compensator {spec.name!r} ({spec.kind}) could not be "
+                                       f"fitted: {' '.join(str(exc).split())}") from None
+    for attr, key in (("gamma_", "c"), ("sigma2_", "sigma2"), ("weight_param_", "weight_param"),
+                      ("width_", "width"), ("n_centers_", "centres")):
+        v = getattr(model, attr, None)
+        if isinstance(v, (int, float, np.floating, np.integer)) and v is not None:
+            hyper[key] = float(v)
+    if spec.kind == "ir_lssvm":
+        hyper["c"], hyper["sigma2"] = float(model.gamma), float(model.sigma2)
+    if hasattr(model, "best_params_"):
+        hyper.update({k: float(v) for k, v in model.best_params_.items()})
+    return Fitted(spec, model, time.perf_counter() - t0, hyper)
+
+
+# ------------------------------------------------------------------------------ scoring
+def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, window_s: float,
+           cluster_s: float, ddof: int, before: float) -> dict[str, float]:
+    """Paper-style and truth-based scores of one prediction (definitions: module docstring)."""
+    from estimators import metrics as M
+    rate = 1.0 / window_s
+    after = M.bias_stability(y - y_hat, rate, cluster_s, ddof)
+    out = {"stability_before": before, "stability_after": after,
+           "improvement_pct": M.improvement_percent(before, after),
+           "rmse_true": M.rmse(b, y_hat), "mae_true": M.mae(b, y_hat),
+           "r2_true": M.r2(b, y_hat),
+           "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
+           "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))}
+    return out
+
+
+# ------------------------------------------------------------------------------ the run
+def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
+        progress: bool = True, make_report: bool = True) -> StudyResult:
+    """Simulate, fit every compensator on the train runs, score on the test runs."""
+    from tqdm import tqdm
+
+    from estimators.columns import Columns
+    from estimators import metrics as M
+
+    workdir = pathlib.Path(workdir)
+    t_start = time.perf_counter()
+    runs: dict[str, tuple[RunSeries, Any, bool]] = {}
+    for spec in config.train + config.test:
+        if spec.label in runs:
+            continue
+        path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
+        runs[spec.label] = (read_run(path, config, spec.label, spec.ctx), scenario, reused)
+    t_data = time.perf_counter() - t_start
+
+    train = [runs[s.label][0] for s in config.train]
+    Xtr = Columns({n: np.concatenate([r.X[n] for r in train]) for n in train[0].X.names})
+    ytr = np.concatenate([r.y for r in train])
+    seed = runs[config.train[0].label][1].seed
+    random_state = int((seed * 1_000_003 + unit) % (2**32 - 1))
+
+    fitted: list[Fitted] = []
+    bar = tqdm(config.compensators, desc="fitting", unit="model", disable=not progress,
+               leave=False)
+    for spec in bar:
+        bar.set_postfix_str(spec.name[:30])
+        fitted.append(fit(spec, Xtr, ytr, random_state))
+    bar.close()
+
+    rows: list[tuple[str, str, float]] = []
+    per_test: dict[str, dict[str, dict[str, float]]] = {}
+    predictions: dict[str, dict[str, np.ndarray]] = {}
+    multi = len(config.test) > 1
+    for spec in config.test:
+        rs = runs[spec.label][0]
+        rate = 1.0 / config.window_s
+        raw_stab = M.bias_stability(rs.y, rate, config.cluster_s, config.ddof)
+        preds = {f.spec.name: np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), float)
+                 for f in fitted}
+        # paper 001 compares the compensated series with the raw bias (zero prediction)
+        preds_all = {RAW: np.full_like(rs.y, np.mean(ytr)), **preds,
+                     ORACLE: rs.true_bias - rs.true_random}
+        before = raw_stab if config.baseline == RAW else M.bias_stability(
+            rs.y - preds[config.baseline], rate, config.cluster_s, config.ddof)
+        table = {name: scores(rs.y, p, rs.true_bias, rs.true_random, config.window_s,
+                              config.cluster_s, config.ddof, before)
+                 for name, p in preds_all.items()}
+        per_test[spec.label] = table
+        predictions[spec.label] = preds_all
+        for name, sc in table.items():
+            for metric, value in sc.items():
+                rows.append((name, f"{metric}@{spec.label}" if multi else metric, float(value)))
+    for f in fitted:
+        rows.append((f.spec.name, "fit_s", f.fit_s))
+
+    test0 = runs[config.test[0].label][0]
+    params = {k: v for k, v in test0.coefficients.items() if _worth_showing(k)}
+    report = None
+    if make_report:
+        report = _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
+                         unit, t_data, time.perf_counter() - t_start)
+    return StudyResult(rows=rows, params=params, report=report)
+
+
+def _worth_showing(name: str) -> bool:
+    """Drawn device coefficients shown beside a unit's scores: non-zero bias/UHFO law terms."""
+    return name.startswith(("gyro.bias.", "uhfo.", "noise.gyro"))
+
+
+# ------------------------------------------------------------------------------ the report
+def _fmt(x: float | None, digits: int = 4) -> Any:
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr, unit,
+            t_data, t_total) -> Report:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from estimators import metrics as M
+    from sim.dataset import software_version
+
+    title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
+    rep = Report(title)
+    if study.description:
+        rep.paragraph(study.description)
+    test_label = config.test[0].label
+    rs_test = runs[test_label][0]
+    sc = per_test[test_label]
+
+    rep.heading("Runs, seeds and software", 2)
+    rep.bullets([f"rlgsim {software_version()}; recipe bias_compensation; unit {unit}"]
+                + [f"{'train' if s in config.train else 'test'} run {s.label}: scenario "
+                   f"{runs[s.label][1].name}, seed {runs[s.label][0].seed}, device_seed "
+                   f"{runs[s.label][0].device_seed}, {runs[s.label][0].y.size} windows of "
+                   f"{config.window_s:g} s, dataset {runs[s.label][0].path.name}"
+                   f" ({'reused' if runs[s.label][2] else 'simulated'})"
+                   for s in dict.fromkeys(config.train + config.test)]
+                + [f"Earth-rate projection on the gyro axis: {rs_test.earth_deg_per_h:.4f} °/h "
+                   f"(subtracted from the output: 'bias = output − Earth-rate projection')",
+                   f"bias stability: std (ddof={config.ddof}) of {config.cluster_s:g} s means; "
+                   f"improvement relative to "
+                   f"{'the raw bias' if config.baseline == RAW else config.baseline}",
+                   f"wall time: data {t_data:.1f} s, total {t_total:.1f} s"])
+
+    rep.heading("Definitions", 2)
+    rep.bullets([
+        "y: measured bias per window = pulses / (nominal scale factor × window) − Earth-rate "
+        "projection, °/h; ŷ: a compensator's prediction; y − ŷ: the compensated series.",
+        "b: true bias = window mean of truth/gyro_bias (temperature law + flicker + random "
+        "walk), °/h; r: its flicker + random-walk part (truth/gyro_bias_random).",
+        "stability_before / stability_after: bias stability of y / of y − ŷ (paper 001).",
+        "rmse_true, mae_true, r2_true: ŷ against b. b leaves out the constant that the "
+        "scale-factor error and misalignment add to a static gyro's output (Earth rate × a few "
+        "ppm/arcsec), which the compensators fold into their constant.",
+        "resid_std_true = std(ŷ − b): true bias left after compensation, offset-free (the "
+        "stability a noise-free gyro would show); law_resid_std = std(ŷ − (b − r)): error of "
+        "the learnt temperature law alone.",
+        f"'{ORACLE}': the oracle ŷ = b − r (the true temperature law); its stability_after is "
+        f"the floor for any input-driven model. '{RAW}': no compensation (ŷ = train mean).",
+    ])
+
+    # -- correlation (paper 001 Table 1)
+    rep.heading("Correlation of the bias with the inputs (paper 001 Table 1)", 2)
+    corr_pub = config.published.get("correlation", {})
+    recs = []
+    for name in Xtr.names:
+        recs.append({"input": name,
+                     "paper": corr_pub.get(name),
+                     "ours (train, measured y)": _fmt(np.corrcoef(Xtr[name], ytr)[0, 1], 3),
+                     "ours (test, measured y)": _fmt(np.corrcoef(rs_test.X[name], rs_test.y)[0, 1], 3),
+                     "ours (test, true b)": _fmt(np.corrcoef(rs_test.X[name],
+                                                             rs_test.true_bias)[0, 1], 3)})
+    rep.table(Table.from_records("Correlation coefficients", recs, csv_name="correlation.csv"))
+
+    # -- the paper's tables beside ours
+    before_pub = config.published.get("stability_before")
+    tables: dict[str, list[Fitted]] = {}
+    for f in fitted:
+        tables.setdefault(f.spec.table or "Other compensators", []).append(f)
+    rep.heading(f"Paper-style scores on test run {test_label} (ours beside the paper)", 2)
+    for tname, group in tables.items():
+        recs = []
+        for f in group:
+            s = sc[f.spec.name]
+            pub = f.spec.published
+            rec = {"compensator": f.spec.name, "inputs": ", ".join(f.spec.inputs)}
+            if any(k in f.hyper for k in ("c", "sigma2")) or "c" in pub:
+                rec.update({"c (ours)": _fmt(f.hyper.get("c")), "c (paper)": pub.get("c"),
+                            "σ² (ours)": _fmt(f.hyper.get("sigma2")),
+                            "σ² (paper)": pub.get("sigma2")})
+            rec.update({"before (ours) °/h": _fmt(s["stability_before"]),
+                        "before (paper) °/h": before_pub if pub else None,
+                        "after (ours) °/h": _fmt(s["stability_after"]),
+                        "after (paper) °/h": pub.get("stability_deg_per_h"),
+                        "improvement (ours) %": _fmt(s["improvement_pct"], 4),
+                        "improvement (paper) %": pub.get("improvement_pct")})
+            recs.append(rec)
+        cols: list[str] = []
+        for rec in recs:
+            cols += [k for k in rec if k not in cols]
+        recs = [{k: rec.get(k) for k in cols} for rec in recs]
+        rep.table(Table.from_records(tname, recs, csv_name=f"paper_{_slug(tname)}.csv",
+                                     note="paper: the published value; — where the paper gives "
+                                          "none. c is the LS-SVM regularisation (gamma), σ² the "
+                                          "squared kernel width in standardised inputs (ours; "
+                                          "the paper does not say whether it standardised)."))
+
+    # -- truth-based scores
+    rep.heading("Truth-based scores (what no paper could measure)", 2)
+    for label, table in per_test.items():
+        recs = [{"compensator": name, **{k: _fmt(v) for k, v in s.items()}}
+                for name, s in table.items()]
+        rep.table(Table.from_records(f"All scores, test run {label}", recs,
+                                     csv_name=f"scores_{_slug(label)}.csv",
+                                     note="°/h except r2_true (1) and improvement_pct (%)."))
+    hyp = [{"compensator": f.spec.name, "kind": f.spec.kind, "fit time s": _fmt(f.fit_s, 3),
+            **{k: _fmt(v) for k, v in f.hyper.items()}} for f in fitted]
+    cols = []
+    for rec in hyp:
+        cols += [k for k in rec if k not in cols]
+    rep.table(Table.from_records("Fitted hyper-parameters", [{k: r.get(k) for k in cols}
+                                                             for r in hyp],
+                                 csv_name="hyperparameters.csv"))
+
+    eqs = [f"{f.spec.name}: {f.model.equation('B')}" for f in fitted
+           if f.spec.kind in EQUATION_KINDS]
+    if eqs:
+        rep.heading("Regression equations (B in °/h; T in °C, dT/dt in K/s, U in V)", 2)
+        rep.verbatim("\n".join(eqs), language="text")
+
+    # -- rankings
+    rep.heading("Rankings: the paper's claims against ours", 2)
+    for para in _rankings(config, fitted, sc):
+        rep.paragraph(para)
+
+    # -- figures
+    preds = predictions[test_label]
+    best = _best_per_kind(fitted, sc)
+    th = rs_test.time_s / 3600.0
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    ax.plot(th, rs_test.y, color="0.6", lw=0.8, label="raw bias y")
+    for name in best:
+        ax.plot(th, rs_test.y - preds[name] + np.mean(ytr), lw=0.9,
+                label=f"compensated: {name}")
+    ax.plot(th, rs_test.true_bias, color="k", lw=1.0, ls="--", label="true bias b")
+    ax.set_xlabel("time [h]")
+    ax.set_ylabel("bias [°/h]")
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"Test run {test_label}: raw and compensated bias ({config.window_s:g} s means)")
+    rep.figure(fig, "bias_over_time", "Raw bias, compensated series (+ train mean, for "
+                                      "display) of the best model of each kind, and the truth.")
+
+    if "T" in rs_test.X:
+        fig, ax = plt.subplots(figsize=(7, 5))
+        T = rs_test.X["T"]
+        ax.scatter(T, rs_test.y, s=4, color="0.6", label="measured bias y")
+        ax.scatter(T, rs_test.true_bias, s=4, color="k", label="true bias b")
+        ax.scatter(T, rs_test.true_bias - rs_test.true_random, s=3, color="C3",
+                   label="true temperature law b − r")
+        if best:
+            name = next(iter(best))
+            ax.scatter(T, preds[name], s=3, color="C0", label=f"prediction: {name}")
+        ax.set_xlabel(f"T (probe {config.temperature}) [°C]")
+        ax.set_ylabel("bias [°/h]")
+        ax.legend(fontsize=8)
+        rep.figure(fig, "bias_vs_temperature", "Bias against the probe temperature, test run, "
+                                               "with the truth.")
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    rate = 1.0 / config.window_s
+    for name, series, style in ([("raw", rs_test.y, dict(color="0.5"))]
+                                + [(n, rs_test.y - preds[n], {}) for n in best]
+                                + [(ORACLE, rs_test.y - preds[ORACLE], dict(color="k", ls="--"))]):
+        if series.size < 8:
+            continue
+        ad = M.allan_deviation(series, rate, "octave")
+        ax.loglog(ad.tau_s, ad.adev, marker="o", ms=3, label=name, **style)
+    ax.set_xlabel("τ [s]")
+    ax.set_ylabel("Allan deviation [°/h]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    rep.figure(fig, "allan_deviation", f"Overlapping Allan deviation of the {config.window_s:g} s "
+                                       "series before and after compensation (allantools).")
+
+    rep.heading("Drawn device parameters (truth)", 2)
+    rep.table(Table.from_records("Device coefficients", [
+        {"coefficient": k, "value": v} for k, v in rs_test.coefficients.items()
+        if _worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    return rep
+
+
+def _slug(text: str) -> str:
+    from sim.report import slug
+    return slug(text)
+
+
+def _best_per_kind(fitted: list[Fitted], sc: dict) -> dict[str, str]:
+    best: dict[str, str] = {}
+    for f in fitted:
+        cur = best.get(f.spec.kind)
+        if cur is None or sc[f.spec.name]["stability_after"] < sc[cur]["stability_after"]:
+            best[f.spec.kind] = f.spec.name
+    return {name: kind for kind, name in best.items()}
+
+
+def _rankings(config: Config, fitted: list[Fitted], sc: dict) -> list[str]:
+    """The paper's ranking (IR-LSSVM ≥ LSSVM > stepwise > LS; UHFO the strongest single
+    input) checked against our numbers, claim by claim, by the paper's score and by the truth."""
+    out = []
+    floor = sc[ORACLE]["stability_after"]
+    raw = sc[RAW]["stability_after"]
+
+    def best(kind: str, n_inputs: int | None = None) -> Fitted | None:
+        cands = [f for f in fitted if f.spec.kind == kind
+                 and (n_inputs is None or len(f.spec.inputs) == n_inputs)]
+        return min(cands, key=lambda f: sc[f.spec.name]["stability_after"]) if cands else None
+
+    def s(f: Fitted, key: str = "stability_after") -> float:
+        return sc[f.spec.name][key]
+
+    out.append(f"Reference points: raw bias stability {raw:.5f} °/h; the oracle (true "
+               f"temperature law removed) reaches {floor:.5f} °/h — the flicker, random walk and "
+               f"white noise that no input-driven model can remove. Differences between "
+               f"compensators that are small against (raw − floor) = {raw - floor:.5f} °/h are "
+               f"within what one realisation of that noise decides.")
+    ladder = [("ir_lssvm", "IR-LSSVM"), ("lssvm", "LSSVM"), ("stepwise", "stepwise"),
+              ("polynomial", "LS")]
+    have = [(k, lab, best(k)) for k, lab in ladder if best(k) is not None]
+    for (k1, l1, f1), (k2, l2, f2) in zip(have, have[1:]):
+        a, b = s(f1), s(f2)
+        ta, tb = s(f1, "resid_std_true"), s(f2, "resid_std_true")
+        rel = "≥ (not worse than)" if k1 == "ir_lssvm" and k2 == "lssvm" else ">"
+        holds = a <= b if rel.startswith("≥") else a < b
+        truth_holds = ta <= tb
+        text = (f"Paper: {l1} {rel} {l2}. Ours (best of each): {l1} {f1.spec.name!r} "
+                f"{a:.5f} °/h vs {l2} {f2.spec.name!r} {b:.5f} °/h — "
+                f"{'holds' if holds else 'does NOT hold'} by bias stability; by the truth "
+                f"(std of ŷ − b) {ta:.5f} vs {tb:.5f} °/h, "
+                f"{'holds' if truth_holds else 'does not hold'}.")
+        if k1 == "ir_lssvm" and k2 == "lssvm":
+            text += (" Why: the simulated bias noise is Gaussian (white + flicker + random "
+                     "walk), without the gross outliers robust weights are built to reject, so "
+                     "re-weighting can only trade ordinary tail samples; IR-LSSVM and LSSVM "
+                     "should differ by noise only"
+                     + (f" (here by {abs(a - b):.5f} °/h)." if True else "."))
+        elif not holds:
+            text += (" Why: the difference is "
+                     f"{abs(a - b) / max(raw - floor, 1e-12) * 100:.0f} % of (raw − floor); "
+                     + ("a flexible kernel model fitted by leave-one-out on auto-correlated "
+                        "100 s windows follows the train run's flicker, which does not repeat in "
+                        "the test run, while the low-order regression only learns the smooth "
+                        "temperature law." if k1 in ("lssvm", "ir_lssvm") else
+                        "the extra terms the selection keeps fit the train run's noise as well "
+                        "as its law."))
+        out.append(text)
+    singles = [(f.spec.inputs[0], f) for f in fitted
+               if f.spec.kind == "polynomial" and len(f.spec.inputs) == 1]
+    if len(singles) >= 2:
+        order = sorted(singles, key=lambda t: s(t[1]))
+        strongest = order[0][0]
+        listing = ", ".join(f"{name} {s(f):.5f}" for name, f in order)
+        truth_order = sorted(singles, key=lambda t: s(t[1], "resid_std_true"))
+        text = (f"Paper: UHFO is the strongest single input (LS: U 40.5 % > T 35.5 % > dT/dt "
+                f"8.0 %). Ours, LS cubic bias stability after (°/h): {listing} — "
+                f"{'holds' if strongest == 'U' else 'does NOT hold'} (strongest: "
+                f"{strongest}; by the truth: {truth_order[0][0]}).")
+        if strongest != "U":
+            text += (" Why: in the simulated TRPLG the UHFO follows the discharge temperature "
+                     "and its rate, plus a slow wander no thermometer sees; the bias law has a "
+                     "UHFO term, but if the wander is small against the temperature-driven "
+                     "part, the voltage carries little information beyond T.")
+        out.append(text)
+    irs = [(f.spec.inputs[0], f) for f in fitted
+           if f.spec.kind == "ir_lssvm" and len(f.spec.inputs) == 1]
+    if len({x for x, _ in irs}) >= 2:
+        best_in: dict[str, float] = {}
+        for name, f in irs:
+            best_in[name] = min(best_in.get(name, np.inf), s(f))
+        strongest = min(best_in, key=best_in.get)
+        out.append("IR-LSSVM single inputs (best weight, °/h): "
+                   + ", ".join(f"{k} {v:.5f}" for k, v in sorted(best_in.items(),
+                                                                   key=lambda t: t[1]))
+                   + f" — UHFO strongest {'holds' if strongest == 'U' else 'does NOT hold'}.")
+    out.append("Nothing here was tuned to reproduce the paper's ranking: the device preset was "
+               "fitted to the paper's Tables 1-2 (docs/sensors.md), the compensators use the "
+               "settings in the study file, and the text above is generated from the numbers.")
+    return out

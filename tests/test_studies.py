@@ -1,0 +1,210 @@
+"""Studies end to end: the demo study's report, truth scores recomputed from the dataset, bad
+study files, the CLI, and the HTML report rendered by headless Chromium."""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+import shutil
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from sim.cli import main
+from sim.errors import UserInputError
+from sim.study import list_studies, load_study, parse_study, run_study
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+CHROMIUM = pathlib.Path("/usr/bin/chromium")
+DEG_PER_H = 180.0 / math.pi * 3600.0
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("demo")
+    md = run_study(load_study("demo"), out, progress=False)
+    assert md == out / "report.md"
+    return out
+
+
+def _scores(folder: pathlib.Path) -> dict[str, dict[str, float]]:
+    (path,) = folder.glob("scores_*.csv")
+    with open(path, newline="") as fh:
+        return {row["compensator"]: {k: float(v) for k, v in row.items() if k != "compensator"}
+                for row in csv.DictReader(fh)}
+
+
+def test_demo_writes_report_tables_and_figures(demo):
+    md = (demo / "report.md").read_text()
+    html = (demo / "report.html").read_text()
+    for heading in ("Correlation of the bias", "Paper-style scores", "Truth-based scores",
+                    "Rankings", "Regression equations", "Study file"):
+        assert heading in md
+    pngs = sorted(p.name for p in demo.glob("*.png"))
+    assert {"bias_over_time.png", "bias_vs_temperature.png", "allan_deviation.png"} <= set(pngs)
+    for name in pngs:
+        assert f"({name})" in md
+        assert (demo / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert html.count("src='data:image/png;base64,") == len(pngs)
+    assert len(list(demo.glob("*.csv"))) >= 5
+    scores = _scores(demo)
+    assert {"raw", "LS cubic T", "Stepwise Model 2", "LSSVM T, dT/dt, U",
+            "truth: temperature law"} <= set(scores)
+    # every compensator improves on the raw bias and none beats the oracle's floor by much
+    floor = scores["truth: temperature law"]["stability_after"]
+    for name, s in scores.items():
+        if name not in ("raw", "truth: temperature law"):
+            assert s["stability_after"] < scores["raw"]["stability_after"]
+            assert s["improvement_pct"] == pytest.approx(
+                100 * (s["stability_before"] - s["stability_after"]) / s["stability_before"])
+            assert s["stability_after"] > 0.8 * floor
+
+
+def _window_means(x: np.ndarray, m: int) -> np.ndarray:
+    n = x.shape[0] // m
+    return x[: n * m].reshape(n, m).mean(axis=1)
+
+
+def _series(path: pathlib.Path):
+    """Independent re-reading of a demo dataset: measured bias y, probe T, true bias b and its
+    random part r, as 100 s window means in °/h and °C."""
+    with h5py.File(path, "r") as f:
+        rate = float(f.attrs["sample_rate_hz"])
+        step = float(f.attrs["thermal_step_s"])
+        names = [n.decode() for n in f["truth/coefficient"][:]]
+        k0 = float(f["truth/coefficient_value"][names.index("gyro.k0[z]")])
+        lat = math.radians(float(f.attrs["latitude_deg"]))
+        pulses = f["imu/gyro_pulses"][:, 0].astype(np.int64)
+        probes = [p.decode() for p in f["probes/probe"][:]]
+        T = f["probes/temperature"][:, probes.index("g.A")]
+        b = f["truth/gyro_bias"][:, 0] * DEG_PER_H
+        r = f["truth/gyro_bias_random"][:, 0] * DEG_PER_H
+    ms, mt = int(round(100 * rate)), int(round(100 / step))
+    n = pulses.shape[0] // ms
+    y = pulses[: n * ms].reshape(n, ms).sum(axis=1) / (k0 * 100.0) * DEG_PER_H \
+        - 7.292115e-5 * math.sin(lat) * DEG_PER_H          # Earth rate on an up gyro
+    return y, _window_means(T, mt), _window_means(b, mt), _window_means(r, mt)
+
+
+def test_truth_scores_match_an_independent_recomputation(demo):
+    y_tr, T_tr, _, _ = _series(demo / "data" / "demo_cycle-seed7001.h5")
+    y_te, T_te, b_te, r_te = _series(demo / "data" / "demo_cycle-seed7002.h5")
+    scores = _scores(demo)
+    # the oracle (true temperature law b − r) misses exactly the random part
+    oracle = scores["truth: temperature law"]
+    assert oracle["rmse_true"] == pytest.approx(np.sqrt(np.mean(r_te**2)), rel=1e-6)
+    assert oracle["law_resid_std"] == pytest.approx(0.0, abs=1e-12)
+    # LS cubic in T, refitted here with numpy.polyfit on the independently read windows
+    coef = np.polyfit(T_tr, y_tr, 3)
+    pred = np.polyval(coef, T_te)
+    ls = scores["LS cubic T"]
+    assert ls["rmse_true"] == pytest.approx(np.sqrt(np.mean((pred - b_te) ** 2)), rel=1e-6)
+    assert ls["mae_true"] == pytest.approx(np.mean(np.abs(pred - b_te)), rel=1e-6)
+    assert ls["resid_std_true"] == pytest.approx(np.std(pred - b_te, ddof=1), rel=1e-6)
+    assert ls["stability_before"] == pytest.approx(np.std(y_te, ddof=1), rel=1e-6)
+    assert ls["stability_after"] == pytest.approx(np.std(y_te - pred, ddof=1), rel=1e-6)
+    ss_tot = np.sum((b_te - b_te.mean()) ** 2)
+    assert ls["r2_true"] == pytest.approx(1 - np.sum((b_te - pred) ** 2) / ss_tot, rel=1e-6)
+
+
+def test_rerun_reuses_matching_datasets(demo, tmp_path):
+    shutil.copytree(demo / "data", tmp_path / "data")
+    before = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "data").glob("*.h5")}
+    run_study(load_study("demo"), tmp_path, progress=False)
+    after = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "data").glob("*.h5")}
+    assert before == after
+    assert "(reused)" in (tmp_path / "report.md").read_text()
+    assert _scores(tmp_path) == _scores(demo)
+
+
+GOOD = (ROOT / "scenarios" / "studies" / "demo.toml").read_text()
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ("window_s = 100", "window_secs = 100", "data.window_secs: unknown key"),
+    ('kind = "lssvm"', 'kind = "svm_magic"', "value 'svm_magic' not allowed"),
+    ('test = [{ scenario = "demo_cycle"', 'test = [{ scenario = "no_such_cycle"',
+     "unknown scenario 'no_such_cycle'"),
+    ("params = { degree = 3 }", "params = { degre = 3 }", "params.degre: unknown key"),
+    ('inputs = ["T"]', 'inputs = ["Tx"]', "unknown input 'Tx'"),
+    ('baseline = "raw"', 'baseline = "nobody"', "value 'nobody' not allowed"),
+    ("cluster_s = 100", "cluster_s = 150", "whole multiple"),
+])
+def test_bad_study_files_are_user_errors(old, new, expected, tmp_path):
+    assert old in GOOD
+    path = tmp_path / "bad.toml"
+    path.write_text(GOOD.replace(old, new, 1))
+    with pytest.raises(UserInputError, match="bad.toml") as err:
+        load_study(str(path))
+    assert expected in str(err.value)
+
+
+def test_bad_parameter_value_is_a_user_error_at_fit_time(tmp_path):
+    text = GOOD.replace("params = { degree = 3 }", "params = { degree = -2 }", 1)
+    study = parse_study(text, "neg.toml", base_dir=ROOT / "scenarios" / "studies")
+    with pytest.raises(UserInputError, match="neg.toml.*LS cubic T"):
+        run_study(study, tmp_path, progress=False)
+
+
+def test_cli_study_list_and_run(tmp_path, capsys):
+    assert main(["study", "--list"]) == 0
+    out = capsys.readouterr().out
+    names = [n for n, _ in list_studies()]
+    assert "demo" in names and "paper001" in names
+    for name in names:
+        assert name in out
+    assert main(["study", "demo", "-o", str(tmp_path / "r"), "--quiet"]) == 0
+    assert (tmp_path / "r" / "report.html").is_file()
+    assert main(["study", "no_such_study"]) == 2
+    assert "unknown study 'no_such_study'" in capsys.readouterr().err
+
+
+_IMAGE_CHECK = (
+    "<script>window.addEventListener('load', function () {"
+    "var im = document.images, ok = 0;"
+    "for (var i = 0; i < im.length; i++) {"
+    " if (im[i].complete && im[i].naturalWidth > 0 &&"
+    "     im[i].getAttribute('src').indexOf('data:image/png;base64,') === 0) ok++; }"
+    "var d = document.createElement('div'); d.id = 'rlgsim-image-check';"
+    "d.textContent = 'images ' + im.length + ' loaded ' + ok;"
+    "document.body.appendChild(d); });</script>")
+
+
+def _chromium(tmp_path: pathlib.Path, *args: str) -> subprocess.CompletedProcess:
+    profile = tmp_path / f"profile{len(list(tmp_path.glob('profile*')))}"
+    return subprocess.run(
+        [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--no-first-run", f"--user-data-dir={profile}", *args],
+        capture_output=True, text=True, timeout=90)
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason="headless Chromium is not installed "
+                    "(/usr/bin/chromium missing; apt-get install chromium)")
+def test_html_report_renders_in_headless_chromium(demo, tmp_path):
+    html = (demo / "report.html").read_text()
+    n_figures = html.count("<img ")
+    assert n_figures >= 3
+    probe = tmp_path / "probe.html"               # the report plus a script counting images
+    probe.write_text(html.replace("</body>", _IMAGE_CHECK + "</body>"))
+    r = _chromium(tmp_path, "--virtual-time-budget=10000", "--dump-dom", probe.as_uri())
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert f"images {n_figures} loaded {n_figures}" in r.stdout
+    shot = tmp_path / "shot.png"
+    r = _chromium(tmp_path, f"--screenshot={shot}", "--window-size=1200,3000",
+                  (demo / "report.html").as_uri())
+    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
+    from PIL import Image
+    img = np.asarray(Image.open(shot).convert("L"), dtype=float)
+    assert img.shape == (3000, 1200)
+    assert img.std() > 10                          # text, tables and plots, not a blank page
+    assert (img < 128).mean() > 0.01
+
+
+@pytest.mark.parametrize("name", ["demo", "paper001"])
+def test_shipped_bias_compensation_studies_validate(name):
+    study = load_study(name)
+    assert study.recipe == "bias_compensation" and study.paper == "001"
