@@ -106,7 +106,8 @@ class ThermalPart:
     def __init__(self, scenario, timeline: Timeline) -> None:
         self.timeline = timeline
         self.step = timeline.step_s
-        self.network = scenario.device.thermal.network
+        self.nominal = scenario.device.thermal.network
+        self.network = realised_network(scenario)
         self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s)
 
     @property
@@ -126,6 +127,32 @@ class ThermalPart:
         g.coordinate("node", self.node_names, description="thermal network node")
         g.variable("node_temperature", ("time", "node"), units="degC",
                    description="true temperature of each thermal network node")
+        # the drawn unit (ThermalNetwork.realise): realised values and factors over nominal
+        nom, real = self.nominal, self.network
+        with np.errstate(divide="ignore", invalid="ignore"):
+            def factor(r: np.ndarray, n: np.ndarray) -> np.ndarray:
+                return np.where(n != 0, r / np.where(n != 0, n, 1.0), 1.0)
+            for name, units, what, r, n in (
+                    ("capacitance", "J K-1", "heat capacity", real.capacitance_j_per_k,
+                     nom.capacitance_j_per_k),
+                    ("ambient_conductance", "W K-1", "conductance to the chamber air",
+                     real.ambient_conductance_w_per_k, nom.ambient_conductance_w_per_k),
+                    ("power", "W", "heat source when powered", real.power_w, nom.power_w)):
+                g.variable(name, ("node",), units=units, data=r,
+                           description=f"realised {what} of the node (this unit)")
+                g.variable(f"{name}_factor", ("node",), units="1", data=factor(r, n),
+                           description=f"drawn factor: realised / nominal {what} (1 where "
+                                       f"the nominal value is 0)")
+            iu, ju = np.nonzero(np.triu(nom.conductance_w_per_k > 0, k=1))
+            names = self.node_names
+            g.coordinate("link", [f"{names[i]}--{names[j]}" for i, j in zip(iu, ju)],
+                         description="node-to-node link of the network ('a--b')")
+            g.variable("link_conductance", ("link",), units="W K-1",
+                       data=real.conductance_w_per_k[iu, ju],
+                       description="realised conductance of the link (this unit)")
+            g.variable("link_conductance_factor", ("link",), units="1",
+                       data=real.conductance_w_per_k[iu, ju] / nom.conductance_w_per_k[iu, ju],
+                       description="drawn factor: realised / nominal link conductance")
 
     def initial_state(self) -> Any:
         ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
@@ -147,6 +174,36 @@ class ThermalPart:
         return {"time": {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
                          "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8),
                          "node_temperature": trace.nodes_c}}
+
+
+def realised_network(scenario):
+    """The thermal network of the simulated unit.
+
+    Monte Carlo units ``unit >= 1`` draw their network from the preset's tolerances with
+    ``generator(realisation_seed, unit, "realisation", "thermal", 0)``
+    (:meth:`sim.thermal.ThermalNetwork.realise`). Unit 0 — every plain ``rlgsim run`` and a
+    study's own run — simulates the *nominal* design: the presets' bias-stability figures were
+    tuned against papers 000-003 on it (tests/test_imu.py), and a drawn network breaks the
+    left/right symmetry of the gyro block, which switches on the anode-arm Langmuir term (on
+    paper 003's random test the raw stability of drawn units spreads from 0.009 to 0.068 °/h
+    against the paper's 0.028). docs/montecarlo.md discusses the choice."""
+    network = scenario.device.thermal.network
+    if scenario.unit == 0:
+        return network
+    return network.realise(generator(scenario.realisation_seed, scenario.unit, "realisation",
+                                     "thermal", 0))
+
+
+def thermal_summary(network) -> dict[str, float]:
+    """A few numbers that characterise a (realised) network, for Monte Carlo unit tables:
+    longest time constant [s], total heat [W], total conductance to the air [W/K] and the mean
+    steady-state self-heating of the nodes when powered [K]."""
+    rise = network.steady_state(0.0, True) - network.steady_state(0.0, False)
+    return {"thermal.tau_max_s": float(network.time_constants_s()[0]),
+            "thermal.power_w": float(network.power_w.sum()),
+            "thermal.ambient_conductance_w_per_k":
+                float(network.ambient_conductance_w_per_k.sum()),
+            "thermal.self_heating_mean_k": float(np.mean(rise))}
 
 
 # --------------------------------------------------------------------------- stages
