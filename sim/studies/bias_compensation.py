@@ -83,7 +83,7 @@ DATA_KEYS = ("train", "test", "window_s", "gyro")
 RUN_KEYS = ("scenario", "seed")
 FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
 COMPENSATOR_KEYS = ("name", "kind", "inputs", "params", "table", "published")
-PUBLISHED_COMP_KEYS = ("stability_deg_per_h", "improvement_pct", "c", "sigma2")
+PUBLISHED_COMP_KEYS = ("stability_deg_per_h", "improvement_pct", "c", "sigma2", "equation")
 METRIC_KEYS = ("cluster_s", "ddof", "baseline")
 PUBLISHED_KEYS = ("stability_before_deg_per_h", "correlation")
 
@@ -223,7 +223,10 @@ def _compensator(item: Any, i: int, ctx: Ctx, features: list[str]) -> Compensato
     pctx = cctx.child("published")
     check_known_keys(published, PUBLISHED_COMP_KEYS, pctx)
     for k in published:
-        get_float(published, k, pctx)
+        if k == "equation":
+            get_str(published, k, pctx)
+        else:
+            get_float(published, k, pctx)
     return CompensatorSpec(name=name, kind=kind, inputs=inputs, params=params,
                            table=get_str(item, "table", cctx, ""), published=published,
                            ctx=cctx)
@@ -602,7 +605,9 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
                 + [f"{'train' if s in config.train else 'test'} run {s.label}: scenario "
                    f"{runs[s.label][1].name}, seed {runs[s.label][0].seed}, device_seed "
                    f"{runs[s.label][0].device_seed}, {runs[s.label][0].y.size} windows of "
-                   f"{config.window_s:g} s, dataset {runs[s.label][0].path.name}"
+                   f"{config.window_s:g} s, raw bias stability "
+                   f"{_raw_stability(runs[s.label][0], config):.5f} °/h, dataset "
+                   f"{runs[s.label][0].path.name}"
                    f" ({'reused' if runs[s.label][2] else 'simulated'})"
                    for s in dict.fromkeys(config.train + config.test)]
                 + [f"Earth-rate projection on the gyro axis: {rs_test.earth_deg_per_h:.4f} °/h "
@@ -673,7 +678,9 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
                                      note="paper: the published value; — where the paper gives "
                                           "none. c is the LS-SVM regularisation (gamma), σ² the "
                                           "squared kernel width in standardised inputs (ours; "
-                                          "the paper does not say whether it standardised)."))
+                                          "the paper does not say whether it standardised). The "
+                                          "paper's F(x) column is not reproduced: the paper "
+                                          "does not define it."))
 
     # -- truth-based scores
     rep.heading("Truth-based scores (what no paper could measure)", 2)
@@ -692,8 +699,12 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
                                                              for r in hyp],
                                  csv_name="hyperparameters.csv"))
 
-    eqs = [f"{f.spec.name}: {f.model.equation('B')}" for f in fitted
-           if f.spec.kind in EQUATION_KINDS]
+    eqs = []
+    for f in fitted:
+        if f.spec.kind in EQUATION_KINDS:
+            eqs.append(f"{f.spec.name} (ours):  {f.model.equation('B')}")
+            if "equation" in f.spec.published:
+                eqs.append(f"{f.spec.name} (paper): {f.spec.published['equation']}")
     if eqs:
         rep.heading("Regression equations (B in °/h; T in °C, dT/dt in K/s, U in V)", 2)
         rep.verbatim("\n".join(eqs), language="text")
@@ -759,6 +770,11 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     return rep
 
 
+def _raw_stability(rs: RunSeries, config: Config) -> float:
+    from estimators.metrics import bias_stability
+    return bias_stability(rs.y, 1.0 / config.window_s, config.cluster_s, config.ddof)
+
+
 def _slug(text: str) -> str:
     from sim.report import slug
     return slug(text)
@@ -811,8 +827,8 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict) -> list[str]:
             text += (" Why: the simulated bias noise is Gaussian (white + flicker + random "
                      "walk), without the gross outliers robust weights are built to reject, so "
                      "re-weighting can only trade ordinary tail samples; IR-LSSVM and LSSVM "
-                     "should differ by noise only"
-                     + (f" (here by {abs(a - b):.5f} °/h)." if True else "."))
+                     f"should differ by noise only (here by {abs(a - b):.5f} °/h, "
+                     f"{abs(a - b) / max(raw - floor, 1e-12) * 100:.1f} % of raw − floor).")
         elif not holds:
             text += (" Why: the difference is "
                      f"{abs(a - b) / max(raw - floor, 1e-12) * 100:.0f} % of (raw − floor); "
