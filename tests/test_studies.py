@@ -208,3 +208,17 @@ def test_html_report_renders_in_headless_chromium(demo, tmp_path):
 def test_shipped_bias_compensation_studies_validate(name):
     study = load_study(name)
     assert study.recipe == "bias_compensation" and study.paper == "001"
+
+
+def test_study_unit_draws_another_device_without_a_report():
+    from sim.study import study_unit
+    study = load_study("demo")
+    payload = {"text": study.text, "source": study.source, "name": study.name,
+               "base_dir": str(study.base_dir) if study.base_dir else None}
+    u1, u2 = study_unit(payload, 1), study_unit(payload, 2)
+    metrics = {(c, m) for c, m, _ in u1["rows"]}
+    assert ("LS cubic T", "stability_after") in metrics
+    assert ("truth: temperature law", "rmse_true") in metrics
+    assert all(math.isfinite(v) for _, _, v in u1["rows"])
+    assert u1["params"].keys() == u2["params"].keys()
+    assert u1["params"]["gyro.bias.c1[z]"] != u2["params"]["gyro.bias.c1[z]"]
