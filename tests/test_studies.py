@@ -222,3 +222,19 @@ def test_study_unit_draws_another_device_without_a_report():
     assert all(math.isfinite(v) for _, _, v in u1["rows"])
     assert u1["params"].keys() == u2["params"].keys()
     assert u1["params"]["gyro.bias.c1[z]"] != u2["params"]["gyro.bias.c1[z]"]
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ('gyro = "z"', 'gyro = "x"', "data.gyro: value 'x' not allowed; the device's gyro axes are z"),
+    ('temperature = "g.A"', 'temperature = "g.Z"', "features.temperature: unknown probe 'g.Z'"),
+    ("window_s = 100", "window_s = 100.05", "data.window_s"),
+])
+def test_mistakes_found_in_the_data_are_user_errors(old, new, expected, demo, tmp_path):
+    shutil.copytree(demo / "data", tmp_path / "data")          # reused: no simulation
+    text = GOOD.replace(old, new, 1)
+    if old.startswith("window_s"):
+        text = text.replace("cluster_s = 100", "cluster_s = 100.05", 1)
+    study = parse_study(text, "late.toml", base_dir=ROOT / "scenarios" / "studies")
+    with pytest.raises(UserInputError, match="late.toml") as err:
+        run_study(study, tmp_path, progress=False)
+    assert expected in str(err.value)

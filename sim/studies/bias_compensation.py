@@ -367,12 +367,17 @@ def read_run(path: pathlib.Path, config: Config, label: str, ctx: Ctx) -> RunSer
 
     W = config.window_s
     with h5py.File(path, "r") as f:
+        dctx = Ctx(ctx.source, "data")
         gyros = _strings(f["imu/gyro"][:])
         axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
-        if axis is None or axis not in gyros:
-            raise ctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
-                                    f"axes are {', '.join(gyros)}" if config.gyro else
-                            f"missing: the device has several gyros ({', '.join(gyros)})")
+        if config.gyro and config.gyro not in gyros:
+            raise dctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
+                                     f"axes are {', '.join(gyros)}")
+        if axis is None:
+            raise dctx.error("gyro", f"missing: the device has several gyros "
+                                     f"({', '.join(gyros)}); say which one")
+        if config.uhfo and "imu/uhfo" not in f:
+            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
         gi = gyros.index(axis)
         rate = float(f["imu"].attrs["sample_rate_hz"])
         step = float(f.attrs["thermal_step_s"])
@@ -380,7 +385,7 @@ def read_run(path: pathlib.Path, config: Config, label: str, ctx: Ctx) -> RunSer
             m_s = samples_per_window(rate, W)
             m_t = samples_per_window(1.0 / step, W)
         except ValueError as exc:
-            raise Ctx(ctx.source, "data").error("window_s", str(exc)) from None
+            raise dctx.error("window_s", str(exc)) from None
         coeff = dict(zip(_strings(f["truth/coefficient"][:]),
                          map(float, f["truth/coefficient_value"][:])))
         k0 = coeff[f"gyro.k0[{axis}]"]
@@ -398,8 +403,6 @@ def read_run(path: pathlib.Path, config: Config, label: str, ctx: Ctx) -> RunSer
         probes = _strings(f["probes/probe"][:])
         temps = f["probes/temperature"][: n_win * m_t, :]
         uhfo = f["imu/uhfo"][: n_win * m_t, gi].astype(np.float64) if config.uhfo else None
-        if config.uhfo and "imu/uhfo" not in f:
-            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
         seed = int(f.attrs["seed"])
         device_seed = int(f.attrs.get("device_seed", seed))
 
