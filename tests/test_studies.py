@@ -222,6 +222,7 @@ def test_study_unit_draws_another_device_without_a_report():
     assert all(math.isfinite(v) for _, _, v in u1["rows"])
     assert u1["params"].keys() == u2["params"].keys()
     assert u1["params"]["gyro.bias.c1[z]"] != u2["params"]["gyro.bias.c1[z]"]
+    assert study_unit(payload, 1) == u1           # a unit's result depends on (payload, unit) only
 
 
 @pytest.mark.parametrize("old, new, expected", [

@@ -564,8 +564,6 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         for name, sc in table.items():
             for metric, value in sc.items():
                 rows.append((name, f"{metric}@{spec.label}" if multi else metric, float(value)))
-    for f in fitted:
-        rows.append((f.spec.name, "fit_s", f.fit_s))
 
     test0 = runs[config.test[0].label][0]
     params = {k: v for k, v in test0.coefficients.items() if _worth_showing(k)}
