@@ -5,6 +5,8 @@
     rlgsim demo                                              the demo study, into ./rlgsim-demo/
     rlgsim study STUDY [-o DIR] | --list                     run a study into a report folder
     rlgsim list                                              shipped scenarios and devices
+    rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDR] [-o DIR]
+                                                             a study over N drawn units
 
 Every user mistake (:class:`~sim.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its
@@ -69,6 +71,8 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the shipped scenarios and device presets")
     from sim.cli_calibrate import add_subparser as add_calibrate
     add_calibrate(sub)                     # rlgsim calibrate (sim/cli_calibrate.py)
+    from sim.cli_montecarlo import add_subparser as add_montecarlo
+    add_montecarlo(sub)                    # rlgsim montecarlo (sim/cli_montecarlo.py)
     from sim.cli_study import add_subparser as add_study
     add_study(sub)                         # rlgsim study (sim/cli_study.py)
     return p
@@ -148,6 +152,8 @@ def _main(argv: Sequence[str] | None) -> int:
         elif args.command == "demo":
             from sim.cli_study import demo
             demo(args.quiet)
+        elif args.command == "montecarlo":
+            return args.handler(args)
         elif args.command == "list":
             _list()
         elif args.command in ("calibrate", "study"):

@@ -141,9 +141,9 @@ class Progress:
 
     def update(self, record: UnitRecord) -> None:
         self.failed += record.status != "ok"
-        self.bar.update(1)
-        remaining = self.bar.total - self.bar.n
+        remaining = self.bar.total - self.bar.n - 1
         self.bar.set_postfix(failed=self.failed, remaining=remaining, refresh=False)
+        self.bar.update(1)                   # refreshes with the postfix just set
 
     def close(self) -> None:
         self.bar.close()

@@ -12,12 +12,19 @@ import numpy as np
 from sim.montecarlo import UnitRecord
 
 #: Metrics for which a larger value is better; every other metric is better when smaller.
+#: A study's variants count too: ``r2_true``, ``improvement_pct@test2`` (name before ``@``,
+#: and the ``_true``/``_test`` suffixes of truth-based scores).
 HIGHER_IS_BETTER = {"r2", "improvement_pct", "improvement_factor"}
+
+
+def higher_is_better(metric: str) -> bool:
+    base = metric.split("@")[0]
+    return base in HIGHER_IS_BETTER or base.rsplit("_", 1)[0] in HIGHER_IS_BETTER
 
 
 def better(metric: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Element-wise: is ``a`` better than ``b`` for ``metric``?"""
-    return a > b if metric in HIGHER_IS_BETTER else a < b
+    return a > b if higher_is_better(metric) else a < b
 
 
 @dataclass
@@ -67,5 +74,5 @@ def worst_units(records: Sequence[UnitRecord], compensator: str, metric: str,
     """The ``count`` units where ``compensator`` scores worst on ``metric``, with parameters."""
     per_unit = metric_matrix(records).get((compensator, metric), {})
     params = {rec.unit: rec.params for rec in records}
-    order = sorted(per_unit, key=lambda u: per_unit[u], reverse=metric not in HIGHER_IS_BETTER)
+    order = sorted(per_unit, key=lambda u: per_unit[u], reverse=not higher_is_better(metric))
     return [(u, per_unit[u], params.get(u, {})) for u in order[:count]]

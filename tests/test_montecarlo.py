@@ -1,0 +1,241 @@
+"""``rlgsim montecarlo`` end to end: the shipped demo study on 1 worker, 2 workers and a Dask
+LocalCluster gives the same bytes; a campaign killed with SIGKILL resumes without recomputing
+finished units; a failing unit is recorded; the drawn thermal network of a unit is keyed by
+(device_seed, unit); user mistakes are one line with exit code 2."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from sim.cli import main
+from sim.montecarlo import finished_units
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEMO = ROOT / "scenarios" / "studies" / "demo.toml"
+
+# A test-local study with the real recipe on a short cycle (about 1 s per unit).
+TINY_SCENARIO = """
+name = "tiny_cycle"
+device = "trplg_001"
+seed = 11
+[acquisition]
+sample_rate_hz = 1
+thermal_step_s = 5
+[chamber]
+start_c = 20.0
+[[chamber.segments]]
+type = "hold"
+duration_min = 20
+[[chamber.segments]]
+type = "ramp"
+to_c = 40.0
+rate_c_per_min = 1.0
+[[chamber.segments]]
+type = "hold"
+duration_min = 40
+[[chamber.segments]]
+type = "ramp"
+to_c = 20.0
+rate_c_per_min = 1.0
+"""
+TINY_STUDY = """
+[study]
+name = "tiny"
+recipe = "bias_compensation"
+device_seed = 5
+[data]
+train = [{ scenario = "tiny_cycle.toml", seed = 21 }]
+test = [{ scenario = "tiny_cycle.toml", seed = 22 }]
+window_s = 100
+[features]
+temperature = "g.A"
+uhfo = true
+[[compensator]]
+name = "LS quadratic T, U"
+kind = "polynomial"
+inputs = ["T", "U"]
+params = { degree = 2 }
+[metrics]
+cluster_s = 100
+baseline = "raw"
+"""
+
+
+def _tiny_study(folder: pathlib.Path) -> pathlib.Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "tiny_cycle.toml").write_text(TINY_SCENARIO)
+    path = folder / "tiny.toml"
+    path.write_text(TINY_STUDY)
+    return path
+
+
+def _cli_cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "sim.cli", "montecarlo", *args]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
+def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
+    return subprocess.run(_cli_cmd(*args), cwd=cwd, env=_env(), capture_output=True, text=True,
+                          timeout=300)
+
+
+def _units_table(folder: pathlib.Path) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO((folder / "units.csv").read_text())))
+
+
+def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    n = "2"
+    r1 = _cli(str(DEMO), "--units", n, "--workers", "1", "-o", "w1", "--quiet", cwd=tmp_path)
+    assert r1.returncode == 0, r1.stderr
+    r2 = _cli(str(DEMO), "--units", n, "--workers", "2", "-o", "w2", "--quiet", cwd=tmp_path)
+    assert r2.returncode == 0, r2.stderr
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        rd = _cli(str(DEMO), "--units", n, "--scheduler", cluster.scheduler_address,
+                  "-o", "dask", "--quiet", cwd=tmp_path)
+    assert rd.returncode == 0, rd.stderr
+    one, two, dask = ((tmp_path / d / "results.csv").read_bytes() for d in ("w1", "w2", "dask"))
+    assert one == two == dask
+    assert (tmp_path / "w1" / "units.csv").read_bytes() == \
+        (tmp_path / "dask" / "units.csv").read_bytes()
+    rows = list(csv.DictReader(io.StringIO(one.decode())))
+    assert {r["unit"] for r in rows} == {"0", "1"}
+    assert {"raw", "LSSVM T, dT/dt, U"} <= {r["compensator"] for r in rows}
+    assert not any(r["metric"] == "fit_s" for r in rows), "timings would break determinism"
+    # the drawn thermal network differs between units (unit 0: the nominal design)
+    units = _units_table(tmp_path / "w1")
+    assert [u["status"] for u in units] == ["ok"] * 2
+    taus = [float(u["thermal.tau_max_s"]) for u in units]
+    assert len(set(taus)) == 2
+    report = (tmp_path / "w1" / "report.md").read_text()
+    assert "Distribution per compensator" in report and "Worst units" in report
+    assert (tmp_path / "w1" / "spread_stability_after.png").stat().st_size > 1000
+
+
+def test_killed_campaign_resumes_without_recomputing(tmp_path):
+    study = _tiny_study(tmp_path / "study")
+    n = 6
+    ref = _cli(str(study), "--units", str(n), "--workers", "2", "-o", "ref", "--quiet",
+               cwd=tmp_path)
+    assert ref.returncode == 0, ref.stderr
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(_cli_cmd(str(study), "--units", str(n), "--workers", "1",
+                                     "-o", str(out), "--quiet"),
+                            cwd=tmp_path, env=_env(), start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while len(finished_units(out)) < 2 and time.monotonic() < deadline \
+                and proc.poll() is None:
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)        # the CLI and its worker processes
+        proc.wait(timeout=30)
+    done = finished_units(out)
+    assert 2 <= len(done) < n, f"not killed mid-way: {sorted(done)}"
+    assert not (out / "results.csv").exists()
+    before = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
+    again = _cli(str(study), "--units", str(n), "--workers", "2", "-o", str(out), "--quiet",
+                 cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    after = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
+    assert before == after, "finished units were recomputed"
+    assert (out / "results.csv").read_bytes() == (tmp_path / "ref" / "results.csv").read_bytes()
+    assert (out / "units.csv").read_bytes() == (tmp_path / "ref" / "units.csv").read_bytes()
+    # the same folder refuses another study
+    other = study.with_name("other.toml")
+    other.write_text(TINY_STUDY.replace("device_seed = 5", "device_seed = 6"))
+    r = _cli(str(other), "--units", str(n), "-o", str(out), "--quiet", cwd=tmp_path)
+    assert r.returncode == 2 and "different campaign" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_failing_unit_is_recorded_and_the_others_finish(tmp_path):
+    from mc_toy_units import toy_unit
+    from sim.cli_montecarlo import run
+
+    path = run({"seed": 3, "fail_units": [2]}, 5, tmp_path, workers=2, quiet=True,
+               unit_fn=toy_unit, title="toy")
+    units = _units_table(tmp_path)
+    assert [u["status"] for u in units] == ["ok", "ok", "failed", "ok", "ok"]
+    assert "unit 2 broke on purpose" in units[2]["error"]
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "results.csv").read_text())))
+    assert sorted({int(r["unit"]) for r in rows}) == [0, 1, 3, 4]
+    text = path.read_text()
+    assert "Failed units" in text and "broke on purpose" in text
+    assert "4 ok, 1 failed" in text
+
+
+def test_thermal_realisation_keyed_by_device_seed_and_unit(tmp_path):
+    from sim.scenario import parse_scenario
+    from sim.simulate import realised_network, simulate
+
+    sc = parse_scenario(TINY_SCENARIO, "tiny_cycle.toml")
+    nominal = sc.device.thermal.network
+
+    def net(device_seed, unit):
+        return realised_network(dataclasses.replace(sc, device_seed=device_seed, unit=unit))
+
+    assert net(5, 0) is nominal                        # unit 0: the nominal design
+    a, a2, b, c = net(5, 1), net(5, 1), net(5, 2), net(6, 1)
+    for x in (b, c):
+        assert not np.array_equal(a.capacitance_j_per_k, x.capacitance_j_per_k)
+    for attr in ("capacitance_j_per_k", "conductance_w_per_k", "ambient_conductance_w_per_k",
+                 "power_w"):
+        assert np.array_equal(getattr(a, attr), getattr(a2, attr))
+    # same noise seed, other device seed: another unit; the spread follows the tolerance
+    tol = nominal.tolerance
+    z = np.log(np.concatenate([net(7, u).capacitance_j_per_k / nominal.capacitance_j_per_k
+                               for u in range(1, 41)]))
+    assert np.std(z) == pytest.approx(tol.capacitance_rel, rel=0.15)
+    # the dataset records the drawn factors
+    run1 = dataclasses.replace(sc, device_seed=5, unit=1, duration_s=1800.0)
+    path = simulate(run1, tmp_path / "u1.h5", progress=False)
+    with h5py.File(path) as f:
+        g = f["thermal"]
+        np.testing.assert_array_equal(g["capacitance"][...], a.capacitance_j_per_k)
+        np.testing.assert_allclose(g["capacitance_factor"][...],
+                                   a.capacitance_j_per_k / nominal.capacitance_j_per_k)
+        np.testing.assert_allclose(g["link_conductance_factor"][...] ** 0, 1.0)
+        assert np.std(np.log(g["link_conductance_factor"][...])) > 0
+        assert g["power_factor"].shape == (nominal.n_nodes,)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--units", "0"], "must be >= 1"),
+    (["--units", "2", "--workers", "0"], "must be >= 1"),
+    (["--units", "2", "--scheduler", "nonsense"], "scheduler"),
+    (["--units", "2", "--workers", "2", "--scheduler", "tcp://x:1"], "not allowed with"),
+])
+def test_user_mistakes_are_one_line_exit_2(tmp_path, capsys, args, message):
+    assert main(["montecarlo", str(DEMO), *args, "-o", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rlgsim: error:") and message in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_unknown_study_and_unreachable_scheduler_exit_2(tmp_path, capsys):
+    assert main(["montecarlo", "no_such_study", "--units", "2", "--quiet"]) == 2
+    assert "no_such_study" in capsys.readouterr().err
+    t0 = time.monotonic()
+    assert main(["montecarlo", str(DEMO), "--units", "2", "--scheduler", "tcp://127.0.0.1:9",
+                 "-o", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot connect" in err and len(err.strip().splitlines()) == 1
+    assert time.monotonic() - t0 < 10
