@@ -24,9 +24,9 @@ column norms s instead of alpha_norm * s^2; checked by reconstructing the poster
 ``covariance_`` drops the bias row/column, so its predictive variance ignores the uncertainty of
 the bias; (2) it re-validates and re-builds the kernel on every fit, which dominates the time of
 the ~10^5 small fits of HHO-RVR's cross-validation (paper 000: 30 hawks x 500 iterations x 5
-folds); building the kernel from cached squared distances here makes that affordable. If a
-future fastrvm release drops the compiled entry point, the public ``fastrvm.RVR`` with a
-precomputed kernel is used instead (same algorithm, same mean; the covariance is then rebuilt).
+folds); building the kernel from cached squared distances here makes that affordable. The
+entry point is private to fastrvm: the import fails with a clear message if a release drops it,
+and tests/test_rvr.py checks the results against ``fastrvm.RVR`` and an independent EM RVR.
 
 Above ``max_basis`` training points (default 1000) the candidate basis functions are kernels
 centred on ``max_basis`` points evenly spaced in row order (every point still enters the
@@ -55,8 +55,9 @@ from ._validation import check_min_samples, check_not_constant
 
 try:  # the compiled Tipping-Faul core of fastrvm (see module docstring)
     from fastrvm import _sparsebayes_bindings as _sb
-except ImportError:  # pragma: no cover - depends on the installed fastrvm build
-    _sb = None
+except ImportError as exc:  # pragma: no cover - depends on the installed fastrvm build
+    raise ImportError("estimators.rvr needs the compiled core of fastrvm 0.1.x "
+                      "(fastrvm._sparsebayes_bindings); reinstall fastrvm>=0.1.5") from exc
 
 
 def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -119,23 +120,15 @@ def _degenerate_fit(t: np.ndarray, fit_intercept: bool) -> SparseBayesFit:
 
 def _core_inference(basis: np.ndarray, ts: np.ndarray, fit_intercept: bool, max_iter: int):
     """Run the fastrvm Tipping-Faul core; returns (relevant column indices incl. the bias
-    column n_basis when fitted, mean, alpha as returned, beta, covariance or None, n_iter,
-    status)."""
-    if _sb is not None:
-        core = _sb.SparseBayes(_sb.Likelihood.Gaussian, int(max_iter), bool(fit_intercept),
-                               False, False, True, False, None)
-        res = core.inference(basis, ts)
-        return (np.asarray(res["relevant_idx"], dtype=np.intp), np.asarray(res["mean"]),
-                np.asarray(res["alpha"]), float(res["beta"]), np.asarray(res["covariance"]),
-                int(res["n_iter"]), int(res["status"]))
-    import fastrvm  # pragma: no cover - public-API fallback, see the module docstring
-    m = fastrvm.RVR(kernel="precomputed", fit_intercept=fit_intercept,
-                    max_iter=int(max_iter)).fit(basis, ts)
-    idx = np.r_[m.relevance_, basis.shape[1]].astype(np.intp) if fit_intercept \
-        else np.asarray(m.relevance_, dtype=np.intp)
-    mean = np.r_[m.dual_coef_.ravel(), m.intercept_] if fit_intercept else m.dual_coef_.ravel()
-    alpha = np.r_[m.alpha_.ravel(), 0.0] if fit_intercept else m.alpha_.ravel()
-    return idx, mean, alpha, float(m.beta_), None, int(m.n_iter_), int(m.fit_status_)
+    column n_basis when fitted, mean, alpha as returned, beta, covariance, n_iter, status)."""
+    # positional: likelihood, iterations, use_bias, verbose, prioritize_addition,
+    # prioritize_deletion, fixed_noise, noise_std — fastrvm.RVR's defaults
+    core = _sb.SparseBayes(_sb.Likelihood.Gaussian, int(max_iter), bool(fit_intercept),
+                           False, False, True, False, None)
+    res = core.inference(basis, ts)
+    return (np.asarray(res["relevant_idx"], dtype=np.intp), np.asarray(res["mean"]),
+            np.asarray(res["alpha"]), float(res["beta"]), np.asarray(res["covariance"]),
+            int(res["n_iter"]), int(res["status"]))
 
 
 def sparse_bayes_fit(basis: np.ndarray, t: np.ndarray, fit_intercept: bool = True,
@@ -172,12 +165,6 @@ def sparse_bayes_fit(basis: np.ndarray, t: np.ndarray, fit_intercept: bool = Tru
     # alpha_norm / s^2, hence the factor s^4 (checked: it reproduces the core's covariance).
     s2 = np.sum(basis[:, rel] ** 2, axis=0)
     alpha = np.asarray(alpha_core[:rel.size], dtype=float) * s2 ** 2
-    if cov is None:                # pragma: no cover - fallback path: Tipping 2001 eq. 13
-        design = basis[:, rel]
-        if fit_intercept:
-            design = np.column_stack([design, np.ones(basis.shape[0])])
-        prior = np.r_[alpha, 0.0] if fit_intercept else alpha
-        cov = np.linalg.inv(beta * design.T @ design + np.diag(prior))
     return SparseBayesFit(relevant=rel, weights=mean[:rel.size] * scale,
                           bias=float(mean[-1] * scale) if fit_intercept else 0.0,
                           alpha=alpha / scale ** 2, beta=beta / scale ** 2,
