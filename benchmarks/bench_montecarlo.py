@@ -1,0 +1,147 @@
+"""Benchmark of ``rlgsim montecarlo`` (sim/cli_montecarlo.py on the engine sim/montecarlo.py).
+
+Runs N units of a small study (default: the shipped demo study, paper 001's method on an 8 h
+cycle twice, four compensators) three ways — a local pool of 1 worker, of 2 workers, and a
+2-worker ``dask.distributed.LocalCluster`` through ``client.get_executor()`` — and prints:
+
+* units/hour of each;
+* parallel efficiency of 2 workers = (wall₁ / wall₂) / 2 (target ≥ 80 % on 2 cores);
+* scheduler overhead = coordinator time outside units / total = 1 − Σ unit seconds /
+  (workers · wall) (target < 5 %): dispatch, result transfer, the atomic JSON commits and idle
+  workers at the end of the campaign;
+* CPU seconds per unit and the unit's CPU share (CPU / wall inside the worker): with other
+  load on the machine the workers wait for a core and the efficiency drops for that reason;
+* the one-off start of the pool (worker processes importing numpy, scipy, h5py, scikit-learn
+  and the simulator), reported apart: the campaign figures above use started, warmed pools, as
+  a cluster is in practice; a fresh local pool adds this once per campaign.
+
+Every run also checks that the results table is the same bytes on all three.
+
+    python benchmarks/bench_montecarlo.py [--units 16] [--study demo]
+
+The load average is printed before and after: on a shared machine other processes take CPU
+from the workers, which lowers the efficiency figures (the mean unit time rises with workers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT)]
+
+from _machine import machine  # noqa: E402
+from sim.cli_montecarlo import identity, montecarlo_unit, study_payload  # noqa: E402
+from sim.montecarlo import local_executor, results_csv, run_campaign  # noqa: E402
+from sim.study import load_study  # noqa: E402
+
+
+def _warm(delay_s: float = 0.0) -> int:
+    """Import what a unit needs (run once in every worker before timing)."""
+    import os
+
+    import h5py  # noqa: F401
+    import sklearn.linear_model  # noqa: F401
+
+    import estimators.lssvm  # noqa: F401
+    import sim.simulate  # noqa: F401
+    import sim.studies.bias_compensation  # noqa: F401
+    time.sleep(delay_s)
+    return os.getpid()
+
+
+def timed_unit(payload, unit: int) -> dict:
+    """:func:`montecarlo_unit` plus the worker's CPU seconds for the unit (parameter
+    ``bench.cpu_s``; the results table is unchanged)."""
+    c0 = time.process_time()
+    out = montecarlo_unit(payload, unit)
+    out["params"]["bench.cpu_s"] = time.process_time() - c0
+    return out
+
+
+def _campaign(payload, n: int, executor, workers: int) -> tuple[float, float, float, str]:
+    with tempfile.TemporaryDirectory(prefix="bench-mc-") as tmp:
+        t0 = time.perf_counter()
+        records = run_campaign(timed_unit, payload, n, tmp, executor=executor,
+                               workers=workers, identity=identity(payload, timed_unit),
+                               progress=False)
+        wall = time.perf_counter() - t0
+    bad = [r for r in records if r.status != "ok"]
+    if bad:
+        raise SystemExit(f"unit {bad[0].unit} failed: {bad[0].error}")
+    cpu = sum(r.params["bench.cpu_s"] for r in records)
+    return wall, sum(r.seconds for r in records), cpu, results_csv(records)
+
+
+def _local(payload, n: int, workers: int) -> tuple:
+    t0 = time.perf_counter()
+    pool = local_executor(workers)
+    try:
+        pids = set()
+        while len(pids) < workers:          # every worker started and warmed
+            pids |= set(pool.map(_warm, [0.5] * workers))
+        start = time.perf_counter() - t0
+        res = _campaign(payload, n, pool, workers)
+    finally:
+        pool.shutdown(wait=True)
+    return (start, *res)
+
+
+def _dask(payload, n: int, workers: int) -> tuple:
+    from distributed import Client, LocalCluster
+
+    t0 = time.perf_counter()
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        client.run(_warm)
+        start = time.perf_counter() - t0
+        res = _campaign(payload, n, client.get_executor(), workers)
+    return (start, *res)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--units", type=int, default=16)
+    ap.add_argument("--study", default="demo")
+    args = ap.parse_args()
+    study = load_study(args.study)
+    payload = study_payload(study)
+    n = args.units
+    print(f"machine: {machine()}")
+    print(f"study {study.name}: {n} units; load average {os.getloadavg()[0]:.2f}")
+    rows = []
+    for label, runner, workers in (("local, 1 worker", _local, 1),
+                                   ("local, 2 workers", _local, 2),
+                                   ("dask LocalCluster, 2 workers", _dask, 2)):
+        start, wall, unit_s, cpu_s, table = runner(payload, n, workers)
+        overhead = 1.0 - unit_s / (workers * wall)
+        rows.append((label, workers, start, wall, unit_s, overhead, table, cpu_s))
+        print(f"  {label:<30} {n / wall * 3600:6.0f} units/h  wall {wall:6.1f} s  "
+              f"unit {unit_s / n:5.2f} s (CPU {100 * cpu_s / unit_s:3.0f} %)  "
+              f"scheduler overhead {100 * overhead:4.1f} %  (pool start {start:4.1f} s)",
+              flush=True)
+    w1, w2, wd = rows[0][3], rows[1][3], rows[2][3]
+    print(f"parallel efficiency, 2 local workers: {100 * w1 / w2 / 2:.0f} % "
+          f"(target >= 80 %)")
+    print(f"parallel efficiency, 2-worker LocalCluster: {100 * w1 / wd / 2:.0f} %")
+    c1, c2 = rows[0][7] / n, rows[1][7] / n
+    print(f"CPU seconds per unit: {c1:.2f} (1 worker), {c2:.2f} (2 workers); a unit's CPU share "
+          f"below 100 % means the workers waited for a core (other processes on the machine)")
+    print(f"CPU-time efficiency of 2 workers (CPU per unit, 1 vs 2 workers): "
+          f"{100 * c1 / c2:.0f} %; the wall-clock efficiency above reaches it on an idle machine")
+    print(f"scheduler overhead: max {100 * max(r[5] for r in rows):.1f} % of the campaign "
+          f"(target < 5 %)")
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+    same = len({r[6] for r in rows}) == 1
+    print(f"results.csv identical on all three: {same}")
+    if not same:
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main()
