@@ -1,10 +1,12 @@
 """``rlgsim montecarlo``: run a study over many simulated units and summarise the spread.
 
     rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDRESS] [-o DIR] [--quiet]
+                      [--chamber-offset-c S] [--chamber-rate-rel R]
 
 Unit ``i`` is the study run for Monte Carlo unit ``i`` (:func:`sim.study.study_unit`): another
 device drawn from the presets' tolerance models (IMU realisation and thermal network, keyed by
-``(device_seed, i)``) and other noise (keyed by ``(seed, i)``). The campaign engine is
+``(device_seed, i)``) and other noise (keyed by ``(seed, i)``); optionally its own chamber-profile
+variation (:mod:`sim.unit_variations`). The campaign engine is
 :mod:`sim.montecarlo` (one task per unit through :class:`concurrent.futures.Executor`: a local
 process pool, or ``dask.distributed.Client(ADDRESS).get_executor()``; per-unit atomic commits;
 resumption; failure records). This module adds the command line, the unit function used by it
@@ -92,6 +94,22 @@ def thermal_params(study, unit: int) -> dict[str, float]:
     return thermal_summary(realised_network(first))
 
 
+def chamber_params(study, unit: int, variation) -> dict[str, float]:
+    """The chamber variation drawn for the study's first scenario (sim.unit_variations)."""
+    from sim.study import scenario_for
+    from sim.unit_variations import draw
+
+    refs = study_scenario_refs(study.tables)
+    if not variation.active or not refs:
+        return {}
+    try:
+        sc = scenario_for(study, refs[0], unit=unit)
+    except UserInputError:
+        return {}
+    offset, factor = draw(sc.seed, unit, variation)
+    return {"chamber.offset_c": offset, "chamber.rate_factor": factor}
+
+
 def montecarlo_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
     """The unit function of ``rlgsim montecarlo``: :func:`sim.study.study_unit` with one BLAS
     thread (so K workers on K cores do not oversubscribe), without timing rows, and with the
@@ -101,13 +119,16 @@ def montecarlo_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
     from threadpoolctl import threadpool_limits
 
     from sim.study import parse_study, study_unit
+    from sim.unit_variations import ChamberVariation, varied
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    variation = ChamberVariation(**payload.get("chamber_variation", {}))
+    with threadpool_limits(limits=1, user_api="blas"), varied(variation):
         out = study_unit(payload, unit)
         study = parse_study(payload["text"], payload["source"],
                             base_dir=pathlib.Path(payload["base_dir"]) if payload.get("base_dir")
                             else None, default_name=payload.get("name", "study"))
-        params = {**out.get("params", {}), **thermal_params(study, unit)}
+        params = {**out.get("params", {}), **thermal_params(study, unit),
+                  **chamber_params(study, unit, variation)}
     rows = [r for r in out.get("rows", []) if not _is_timing(str(r[1]))]
     return {"rows": rows, "params": params}
 
@@ -162,8 +183,11 @@ def study_payload(study) -> dict[str, Any]:
 def identity(payload: dict[str, Any], unit_fn: Callable) -> dict[str, Any]:
     """The campaign's identity (``campaign.json``): the study text (its seeds included) and the
     unit function. A folder holding another identity is refused."""
-    return {"kind": "rlgsim montecarlo", "study_text": payload.get("text", repr(payload)),
-            "unit_function": f"{unit_fn.__module__}.{unit_fn.__qualname__}"}
+    out = {"kind": "rlgsim montecarlo", "study_text": payload.get("text", repr(payload)),
+           "unit_function": f"{unit_fn.__module__}.{unit_fn.__qualname__}"}
+    if payload.get("chamber_variation"):
+        out["chamber_variation"] = payload["chamber_variation"]
+    return out
 
 
 def run(payload: dict[str, Any], n_units: int, out_dir: str | os.PathLike, *,
@@ -295,13 +319,13 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
 
 def varying_params(records) -> list[str]:
     """Parameter names whose value differs between units (constant ones say nothing about why
-    a unit fails), thermal summary first, then by name."""
+    a unit fails), chamber variation and thermal summary first, then by name."""
     values: dict[str, set[float]] = {}
     for r in records:
         for k, v in r.params.items():
             values.setdefault(k, set()).add(v)
     names = [k for k, vs in values.items() if len(vs) > 1]
-    return sorted(names, key=lambda k: (not k.startswith("thermal."), k))
+    return sorted(names, key=lambda k: (not k.startswith(("chamber.", "thermal.")), k))
 
 
 def _slug(text: str) -> str:
@@ -321,6 +345,17 @@ def _units(text: str) -> int:
     return value
 
 
+def _sigma(text: str) -> float:
+    import math
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be >= 0")
+    return value
+
+
 def add_subparser(sub) -> None:
     """Register ``rlgsim montecarlo`` on the CLI's subparsers."""
     m = sub.add_parser("montecarlo", help="run a study over N simulated units (local processes "
@@ -334,6 +369,11 @@ def add_subparser(sub) -> None:
                        help="local worker processes (default 1)")
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="a Dask scheduler (tcp://host:port): run the units on its cluster")
+    m.add_argument("--chamber-offset-c", type=_sigma, default=0.0, metavar="S",
+                   help="per-unit chamber temperature offset, 1 sigma [K] (default 0)")
+    m.add_argument("--chamber-rate-rel", type=_sigma, default=0.0, metavar="R",
+                   help="per-unit relative spread of the chamber ramp rates, 1 sigma "
+                        "(log-normal; default 0)")
     m.add_argument("-o", "--output", metavar="DIR",
                    help="output folder (default: ./montecarlo-<study name>)")
     m.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary line")
@@ -349,7 +389,11 @@ def main(args: argparse.Namespace) -> int:
     if isinstance(metrics, dict) and isinstance(metrics.get("baseline"), str):
         baseline = metrics["baseline"]
     out = args.output or f"montecarlo-{study.name}"
-    run(study_payload(study), args.units, out, workers=args.workers, scheduler=args.scheduler,
+    payload = study_payload(study)
+    if args.chamber_offset_c or args.chamber_rate_rel:
+        payload["chamber_variation"] = {"offset_c": args.chamber_offset_c,
+                                        "rate_rel": args.chamber_rate_rel}
+    run(payload, args.units, out, workers=args.workers, scheduler=args.scheduler,
         quiet=args.quiet, title=study.name, baseline=baseline or "raw")
     return 0
 

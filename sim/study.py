@@ -129,7 +129,8 @@ def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = Non
     changes: dict[str, Any] = {"unit": int(unit)}
     if study.device_seed is not None:
         changes["device_seed"] = study.device_seed
-    return dataclasses.replace(scenario, **changes)
+    from sim.unit_variations import apply      # Monte Carlo chamber variations, if any
+    return apply(dataclasses.replace(scenario, **changes))
 
 
 def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True

@@ -239,3 +239,36 @@ def test_unknown_study_and_unreachable_scheduler_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "cannot connect" in err and len(err.strip().splitlines()) == 1
     assert time.monotonic() - t0 < 10
+
+
+def test_chamber_variation_per_unit(tmp_path):
+    from sim.chamber import Ramp
+    from sim.cli_montecarlo import montecarlo_unit, study_payload
+    from sim.study import load_study, scenario_for
+    from sim.unit_variations import ChamberVariation, draw, varied
+
+    study = load_study(str(_tiny_study(tmp_path)))
+    plain = scenario_for(study, "tiny_cycle.toml", unit=3)
+    var = ChamberVariation(offset_c=0.5, rate_rel=0.1)
+    with varied(var):
+        a = scenario_for(study, "tiny_cycle.toml", unit=3)
+        a2 = scenario_for(study, "tiny_cycle.toml", unit=3)
+        b = scenario_for(study, "tiny_cycle.toml", unit=4)
+    assert scenario_for(study, "tiny_cycle.toml", unit=3).chamber == plain.chamber  # only in varied()
+    offset, factor = draw(plain.seed, 3, var)
+    assert a.chamber == a2.chamber and a.chamber != b.chamber
+    assert a.chamber.start_c == pytest.approx(plain.chamber.start_c + offset)
+    ramps = [(p, q) for p, q in zip(plain.chamber.segments, a.chamber.segments)
+             if isinstance(p, Ramp)]
+    assert ramps and all(q.to_c == pytest.approx(p.to_c + offset) and
+                         q.rate_c_per_min == pytest.approx(p.rate_c_per_min * factor)
+                         for p, q in ramps)
+    payload = study_payload(study)
+    base = montecarlo_unit(payload, 1)
+    varied_out = montecarlo_unit({**payload, "chamber_variation": {"offset_c": 0.5,
+                                                                   "rate_rel": 0.1}}, 1)
+    assert "chamber.offset_c" not in base["params"]
+    assert varied_out["params"]["chamber.rate_factor"] == pytest.approx(
+        draw(plain.seed, 1, var)[1])
+    assert varied_out["rows"] != base["rows"]
+    assert base["params"]["thermal.tau_max_s"] == varied_out["params"]["thermal.tau_max_s"]
