@@ -8,7 +8,9 @@ cycle twice, four compensators) three ways — a local pool of 1 worker, of 2 wo
 * parallel efficiency of 2 workers = (wall₁ / wall₂) / 2 (target ≥ 80 % on 2 cores);
 * scheduler overhead = coordinator time outside units / total = 1 − Σ unit seconds /
   (workers · wall) (target < 5 %): dispatch, result transfer, the atomic JSON commits and idle
-  workers at the end of the campaign;
+  workers at the end of the campaign; "between units" is the part spent between two units of
+  a worker (dispatch, result transfer, commit) — without the idle tail, which shrinks as the
+  number of units grows;
 * CPU seconds per unit and the unit's CPU share (CPU / wall inside the worker): with other
   load on the machine the workers wait for a core and the efficiency drops for that reason;
 * the one-off start of the pool (worker processes importing numpy, scipy, h5py, scikit-learn
@@ -17,7 +19,7 @@ cycle twice, four compensators) three ways — a local pool of 1 worker, of 2 wo
 
 Every run also checks that the results table is the same bytes on all three.
 
-    python benchmarks/bench_montecarlo.py [--units 16] [--study demo]
+    python benchmarks/bench_montecarlo.py [--units 32] [--study demo]
 
 The load average is printed before and after: on a shared machine other processes take CPU
 from the workers, which lowers the efficiency figures (the mean unit time rises with workers).
@@ -58,13 +60,27 @@ def _warm(delay_s: float = 0.0) -> int:
 def timed_unit(payload, unit: int) -> dict:
     """:func:`montecarlo_unit` plus the worker's CPU seconds for the unit (parameter
     ``bench.cpu_s``; the results table is unchanged)."""
-    c0 = time.process_time()
+    import os
+    c0, t0 = time.process_time(), time.time()
     out = montecarlo_unit(payload, unit)
-    out["params"]["bench.cpu_s"] = time.process_time() - c0
+    out["params"].update({"bench.cpu_s": time.process_time() - c0, "bench.t0": t0,
+                          "bench.t1": time.time(), "bench.pid": os.getpid()})
     return out
 
 
-def _campaign(payload, n: int, executor, workers: int) -> tuple[float, float, float, str]:
+def dispatch_gaps(records) -> float:
+    """Share of each worker's busy span (first unit start to last unit end) spent between
+    units — dispatch, result transfer and commit, without the start and the idle tail."""
+    spans: dict[float, list] = {}
+    for r in records:
+        spans.setdefault(r.params["bench.pid"], []).append(r)
+    span = sum(max(x.params["bench.t1"] for x in rs) - min(x.params["bench.t0"] for x in rs)
+               for rs in spans.values())
+    busy = sum(x.params["bench.t1"] - x.params["bench.t0"] for rs in spans.values() for x in rs)
+    return 1.0 - busy / span if span > 0 else 0.0
+
+
+def _campaign(payload, n: int, executor, workers: int) -> tuple:
     with tempfile.TemporaryDirectory(prefix="bench-mc-") as tmp:
         t0 = time.perf_counter()
         records = run_campaign(timed_unit, payload, n, tmp, executor=executor,
@@ -75,7 +91,7 @@ def _campaign(payload, n: int, executor, workers: int) -> tuple[float, float, fl
     if bad:
         raise SystemExit(f"unit {bad[0].unit} failed: {bad[0].error}")
     cpu = sum(r.params["bench.cpu_s"] for r in records)
-    return wall, sum(r.seconds for r in records), cpu, results_csv(records)
+    return wall, sum(r.seconds for r in records), cpu, results_csv(records), dispatch_gaps(records)
 
 
 def _local(payload, n: int, workers: int) -> tuple:
@@ -106,7 +122,7 @@ def _dask(payload, n: int, workers: int) -> tuple:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--units", type=int, default=16)
+    ap.add_argument("--units", type=int, default=32)
     ap.add_argument("--study", default="demo")
     args = ap.parse_args()
     study = load_study(args.study)
@@ -118,13 +134,13 @@ def main() -> None:
     for label, runner, workers in (("local, 1 worker", _local, 1),
                                    ("local, 2 workers", _local, 2),
                                    ("dask LocalCluster, 2 workers", _dask, 2)):
-        start, wall, unit_s, cpu_s, table = runner(payload, n, workers)
+        start, wall, unit_s, cpu_s, table, gaps = runner(payload, n, workers)
         overhead = 1.0 - unit_s / (workers * wall)
-        rows.append((label, workers, start, wall, unit_s, overhead, table, cpu_s))
+        rows.append((label, workers, start, wall, unit_s, overhead, table, cpu_s, gaps))
         print(f"  {label:<30} {n / wall * 3600:6.0f} units/h  wall {wall:6.1f} s  "
               f"unit {unit_s / n:5.2f} s (CPU {100 * cpu_s / unit_s:3.0f} %)  "
-              f"scheduler overhead {100 * overhead:4.1f} %  (pool start {start:4.1f} s)",
-              flush=True)
+              f"scheduler overhead {100 * overhead:4.1f} % (between units "
+              f"{100 * gaps:4.1f} %)  pool start {start:4.1f} s", flush=True)
     w1, w2, wd = rows[0][3], rows[1][3], rows[2][3]
     print(f"parallel efficiency, 2 local workers: {100 * w1 / w2 / 2:.0f} % "
           f"(target >= 80 %)")
