@@ -516,6 +516,9 @@ def _report(study, cfg, scenario, data_path, reused, raw, xs, ys, pred, fitted, 
                           f"{cfg.folds} folds instead of the paper's 30 × 500, 5 folds")
     if len(raw.rows) != 175:
         deviations.append(f"{len(raw.rows)} calibration windows instead of the paper's 175")
+    deviations.append(f"HHO-RVR width positions rounded to a {cfg.width_resolution:g}-decade "
+                      f"grid (each grid point cross-validated once); the paper searches "
+                      f"continuously")
     if not cfg.shuffle:
         deviations.append("contiguous CV folds instead of the paper's random ones")
     if deviations:
