@@ -615,9 +615,12 @@ def _verdict(avg, avg_truth, fit_scores, truth_scores, resvar) -> str:
     if avg_truth:
         n_true = sum(truth_scores[p]["hho_rvr"]["rmse"] < truth_scores[p]["lsm"]["rmse"]
                      for p in PAPER_PARAMETERS)
+        lose = [p for p in PAPER_PARAMETERS
+                if truth_scores[p]["hho_rvr"]["rmse"] >= truth_scores[p]["lsm"]["rmse"]]
         parts.append(
-            f"Against the true window-mean parameters RVR is closer for {n_true} of 15; average "
-            f"RMSE improvement {avg_truth['rmse']:.1f} %. Where the in-sample gain exceeds the "
+            f"Against the true window-mean parameters RVR is closer for {n_true} of 15 (not for: "
+            f"{', '.join(lose) or 'none'}); average RMSE improvement {avg_truth['rmse']:.1f} %. "
+            f"Where the in-sample gain exceeds the "
             f"gain against the truth, RVR's narrow kernel follows the calibration noise and the "
             f"slow (flicker, random-walk) bias wander of this particular run, which no "
             f"temperature model can predict; where the device's law has a knee or a step that a "
