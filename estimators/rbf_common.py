@@ -63,6 +63,8 @@ from scipy.linalg import solve_triangular
 from scipy.linalg.blas import dger
 from scipy.spatial.distance import cdist
 
+from sklearn.utils.validation import check_is_fitted, validate_data
+
 from estimators._validation import check_not_constant
 
 #: ``-ln 0.5``: a Gaussian neuron outputs 0.5 at distance ``spread`` from its centre (newrb).
@@ -291,3 +293,20 @@ class ForwardOLS:
         if use_ones_last:
             return theta[:-1], float(theta[-1])
         return theta, 0.0
+
+
+class GaussianNetworkOutput:
+    """The forward pass shared by both RBF networks: standardised inputs through the Gaussian
+    hidden layer (``centers_``, ``spread``) and the linear output layer (``weights_``,
+    ``intercept_``). Mixed into the estimators before ``RegressorMixin``."""
+
+    def _hidden(self, X) -> np.ndarray:
+        Z = (X - self.x_mean_) / self.x_scale_
+        C = (self.centers_ - self.x_mean_) / self.x_scale_
+        return gaussian_design(Z, C, float(self.spread))
+
+    def predict(self, X) -> np.ndarray:
+        """Network output for inputs ``X`` (n, n_features), in the target's unit."""
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False)
+        return self._hidden(X) @ self.weights_ + self.intercept_

@@ -49,13 +49,13 @@ from scipy.spatial.distance import cdist
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils import check_random_state
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils.validation import validate_data
 
-from estimators.rbf_common import (ForwardOLS, check_max_centers, check_positive, check_spread,
+from estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_positive, check_spread,
                                    fit_standardiser, gaussian_design)
 
 
-class ModifiedRBFNetwork(RegressorMixin, BaseEstimator):
+class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
     """Kohonen + OLS RBF network (paper 002's modified RBFNN).
 
     Parameters
@@ -204,14 +204,3 @@ class ModifiedRBFNetwork(RegressorMixin, BaseEstimator):
                           f"{self.n_candidates_} candidate centres; enlarge som_shape, change "
                           "spread or raise max_centers", ConvergenceWarning, stacklevel=2)
         return self
-
-    def _hidden(self, X) -> np.ndarray:
-        Z = (X - self.x_mean_) / self.x_scale_
-        C = (self.centers_ - self.x_mean_) / self.x_scale_
-        return gaussian_design(Z, C, float(self.spread))
-
-    def predict(self, X) -> np.ndarray:
-        """Network output for inputs ``X`` (n, n_features), in the target's unit."""
-        check_is_fitted(self)
-        X = validate_data(self, X, reset=False)
-        return self._hidden(X) @ self.weights_ + self.intercept_

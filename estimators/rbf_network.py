@@ -34,13 +34,13 @@ import warnings
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils.validation import validate_data
 
-from estimators.rbf_common import (ForwardOLS, check_max_centers, check_spread,
+from estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_spread,
                                    fit_standardiser, gaussian_design)
 
 
-class RBFNetwork(RegressorMixin, BaseEstimator):
+class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
     """Gaussian RBF network grown like MATLAB ``newrb`` (paper 002's traditional RBFNN).
 
     Parameters
@@ -135,14 +135,3 @@ class RBFNetwork(RegressorMixin, BaseEstimator):
                           "raise max_centers or change spread", ConvergenceWarning,
                           stacklevel=2)
         return self
-
-    def _hidden(self, X) -> np.ndarray:
-        Z = (X - self.x_mean_) / self.x_scale_
-        C = (self.centers_ - self.x_mean_) / self.x_scale_
-        return gaussian_design(Z, C, float(self.spread))
-
-    def predict(self, X) -> np.ndarray:
-        """Network output for inputs ``X`` (n, n_features), in the target's unit."""
-        check_is_fitted(self)
-        X = validate_data(self, X, reset=False)
-        return self._hidden(X) @ self.weights_ + self.intercept_
