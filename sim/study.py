@@ -36,9 +36,10 @@ from sim import presets
 from sim.config import Ctx, check_known_keys, get_int, get_str, get_table
 from sim.errors import UserInputError
 from sim.report import Report
+from sim.studies import recipe_names
 
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
-RECIPES = ("bias_compensation", "paper000_system")
+RECIPES = recipe_names()      # the modules in sim/studies/
 
 
 @dataclass(frozen=True)

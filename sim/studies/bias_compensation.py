@@ -1,24 +1,25 @@
-"""Recipe ``bias_compensation``: single-gyro temperature compensation of the bias (papers 001-003).
+"""Recipe ``bias_compensation``: one experiment (train runs → test runs) of a single gyro,
+every compensator of a paper's tables with the published numbers beside ours (paper 001; also
+the demo study).
 
-A study with ``recipe = "bias_compensation"`` (see :mod:`sim.study`) has these tables::
+A study with ``recipe = "bias_compensation"`` (see :mod:`sim.study`) has these tables (runs,
+features and compensators: :mod:`sim.studies.single_gyro`)::
 
     [data]
-    train = ["paper001_train"]        # scenario names or paths (relative to the study file),
-    test = ["paper001_test"]          # or tables {scenario = "demo_cycle", seed = 7}
+    train = ["paper001_train"]
+    test = ["paper001_test"]
     window_s = 100                    # averaging window [s] (papers 001-003: 100 s)
     gyro = "z"                        # gyro input axis (default: the device's only gyro)
 
-    [features]                        # the compensator inputs, computed per window
-    temperature = "g.A"               # probe giving input "T" (window mean) and "dT/dt" (K/s)
-    uhfo = true                       # input "U": the gyro's UHFO voltage [V] (window mean)
-    probes = ["housing"]              # further probes as inputs named by the probe [°C]
-    gradients = ["g.A", "g.B"]        # pairwise differences "g.A-g.B" [K] (paper 003)
+    [features]
+    temperature = "g.A"
+    uhfo = true
 
     [[compensator]]
-    name = "LS cubic T"               # unique label in the report
-    kind = "polynomial"               # see KINDS
-    inputs = ["T"]                    # feature names
-    params = { degree = 3 }           # estimator constructor keywords
+    name = "LS cubic T"
+    kind = "polynomial"
+    inputs = ["T"]
+    params = { degree = 3 }
     table = "Table 2"                 # optional: the paper table it re-creates
     published = { stability_deg_per_h = 0.01194, improvement_pct = 35.46 }
 
@@ -31,40 +32,14 @@ A study with ``recipe = "bias_compensation"`` (see :mod:`sim.study`) has these t
     stability_before_deg_per_h = 0.0185
     correlation = { T = 0.71, "dT/dt" = -0.43, U = -0.82 }
 
-How the series are built (paper 001 §3 and §4.1): the gyro's rate is its pulse count per window
-divided by the nominal scale factor (truth group ``gyro.k0``) and the window length; the
-"TRPLG bias" is that rate minus the Earth-rate projection on the gyro axis (the table's known
-input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
-Inputs are window means of the probe readings and the logged UHFO, and the least-squares slope
-of the temperature in each window (:mod:`estimators.features`). Windows in which the device was
-not powered over the whole window are dropped. The truth series is the window mean of the true
-bias ``truth/gyro_bias`` (what the simulator added to the rate), and ``truth/gyro_bias_random``
-its flicker + random-walk part, which no temperature model can predict.
-
-Each compensator is fitted on the train runs (windows stacked) and applied to each test run.
-Scores per test run (rows of :class:`~sim.study.StudyResult`, all in °/h unless stated):
-
-* ``stability_before`` / ``stability_after``: bias stability (std of ``cluster_s`` means,
-  ``ddof``) of the measured bias ``y`` and of the compensated series ``y − ŷ``;
-  ``improvement_pct`` = 100·(before − after)/before (paper 001 Tables 2-5);
-* ``rmse_true``, ``mae_true``, ``r2_true``: the predicted bias ``ŷ`` against the true bias
-  ``b`` (window means); ``b`` excludes the constant the output adds through the scale-factor
-  error and misalignment times the Earth rate, which the compensators fold into their constant;
-* ``resid_std_true`` = std(ŷ − b): what is left of the true bias after compensation, offset-free
-  (the bias stability a noise-free gyro would show after compensation);
-* ``law_resid_std`` = std(ŷ − (b − r)), r the random part: the error of the learnt temperature
-  law alone.
-
-The row ``truth: temperature law`` is the oracle ``ŷ = b − r``: the best any input-driven model
-can do; its ``stability_after`` is the floor the others approach.
+Each compensator is fitted on the train runs (windows stacked) and applied to each test run;
+the scores (:func:`sim.studies.single_gyro.scores`) are the rows of
+:class:`~sim.study.StudyResult`. The row ``truth: temperature law`` is the oracle
+``ŷ = b − r``: the best any input-driven model can do.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
-import itertools
-import math
 import pathlib
 import time
 from dataclasses import dataclass, field
@@ -72,164 +47,36 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str,
-                        get_table)
-from sim.errors import UserInputError
+from sim.config import check_known_keys, get_float, get_int, get_str, get_table
 from sim.report import Report, Table
-from sim.study import Study, StudyResult, scenario_for
+from sim.study import Study, StudyResult
+from sim.studies.single_gyro import (EQUATION_KINDS, KINDS, ORACLE, RAW, CompensatorSpec,
+                                     FeatureSpec, Fitted, RunSeries, RunSpec, check_scenarios,
+                                     dataset_for, fit, fmt, parse_compensators, parse_features,
+                                     parse_runs, random_state_for, read_run, scores, stack,
+                                     worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
-RUN_KEYS = ("scenario", "seed")
-FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
-COMPENSATOR_KEYS = ("name", "kind", "inputs", "params", "table", "published")
 PUBLISHED_COMP_KEYS = ("stability_deg_per_h", "improvement_pct", "c", "sigma2", "equation")
 METRIC_KEYS = ("cluster_s", "ddof", "baseline")
 PUBLISHED_KEYS = ("stability_before_deg_per_h", "correlation")
 
-#: Compensator kinds: (module, class, extra keys the recipe itself understands).
-KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "polynomial": ("estimators.polynomial", "PolynomialRegressor", ()),
-    "stepwise": ("estimators.stepwise", "StepwiseRegressor", ()),
-    "mlr_bic": ("estimators.mlr", "MLRBICRegressor", ()),
-    "lssvm": ("estimators.lssvm_cv", "LSSVMRegressorCV", ()),
-    "ir_lssvm": ("estimators.robust_lssvm", "RobustLSSVMRegressor",
-                 ("gammas", "sigma2s", "tune_cv", "tune_scoring")),
-    "rvr": ("estimators.rvr", "RVR", ()),
-    "hho_rvr": ("estimators.tuned", "HHORVR", ()),
-    "pso_svr": ("estimators.tuned", "PSOSVR", ()),
-    "rbf": ("estimators.rbf_network", "RBFNetwork", ()),
-    "rbf_modified": ("estimators.rbf_modified", "ModifiedRBFNetwork", ()),
-}
-
-#: Kinds whose fitted model prints an equation (estimators.term_model).
-EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
-
-ORACLE = "truth: temperature law"
-RAW = "raw"
-DEG_PER_H_PER_RAD_PER_S = 180.0 / math.pi * 3600.0
-
-
-# ------------------------------------------------------------------------------ configuration
-@dataclass(frozen=True)
-class RunSpec:
-    ref: str
-    seed: int | None
-    ctx: Ctx
-
-    @property
-    def label(self) -> str:
-        stem = pathlib.Path(self.ref).name
-        stem = stem[:-5] if stem.endswith(".toml") else stem
-        return stem if self.seed is None else f"{stem}-seed{self.seed}"
+__all__ = ["KINDS", "ORACLE", "RAW", "Config", "CompensatorSpec", "RunSeries", "RunSpec",
+           "check", "run", "dataset_for", "fit", "read_run", "scores"]
 
 
 @dataclass(frozen=True)
-class CompensatorSpec:
-    name: str
-    kind: str
-    inputs: tuple[str, ...]
-    params: dict
-    table: str
-    published: dict
-    ctx: Ctx
+class Config(FeatureSpec):
+    """A validated bias_compensation study: its runs, features, compensators and metrics."""
 
-
-@dataclass(frozen=True)
-class Config:
-    train: tuple[RunSpec, ...]
-    test: tuple[RunSpec, ...]
-    window_s: float
-    gyro: str | None
-    temperature: str | None
-    uhfo: bool
-    probes: tuple[str, ...]
-    gradients: tuple[str, ...]
-    compensators: tuple[CompensatorSpec, ...]
-    cluster_s: float
-    ddof: int
-    baseline: str
+    train: tuple[RunSpec, ...] = ()
+    test: tuple[RunSpec, ...] = ()
+    compensators: tuple[CompensatorSpec, ...] = ()
+    cluster_s: float = 100.0
+    ddof: int = 1
+    baseline: str = RAW
     published: dict = field(default_factory=dict)
-
-    def feature_names(self) -> list[str]:
-        names = []
-        if self.temperature:
-            names += ["T", "dT/dt"]
-        if self.uhfo:
-            names.append("U")
-        names += list(self.probes)
-        names += [f"{a}-{b}" for a, b in itertools.combinations(self.gradients, 2)]
-        return names
-
-
-def _estimator_class(kind: str):
-    module, cls, _ = KINDS[kind]
-    return getattr(importlib.import_module(module), cls)
-
-
-def _runs(table: dict, key: str, ctx: Ctx) -> tuple[RunSpec, ...]:
-    items = get_list(table, key, ctx, min_len=1)
-    out = []
-    for i, item in enumerate(items):
-        ictx = ctx.child(key).item(i)
-        if isinstance(item, str):
-            if not item.strip():
-                raise ctx.error(f"{key}[{i}]", "expected a scenario name or path, got an "
-                                               "empty string")
-            out.append(RunSpec(item, None, ictx))
-        elif isinstance(item, dict):
-            check_known_keys(item, RUN_KEYS, ictx)
-            out.append(RunSpec(get_str(item, "scenario", ictx),
-                               get_int(item, "seed", ictx, None, min=0, max=2**63 - 1), ictx))
-        else:
-            raise ctx.error(f"{key}[{i}]", f"expected a scenario name or a table "
-                                           f"{{scenario = ..., seed = ...}}, got {item!r}")
-    labels = [r.label for r in out]
-    dup = {x for x in labels if labels.count(x) > 1}
-    if dup:
-        raise ctx.error(key, f"run {sorted(dup)[0]!r} is listed twice")
-    return tuple(out)
-
-
-def _str_list(table: dict, key: str, ctx: Ctx, min_len: int = 0) -> tuple[str, ...]:
-    values = get_list(table, key, ctx, [], min_len=min_len)
-    for v in values:
-        if not isinstance(v, str) or not v:
-            raise ctx.error(key, f"expected an array of non-empty strings, got {v!r}")
-    if len(set(values)) != len(values):
-        raise ctx.error(key, f"value {values!r} not allowed; names must be distinct")
-    return tuple(values)
-
-
-def _compensator(item: Any, i: int, ctx: Ctx, features: list[str]) -> CompensatorSpec:
-    cctx = ctx.item(i)
-    if not isinstance(item, dict):
-        raise Ctx(ctx.source).error(cctx.path, f"expected a table, got {item!r}")
-    check_known_keys(item, COMPENSATOR_KEYS, cctx)
-    name = get_str(item, "name", cctx)
-    if not name.strip() or name in (RAW, ORACLE):
-        raise cctx.error("name", f"value {name!r} not allowed (empty or reserved)")
-    kind = get_str(item, "kind", cctx, choices=KINDS)
-    inputs = _str_list(item, "inputs", cctx, min_len=1)
-    for x in inputs:
-        if x not in features:
-            raise cctx.error("inputs", f"unknown input {x!r}; the [features] table gives: "
-                                       f"{', '.join(features) or '(none)'}")
-    params = get_table(item, "params", cctx, {})
-    allowed = set(_estimator_class(kind)().get_params()) | set(KINDS[kind][2])
-    allowed.discard("feature_names")
-    check_known_keys(params, sorted(allowed), cctx.child("params"))
-    published = get_table(item, "published", cctx, {})
-    pctx = cctx.child("published")
-    check_known_keys(published, PUBLISHED_COMP_KEYS, pctx)
-    for k in published:
-        if k == "equation":
-            get_str(published, k, pctx)
-        else:
-            get_float(published, k, pctx)
-    return CompensatorSpec(name=name, kind=kind, inputs=inputs, params=params,
-                           table=get_str(item, "table", cctx, ""), published=published,
-                           ctx=cctx)
 
 
 def check(study: Study) -> Config:
@@ -240,38 +87,15 @@ def check(study: Study) -> Config:
     dtable = get_table(data, "data", ctx)
     dctx = ctx.child("data")
     check_known_keys(dtable, DATA_KEYS, dctx)
-    train = _runs(dtable, "train", dctx)
-    test = _runs(dtable, "test", dctx)
+    train = parse_runs(dtable, "train", dctx)
+    test = parse_runs(dtable, "test", dctx)
     window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
     gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
-    for spec in train + test:          # every scenario must exist and parse
-        scenario_for(study, spec.ref, ctx=spec.ctx)
-
-    ftable = get_table(data, "features", ctx, {})
-    fctx = ctx.child("features")
-    check_known_keys(ftable, FEATURE_KEYS, fctx)
-    temperature = get_str(ftable, "temperature", fctx, None)
-    uhfo = get_bool(ftable, "uhfo", fctx, False)
-    probes = _str_list(ftable, "probes", fctx)
-    gradients = _str_list(ftable, "gradients", fctx)
-    if len(gradients) == 1:
-        raise fctx.error("gradients", "give at least 2 probes (or none)")
-    config_features = Config((), (), window_s, gyro, temperature, uhfo, probes, gradients, (),
-                             window_s, 1, RAW).feature_names()
-    if not config_features:
-        raise fctx.error("temperature", "no inputs: give at least one of temperature, uhfo, "
-                                        "probes, gradients")
-
-    items = data.get("compensator")
-    if not isinstance(items, list) or not items:
-        raise ctx.error("compensator", "missing: give at least one [[compensator]] table")
-    comps = tuple(_compensator(item, i, ctx.child("compensator"), config_features)
-                  for i, item in enumerate(items))
+    check_scenarios(study, train + test)
+    features = parse_features(data, ctx, window_s, gyro)
+    feature_names = features.feature_names()
+    comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS)
     names = [c.name for c in comps]
-    dup = {n for n in names if names.count(n) > 1}
-    if dup:
-        raise ctx.error("compensator", f"name {sorted(dup)[0]!r} is used twice")
-
     mtable = get_table(data, "metrics", ctx, {})
     mctx = ctx.child("metrics")
     check_known_keys(mtable, METRIC_KEYS, mctx)
@@ -291,233 +115,10 @@ def check(study: Study) -> Config:
         published["stability_before"] = get_float(ptable, "stability_before_deg_per_h", pctx)
     corr = get_table(ptable, "correlation", pctx, {})
     cctx = pctx.child("correlation")
-    check_known_keys(corr, config_features, cctx)
+    check_known_keys(corr, feature_names, cctx)
     published["correlation"] = {k: get_float(corr, k, cctx, min=-1.0, max=1.0) for k in corr}
-    return Config(train=train, test=test, window_s=window_s, gyro=gyro,
-                  temperature=temperature, uhfo=uhfo, probes=probes, gradients=gradients,
-                  compensators=comps, cluster_s=cluster_s, ddof=ddof, baseline=baseline,
-                  published=published)
-
-
-# ------------------------------------------------------------------------------ datasets
-def _dataset_matches(path: pathlib.Path, scenario) -> bool:
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            a = f.attrs
-
-            def text(key: str) -> str:
-                v = a.get(key, "")
-                return v.decode() if isinstance(v, bytes) else str(v)
-            return (text("scenario_text") == scenario.text
-                    and int(a.get("seed", -1)) == scenario.seed
-                    and int(a.get("unit", -1)) == scenario.unit
-                    and int(a.get("device_seed", -1)) == scenario.realisation_seed
-                    and text("device_text") == scenario.device.text
-                    and text("thermal_preset_text") == scenario.device.thermal.text)
-    except (OSError, KeyError, ValueError, TypeError):
-        return False
-
-
-def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int,
-                progress: bool) -> tuple[pathlib.Path, Any, bool]:
-    """Simulate ``spec`` into ``workdir/data/<label>.h5`` unless a matching file is there.
-    Returns (path, scenario, reused)."""
-    from sim.simulate import simulate
-    scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
-    if spec.seed is not None:
-        scenario = dataclasses.replace(scenario, seed=spec.seed)
-    folder = workdir / "data"
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{spec.label}.h5"
-    if path.is_file() and _dataset_matches(path, scenario):
-        return path, scenario, True
-    simulate(scenario, path, progress=progress)
-    return path, scenario, False
-
-
-def _strings(values) -> list[str]:
-    return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
-
-
-@dataclass
-class RunSeries:
-    """The 100 s window series of one run (°/h for rates, °C, K/s, V)."""
-
-    label: str
-    path: pathlib.Path
-    seed: int
-    device_seed: int
-    time_s: np.ndarray          # window end times
-    y: np.ndarray               # measured bias: output − Earth projection [°/h]
-    true_bias: np.ndarray       # b: window mean of truth/gyro_bias [°/h]
-    true_random: np.ndarray     # r: its flicker + random-walk part [°/h]
-    X: Any                      # estimators.columns.Columns of the inputs
-    earth_deg_per_h: float
-    coefficients: dict[str, float]
-
-
-def read_run(path: pathlib.Path, config: Config, label: str, ctx: Ctx) -> RunSeries:
-    """Build the window series of one dataset (see the module docstring)."""
-    import h5py
-
-    from estimators.columns import Columns
-    from estimators.features import pairwise_gradients, samples_per_window, temperature_rate, \
-        window_average
-
-    W = config.window_s
-    with h5py.File(path, "r") as f:
-        dctx = Ctx(ctx.source, "data")
-        gyros = _strings(f["imu/gyro"][:])
-        axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
-        if config.gyro and config.gyro not in gyros:
-            raise dctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
-                                     f"axes are {', '.join(gyros)}")
-        if axis is None:
-            raise dctx.error("gyro", f"missing: the device has several gyros "
-                                     f"({', '.join(gyros)}); say which one")
-        if config.uhfo and "imu/uhfo" not in f:
-            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
-        gi = gyros.index(axis)
-        rate = float(f["imu"].attrs["sample_rate_hz"])
-        step = float(f.attrs["thermal_step_s"])
-        try:
-            m_s = samples_per_window(rate, W)
-            m_t = samples_per_window(1.0 / step, W)
-        except ValueError as exc:
-            raise dctx.error("window_s", str(exc)) from None
-        coeff = dict(zip(_strings(f["truth/coefficient"][:]),
-                         map(float, f["truth/coefficient_value"][:])))
-        k0 = coeff[f"gyro.k0[{axis}]"]
-        pulses = f["imu/gyro_pulses"][:, gi]
-        n_win = min(pulses.shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
-        counts = pulses[: n_win * m_s].astype(np.int64).reshape(n_win, m_s).sum(axis=1)
-        rate_out = counts / (k0 * W)                                           # rad/s
-        body = _strings(f["truth/body"][:])
-        dtheta = f["truth/dtheta_step"][: n_win * m_t, body.index(axis)]
-        earth = dtheta.reshape(n_win, m_t).sum(axis=1) / W                     # rad/s
-        y = (rate_out - earth) * DEG_PER_H_PER_RAD_PER_S
-        tb = f["truth/gyro_bias"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
-        tr = f["truth/gyro_bias_random"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
-        power = f["thermal/power_on"][: n_win * m_t].reshape(n_win, m_t).min(axis=1) > 0
-        probes = _strings(f["probes/probe"][:])
-        temps = f["probes/temperature"][: n_win * m_t, :]
-        uhfo = f["imu/uhfo"][: n_win * m_t, gi].astype(np.float64) if config.uhfo else None
-        seed = int(f.attrs["seed"])
-        device_seed = int(f.attrs.get("device_seed", seed))
-
-    def probe(name: str, key: str) -> np.ndarray:
-        if name not in probes:
-            raise Ctx(ctx.source, "features").error(
-                key, f"unknown probe {name!r}; the device's probes are {', '.join(probes)}")
-        return temps[:, probes.index(name)].astype(np.float64)
-
-    thermal_rate = 1.0 / step
-    cols: dict[str, np.ndarray] = {}
-    if config.temperature:
-        T = probe(config.temperature, "temperature")
-        cols["T"] = window_average(T, thermal_rate, W)
-        cols["dT/dt"] = temperature_rate(T, thermal_rate, W)
-    if config.uhfo:
-        cols["U"] = window_average(uhfo, thermal_rate, W)
-    for name in config.probes:
-        cols[name] = window_average(probe(name, "probes"), thermal_rate, W)
-    if config.gradients:
-        means = Columns({g: window_average(probe(g, "gradients"), thermal_rate, W)
-                         for g in config.gradients})
-        cols.update(pairwise_gradients(means).items())
-    keep = power
-    X = Columns({k: v[keep] for k, v in cols.items()})
-    time_s = ((np.arange(n_win) + 1) * W)[keep]
-    return RunSeries(label=label, path=path, seed=seed, device_seed=device_seed,
-                     time_s=time_s, y=y[keep],
-                     true_bias=window_average(tb, thermal_rate, W)[keep],
-                     true_random=window_average(tr, thermal_rate, W)[keep],
-                     X=X, earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
-                     coefficients=coeff)
-
-
-# ------------------------------------------------------------------------------ fitting
-def make_estimator(spec: CompensatorSpec, random_state: int):
-    """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
-    cls = _estimator_class(spec.kind)
-    params = {k: v for k, v in spec.params.items() if k not in KINDS[spec.kind][2]}
-    if "random_state" in cls().get_params() and "random_state" not in params:
-        params["random_state"] = random_state
-    return cls(**params)
-
-
-@dataclass
-class Fitted:
-    spec: CompensatorSpec
-    model: Any
-    fit_s: float
-    hyper: dict[str, float]
-
-
-def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
-        tuned: dict | None = None) -> Fitted:
-    """Fit ``spec`` on the train windows. A ValueError from the estimator (a bad parameter
-    value in the study file) becomes a UserInputError naming the compensator. ``tuned`` caches
-    the (gamma, sigma2) of IR-LSSVM's unweighted tuning per inputs and tuning settings, so the
-    four weight functions of one input set share one cross-validation (as in paper 001 §2.3,
-    where the weights are applied to the one tuned LS-SVM)."""
-    import warnings
-
-    from sklearn.exceptions import ConvergenceWarning
-    t0 = time.perf_counter()
-    Xi = X.select(spec.inputs)
-    hyper: dict[str, float] = {}
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            model = make_estimator(spec, random_state)
-            if spec.kind == "ir_lssvm" and not ("gamma" in spec.params and "sigma2" in spec.params):
-                from estimators.lssvm_cv import LSSVMRegressorCV
-                p = spec.params
-                kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
-                key = (spec.inputs, repr(sorted(kw.items())), repr(p.get("tune_cv", 10)),
-                       repr(p.get("tune_scoring", "mse")))
-                if tuned is None or key not in tuned:
-                    tuner = LSSVMRegressorCV(cv=p.get("tune_cv", 10),
-                                             scoring=p.get("tune_scoring", "mse"),
-                                             random_state=random_state, **kw).fit(Xi, y)
-                    pair = (tuner.gamma_, tuner.sigma2_)
-                    if tuned is not None:
-                        tuned[key] = pair
-                else:
-                    pair = tuned[key]
-                model.set_params(gamma=pair[0], sigma2=pair[1])
-            model.fit(Xi, y)
-    except (ValueError, TypeError) as exc:
-        raise spec.ctx.error("params", f"compensator {spec.name!r} ({spec.kind}) could not be "
-                                       f"fitted: {' '.join(str(exc).split())}") from None
-    for attr, key in (("gamma_", "c"), ("sigma2_", "sigma2"), ("weight_param_", "weight_param"),
-                      ("width_", "width"), ("n_centers_", "centres")):
-        v = getattr(model, attr, None)
-        if isinstance(v, (int, float, np.floating, np.integer)) and v is not None:
-            hyper[key] = float(v)
-    if spec.kind == "ir_lssvm":
-        hyper["c"], hyper["sigma2"] = float(model.gamma), float(model.sigma2)
-    if hasattr(model, "best_params_"):
-        hyper.update({k: float(v) for k, v in model.best_params_.items()})
-    return Fitted(spec, model, time.perf_counter() - t0, hyper)
-
-
-# ------------------------------------------------------------------------------ scoring
-def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, window_s: float,
-           cluster_s: float, ddof: int, before: float) -> dict[str, float]:
-    """Paper-style and truth-based scores of one prediction (definitions: module docstring)."""
-    from estimators import metrics as M
-    rate = 1.0 / window_s
-    after = M.bias_stability(y - y_hat, rate, cluster_s, ddof)
-    out = {"stability_before": before, "stability_after": after,
-           "improvement_pct": M.improvement_percent(before, after),
-           "rmse_true": M.rmse(b, y_hat), "mae_true": M.mae(b, y_hat),
-           "r2_true": M.r2(b, y_hat),
-           "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
-           "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))}
-    return out
+    return Config(**vars(features), train=train, test=test, compensators=comps,
+                  cluster_s=cluster_s, ddof=ddof, baseline=baseline, published=published)
 
 
 # ------------------------------------------------------------------------------ the run
@@ -526,7 +127,6 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     """Simulate, fit every compensator on the train runs, score on the test runs."""
     from tqdm import tqdm
 
-    from estimators.columns import Columns
     from estimators import metrics as M
 
     workdir = pathlib.Path(workdir)
@@ -536,14 +136,13 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         if spec.label in runs:
             continue
         path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
-        runs[spec.label] = (read_run(path, config, spec.label, spec.ctx), scenario, reused)
+        runs[spec.label] = (read_run(path, config, spec.label, spec.ctx, spec.skip_s), scenario,
+                            reused)
     t_data = time.perf_counter() - t_start
 
     train = [runs[s.label][0] for s in config.train]
-    Xtr = Columns({n: np.concatenate([r.X[n] for r in train]) for n in train[0].X.names})
-    ytr = np.concatenate([r.y for r in train])
-    seed = runs[config.train[0].label][1].seed
-    random_state = int((seed * 1_000_003 + unit) % (2**32 - 1))
+    Xtr, ytr = stack(train)
+    random_state = random_state_for(runs[config.train[0].label][1].seed, unit)
 
     fitted: list[Fitted] = []
     tuned: dict = {}
@@ -579,7 +178,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
                 rows.append((name, f"{metric}@{spec.label}" if multi else metric, float(value)))
 
     test0 = runs[config.test[0].label][0]
-    params = {k: v for k, v in test0.coefficients.items() if _worth_showing(k)}
+    params = {k: v for k, v in test0.coefficients.items() if worth_showing(k)}
     report = None
     if make_report:
         report = _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
@@ -587,16 +186,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     return StudyResult(rows=rows, params=params, report=report)
 
 
-def _worth_showing(name: str) -> bool:
-    """Drawn device coefficients shown beside a unit's scores: non-zero bias/UHFO law terms."""
-    return name.startswith(("gyro.bias.", "uhfo.", "noise.gyro"))
-
-
 # ------------------------------------------------------------------------------ the report
-def _fmt(x: float | None, digits: int = 4) -> Any:
-    return None if x is None or not np.isfinite(x) else float(x)
-
-
 def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr, unit,
             t_data, t_total) -> Report:
     import matplotlib
@@ -655,10 +245,10 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     for name in Xtr.names:
         recs.append({"input": name,
                      "paper": corr_pub.get(name),
-                     "ours (train, measured y)": _fmt(np.corrcoef(Xtr[name], ytr)[0, 1], 3),
-                     "ours (test, measured y)": _fmt(np.corrcoef(rs_test.X[name], rs_test.y)[0, 1], 3),
-                     "ours (test, true b)": _fmt(np.corrcoef(rs_test.X[name],
-                                                             rs_test.true_bias)[0, 1], 3)})
+                     "ours (train, measured y)": fmt(np.corrcoef(Xtr[name], ytr)[0, 1]),
+                     "ours (test, measured y)": fmt(np.corrcoef(rs_test.X[name], rs_test.y)[0, 1]),
+                     "ours (test, true b)": fmt(np.corrcoef(rs_test.X[name],
+                                                             rs_test.true_bias)[0, 1])})
     rep.table(Table.from_records("Correlation coefficients", recs, csv_name="correlation.csv"))
 
     # -- the paper's tables beside ours
@@ -674,14 +264,14 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
             pub = f.spec.published
             rec = {"compensator": f.spec.name, "inputs": ", ".join(f.spec.inputs)}
             if any(k in f.hyper for k in ("c", "sigma2")) or "c" in pub:
-                rec.update({"c (ours)": _fmt(f.hyper.get("c")), "c (paper)": pub.get("c"),
-                            "σ² (ours)": _fmt(f.hyper.get("sigma2")),
+                rec.update({"c (ours)": fmt(f.hyper.get("c")), "c (paper)": pub.get("c"),
+                            "σ² (ours)": fmt(f.hyper.get("sigma2")),
                             "σ² (paper)": pub.get("sigma2")})
-            rec.update({"before (ours) °/h": _fmt(s["stability_before"]),
+            rec.update({"before (ours) °/h": fmt(s["stability_before"]),
                         "before (paper) °/h": before_pub if pub else None,
-                        "after (ours) °/h": _fmt(s["stability_after"]),
+                        "after (ours) °/h": fmt(s["stability_after"]),
                         "after (paper) °/h": pub.get("stability_deg_per_h"),
-                        "improvement (ours) %": _fmt(s["improvement_pct"], 4),
+                        "improvement (ours) %": fmt(s["improvement_pct"]),
                         "improvement (paper) %": pub.get("improvement_pct")})
             recs.append(rec)
         cols: list[str] = []
@@ -699,13 +289,13 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     # -- truth-based scores
     rep.heading("Truth-based scores (what no paper could measure)", 2)
     for label, table in per_test.items():
-        recs = [{"compensator": name, **{k: _fmt(v) for k, v in s.items()}}
+        recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}
                 for name, s in table.items()]
         rep.table(Table.from_records(f"All scores, test run {label}", recs,
                                      csv_name=f"scores_{_slug(label)}.csv",
                                      note="°/h except r2_true (1) and improvement_pct (%)."))
-    hyp = [{"compensator": f.spec.name, "kind": f.spec.kind, "fit time s": _fmt(f.fit_s, 3),
-            **{k: _fmt(v) for k, v in f.hyper.items()}} for f in fitted]
+    hyp = [{"compensator": f.spec.name, "kind": f.spec.kind, "fit time s": fmt(f.fit_s),
+            **{k: fmt(v) for k, v in f.hyper.items()}} for f in fitted]
     cols = []
     for rec in hyp:
         cols += [k for k in rec if k not in cols]
@@ -791,7 +381,7 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     rep.heading("Drawn device parameters (truth)", 2)
     rep.table(Table.from_records("Device coefficients", [
         {"coefficient": k, "value": v} for k, v in rs_test.coefficients.items()
-        if _worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
     return rep
 
 

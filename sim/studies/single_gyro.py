@@ -1,0 +1,508 @@
+"""Single-gyro study building blocks shared by the recipes of papers 001-003.
+
+A run is one simulated dataset of a single-gyro device; this module turns it into the window
+series the papers model, fits compensators on train runs and scores them on test runs. The
+recipes (:mod:`sim.studies.bias_compensation`, :mod:`sim.studies.environments`,
+:mod:`sim.studies.gradient_selection`) differ in how they group runs and what tables they
+re-create; the series, the fitting and the scores are the same and live here.
+
+Study-file pieces parsed here::
+
+    train = ["paper001_train"]        # scenario names or paths (relative to the study file), or
+    test = [{scenario = "demo_cycle", seed = 7, skip_h = 1}]   # tables: seed replaces the
+                                      # scenario's noise seed; skip_h drops the first hours
+    [features]                        # the compensator inputs, computed per window
+    temperature = "g.A"               # probe giving input "T" (window mean) and "dT/dt" (K/s)
+    uhfo = true                       # input "U": the gyro's UHFO voltage [V] (window mean)
+    probes = ["housing"]              # further probes as inputs named by the probe [°C]
+    gradients = ["g.A", "g.B"]        # pairwise differences "g.A-g.B" [K] (paper 003)
+
+    [[compensator]]
+    name = "LS cubic T"               # unique label in the report
+    kind = "polynomial"               # see KINDS
+    inputs = ["T"]                    # feature names
+    params = { degree = 3 }           # estimator constructor keywords
+
+How the series are built (paper 001 §3 and §4.1): the gyro's rate is its pulse count per window
+divided by the nominal scale factor (truth group ``gyro.k0``) and the window length; the
+bias is that rate minus the Earth-rate projection on the gyro axis (the table's known
+input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
+Inputs are window means of the probe readings and the logged UHFO, and the least-squares slope
+of the temperature in each window (:mod:`estimators.features`). Windows in which the device was
+not powered over the whole window, or that start before a run's ``skip_h``, are dropped. The
+truth series is the window mean of the true bias ``truth/gyro_bias`` (what the simulator added
+to the rate), and ``truth/gyro_bias_random`` its flicker + random-walk part, which no
+temperature model can predict.
+
+Scores of one prediction ŷ on a test run (:func:`scores`, all in °/h unless stated):
+
+* ``stability_before`` / ``stability_after``: bias stability (std of ``cluster_s`` means,
+  ``ddof``) of the baseline and of the compensated series ``y − ŷ``;
+  ``improvement_pct`` = 100·(before − after)/before (paper 001 Tables 2-5, paper 003 Tables
+  4-5); ``improvement_factor`` = before/after (paper 002 Table 1);
+* ``rmse_true``, ``mae_true``, ``r2_true``: the predicted bias ``ŷ`` against the true bias
+  ``b`` (window means); ``b`` excludes the constant the output adds through the scale-factor
+  error and misalignment times the Earth rate, which the compensators fold into their constant;
+* ``resid_std_true`` = std(ŷ − b): what is left of the true bias after compensation, offset-free
+  (the bias stability a noise-free gyro would show after compensation);
+* ``law_resid_std`` = std(ŷ − (b − r)), r the random part: the error of the learnt temperature
+  law alone.
+
+The oracle ``ŷ = b − r`` (:data:`ORACLE`) is the best any input-driven model can do; its
+``stability_after`` is the floor the others approach.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import itertools
+import math
+import pathlib
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str, \
+    get_table
+from sim.study import Study, scenario_for
+
+RUN_KEYS = ("scenario", "seed", "skip_h")
+FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
+COMPENSATOR_KEYS = ("name", "kind", "inputs", "params", "table", "published")
+
+#: Compensator kinds: (module, class, extra keys the recipe itself understands).
+KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "polynomial": ("estimators.polynomial", "PolynomialRegressor", ()),
+    "stepwise": ("estimators.stepwise", "StepwiseRegressor", ()),
+    "mlr_bic": ("estimators.mlr", "MLRBICRegressor", ()),
+    "lssvm": ("estimators.lssvm_cv", "LSSVMRegressorCV", ()),
+    "ir_lssvm": ("estimators.robust_lssvm", "RobustLSSVMRegressor",
+                 ("gammas", "sigma2s", "tune_cv", "tune_scoring")),
+    "rvr": ("estimators.rvr", "RVR", ()),
+    "hho_rvr": ("estimators.tuned", "HHORVR", ()),
+    "pso_svr": ("estimators.tuned", "PSOSVR", ()),
+    "rbf": ("estimators.rbf_network", "RBFNetwork", ()),
+    "rbf_modified": ("estimators.rbf_modified", "ModifiedRBFNetwork", ()),
+}
+
+#: Kinds whose fitted model prints an equation (estimators.term_model).
+EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
+
+ORACLE = "truth: temperature law"
+RAW = "raw"
+DEG_PER_H_PER_RAD_PER_S = 180.0 / math.pi * 3600.0
+
+# ------------------------------------------------------------------------------ configuration
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of a study: a scenario, optionally with another noise seed; windows that start
+    before ``skip_s`` (from the start of the run) are dropped (paper 002's 1 h warm-up)."""
+
+    ref: str
+    seed: int | None
+    ctx: Ctx
+    skip_s: float = 0.0
+
+    @property
+    def label(self) -> str:
+        stem = pathlib.Path(self.ref).name
+        stem = stem[:-5] if stem.endswith(".toml") else stem
+        return stem if self.seed is None else f"{stem}-seed{self.seed}"
+
+
+@dataclass(frozen=True)
+class CompensatorSpec:
+    name: str
+    kind: str
+    inputs: tuple[str, ...]
+    params: dict
+    table: str
+    published: dict
+    ctx: Ctx
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """How a run becomes window series: window length, gyro axis and the inputs."""
+
+    window_s: float
+    gyro: str | None
+    temperature: str | None
+    uhfo: bool
+    probes: tuple[str, ...]
+    gradients: tuple[str, ...]
+
+    def feature_names(self) -> list[str]:
+        names = []
+        if self.temperature:
+            names += ["T", "dT/dt"]
+        if self.uhfo:
+            names.append("U")
+        names += list(self.probes)
+        names += [f"{a}-{b}" for a, b in itertools.combinations(self.gradients, 2)]
+        return names
+
+def estimator_class(kind: str):
+    module, cls, _ = KINDS[kind]
+    return getattr(importlib.import_module(module), cls)
+
+
+def parse_runs(table: dict, key: str, ctx: Ctx) -> tuple[RunSpec, ...]:
+    items = get_list(table, key, ctx, min_len=1)
+    out = []
+    for i, item in enumerate(items):
+        ictx = ctx.child(key).item(i)
+        if isinstance(item, str):
+            if not item.strip():
+                raise ctx.error(f"{key}[{i}]", "expected a scenario name or path, got an "
+                                               "empty string")
+            out.append(RunSpec(item, None, ictx))
+        elif isinstance(item, dict):
+            check_known_keys(item, RUN_KEYS, ictx)
+            out.append(RunSpec(get_str(item, "scenario", ictx),
+                               get_int(item, "seed", ictx, None, min=0, max=2**63 - 1), ictx,
+                               3600.0 * get_float(item, "skip_h", ictx, 0.0, min=0.0)))
+        else:
+            raise ctx.error(f"{key}[{i}]", f"expected a scenario name or a table "
+                                           f"{{scenario = ..., seed = ..., skip_h = ...}}, "
+                                           f"got {item!r}")
+    labels = [r.label for r in out]
+    dup = {x for x in labels if labels.count(x) > 1}
+    if dup:
+        raise ctx.error(key, f"run {sorted(dup)[0]!r} is listed twice")
+    return tuple(out)
+
+
+def str_list(table: dict, key: str, ctx: Ctx, min_len: int = 0) -> tuple[str, ...]:
+    values = get_list(table, key, ctx, [], min_len=min_len)
+    for v in values:
+        if not isinstance(v, str) or not v:
+            raise ctx.error(key, f"expected an array of non-empty strings, got {v!r}")
+    if len(set(values)) != len(values):
+        raise ctx.error(key, f"value {values!r} not allowed; names must be distinct")
+    return tuple(values)
+
+
+def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
+                      published_keys: tuple[str, ...]) -> CompensatorSpec:
+    """One ``[[compensator]]`` table (``ctx`` names the array); ``published_keys``: what its
+    ``published`` table may hold (numbers, or ``equation``: text)."""
+    cctx = ctx.item(i)
+    if not isinstance(item, dict):
+        raise Ctx(ctx.source).error(cctx.path, f"expected a table, got {item!r}")
+    check_known_keys(item, COMPENSATOR_KEYS, cctx)
+    name = get_str(item, "name", cctx)
+    if not name.strip() or name in (RAW, ORACLE):
+        raise cctx.error("name", f"value {name!r} not allowed (empty or reserved)")
+    kind = get_str(item, "kind", cctx, choices=KINDS)
+    inputs = str_list(item, "inputs", cctx, min_len=1)
+    for x in inputs:
+        if x not in features:
+            raise cctx.error("inputs", f"unknown input {x!r}; the [features] table gives: "
+                                       f"{', '.join(features) or '(none)'}")
+    params = get_table(item, "params", cctx, {})
+    allowed = set(estimator_class(kind)().get_params()) | set(KINDS[kind][2])
+    allowed.discard("feature_names")
+    check_known_keys(params, sorted(allowed), cctx.child("params"))
+    published = get_table(item, "published", cctx, {})
+    pctx = cctx.child("published")
+    check_known_keys(published, published_keys, pctx)
+    for k in published:
+        if k == "equation":
+            get_str(published, k, pctx)
+        else:
+            get_float(published, k, pctx)
+    return CompensatorSpec(name=name, kind=kind, inputs=inputs, params=params,
+                           table=get_str(item, "table", cctx, ""), published=published,
+                           ctx=cctx)
+
+
+def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> FeatureSpec:
+    """The ``[features]`` table (``ctx``: the file's root) into a :class:`FeatureSpec`."""
+    ftable = get_table(data, "features", ctx, {})
+    fctx = ctx.child("features")
+    check_known_keys(ftable, FEATURE_KEYS, fctx)
+    gradients = str_list(ftable, "gradients", fctx)
+    if len(gradients) == 1:
+        raise fctx.error("gradients", "give at least 2 probes (or none)")
+    spec = FeatureSpec(window_s=window_s, gyro=gyro,
+                       temperature=get_str(ftable, "temperature", fctx, None),
+                       uhfo=get_bool(ftable, "uhfo", fctx, False),
+                       probes=str_list(ftable, "probes", fctx), gradients=gradients)
+    if not spec.feature_names():
+        raise fctx.error("temperature", "no inputs: give at least one of temperature, uhfo, "
+                                        "probes, gradients")
+    return spec
+
+
+def parse_compensators(data: dict, ctx: Ctx, features: list[str],
+                       published_keys: tuple[str, ...]) -> tuple[CompensatorSpec, ...]:
+    """Every ``[[compensator]]`` table (at least one; names unique)."""
+    items = data.get("compensator")
+    if not isinstance(items, list) or not items:
+        raise ctx.error("compensator", "missing: give at least one [[compensator]] table")
+    comps = tuple(parse_compensator(item, i, ctx.child("compensator"), features, published_keys)
+                  for i, item in enumerate(items))
+    names = [c.name for c in comps]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise ctx.error("compensator", f"name {sorted(dup)[0]!r} is used twice")
+    return comps
+
+
+def check_scenarios(study: Study, runs: tuple[RunSpec, ...]) -> None:
+    """Every run's scenario must exist and parse (message names the study key)."""
+    for spec in runs:
+        scenario_for(study, spec.ref, ctx=spec.ctx)
+
+
+# ------------------------------------------------------------------------------ datasets
+def _dataset_matches(path: pathlib.Path, scenario) -> bool:
+    import h5py
+    try:
+        with h5py.File(path, "r") as f:
+            a = f.attrs
+
+            def text(key: str) -> str:
+                v = a.get(key, "")
+                return v.decode() if isinstance(v, bytes) else str(v)
+            return (text("scenario_text") == scenario.text
+                    and int(a.get("seed", -1)) == scenario.seed
+                    and int(a.get("unit", -1)) == scenario.unit
+                    and int(a.get("device_seed", -1)) == scenario.realisation_seed
+                    and text("device_text") == scenario.device.text
+                    and text("thermal_preset_text") == scenario.device.thermal.text)
+    except (OSError, KeyError, ValueError, TypeError):
+        return False
+
+
+def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int,
+                progress: bool) -> tuple[pathlib.Path, Any, bool]:
+    """Simulate ``spec`` into ``workdir/data/<label>.h5`` unless a matching file is there.
+    Returns (path, scenario, reused)."""
+    from sim.simulate import simulate
+    scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
+    if spec.seed is not None:
+        scenario = dataclasses.replace(scenario, seed=spec.seed)
+    folder = workdir / "data"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{spec.label}.h5"
+    if path.is_file() and _dataset_matches(path, scenario):
+        return path, scenario, True
+    simulate(scenario, path, progress=progress)
+    return path, scenario, False
+
+
+def _strings(values) -> list[str]:
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
+
+
+@dataclass
+class RunSeries:
+    """The 100 s window series of one run (°/h for rates, °C, K/s, V)."""
+
+    label: str
+    path: pathlib.Path
+    seed: int
+    device_seed: int
+    time_s: np.ndarray          # window end times
+    y: np.ndarray               # measured bias: output − Earth projection [°/h]
+    true_bias: np.ndarray       # b: window mean of truth/gyro_bias [°/h]
+    true_random: np.ndarray     # r: its flicker + random-walk part [°/h]
+    X: Any                      # estimators.columns.Columns of the inputs
+    earth_deg_per_h: float
+    coefficients: dict[str, float]
+
+
+def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
+             skip_s: float = 0.0) -> RunSeries:
+    """Build the window series of one dataset (see the module docstring); windows that start
+    before ``skip_s`` are dropped."""
+    import h5py
+
+    from estimators.columns import Columns
+    from estimators.features import pairwise_gradients, samples_per_window, temperature_rate, \
+        window_average
+
+    W = config.window_s
+    with h5py.File(path, "r") as f:
+        dctx = Ctx(ctx.source, "data")
+        gyros = _strings(f["imu/gyro"][:])
+        axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
+        if config.gyro and config.gyro not in gyros:
+            raise dctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
+                                     f"axes are {', '.join(gyros)}")
+        if axis is None:
+            raise dctx.error("gyro", f"missing: the device has several gyros "
+                                     f"({', '.join(gyros)}); say which one")
+        if config.uhfo and "imu/uhfo" not in f:
+            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
+        gi = gyros.index(axis)
+        rate = float(f["imu"].attrs["sample_rate_hz"])
+        step = float(f.attrs["thermal_step_s"])
+        try:
+            m_s = samples_per_window(rate, W)
+            m_t = samples_per_window(1.0 / step, W)
+        except ValueError as exc:
+            raise dctx.error("window_s", str(exc)) from None
+        coeff = dict(zip(_strings(f["truth/coefficient"][:]),
+                         map(float, f["truth/coefficient_value"][:])))
+        k0 = coeff[f"gyro.k0[{axis}]"]
+        pulses = f["imu/gyro_pulses"][:, gi]
+        n_win = min(pulses.shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
+        counts = pulses[: n_win * m_s].astype(np.int64).reshape(n_win, m_s).sum(axis=1)
+        rate_out = counts / (k0 * W)                                           # rad/s
+        body = _strings(f["truth/body"][:])
+        dtheta = f["truth/dtheta_step"][: n_win * m_t, body.index(axis)]
+        earth = dtheta.reshape(n_win, m_t).sum(axis=1) / W                     # rad/s
+        y = (rate_out - earth) * DEG_PER_H_PER_RAD_PER_S
+        tb = f["truth/gyro_bias"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
+        tr = f["truth/gyro_bias_random"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
+        power = f["thermal/power_on"][: n_win * m_t].reshape(n_win, m_t).min(axis=1) > 0
+        probes = _strings(f["probes/probe"][:])
+        temps = f["probes/temperature"][: n_win * m_t, :]
+        uhfo = f["imu/uhfo"][: n_win * m_t, gi].astype(np.float64) if config.uhfo else None
+        seed = int(f.attrs["seed"])
+        device_seed = int(f.attrs.get("device_seed", seed))
+
+    def probe(name: str, key: str) -> np.ndarray:
+        if name not in probes:
+            raise Ctx(ctx.source, "features").error(
+                key, f"unknown probe {name!r}; the device's probes are {', '.join(probes)}")
+        return temps[:, probes.index(name)].astype(np.float64)
+
+    thermal_rate = 1.0 / step
+    cols: dict[str, np.ndarray] = {}
+    if config.temperature:
+        T = probe(config.temperature, "temperature")
+        cols["T"] = window_average(T, thermal_rate, W)
+        cols["dT/dt"] = temperature_rate(T, thermal_rate, W)
+    if config.uhfo:
+        cols["U"] = window_average(uhfo, thermal_rate, W)
+    for name in config.probes:
+        cols[name] = window_average(probe(name, "probes"), thermal_rate, W)
+    if config.gradients:
+        means = Columns({g: window_average(probe(g, "gradients"), thermal_rate, W)
+                         for g in config.gradients})
+        cols.update(pairwise_gradients(means).items())
+    keep = power & (np.arange(n_win) * W >= skip_s - 1e-9)
+    X = Columns({k: v[keep] for k, v in cols.items()})
+    time_s = ((np.arange(n_win) + 1) * W)[keep]
+    return RunSeries(label=label, path=path, seed=seed, device_seed=device_seed,
+                     time_s=time_s, y=y[keep],
+                     true_bias=window_average(tb, thermal_rate, W)[keep],
+                     true_random=window_average(tr, thermal_rate, W)[keep],
+                     X=X, earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
+                     coefficients=coeff)
+
+
+# ------------------------------------------------------------------------------ fitting
+def make_estimator(spec: CompensatorSpec, random_state: int):
+    """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
+    cls = estimator_class(spec.kind)
+    params = {k: v for k, v in spec.params.items() if k not in KINDS[spec.kind][2]}
+    if "random_state" in cls().get_params() and "random_state" not in params:
+        params["random_state"] = random_state
+    return cls(**params)
+
+
+@dataclass
+class Fitted:
+    spec: CompensatorSpec
+    model: Any
+    fit_s: float
+    hyper: dict[str, float]
+
+
+def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
+        tuned: dict | None = None) -> Fitted:
+    """Fit ``spec`` on the train windows. A ValueError from the estimator (a bad parameter
+    value in the study file) becomes a UserInputError naming the compensator. ``tuned`` caches
+    the (gamma, sigma2) of IR-LSSVM's unweighted tuning per inputs and tuning settings, so the
+    four weight functions of one input set share one cross-validation (as in paper 001 §2.3,
+    where the weights are applied to the one tuned LS-SVM)."""
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+    t0 = time.perf_counter()
+    Xi = X.select(spec.inputs)
+    hyper: dict[str, float] = {}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            model = make_estimator(spec, random_state)
+            if spec.kind == "ir_lssvm" and not ("gamma" in spec.params and "sigma2" in spec.params):
+                from estimators.lssvm_cv import LSSVMRegressorCV
+                p = spec.params
+                kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
+                key = (spec.inputs, repr(sorted(kw.items())), repr(p.get("tune_cv", 10)),
+                       repr(p.get("tune_scoring", "mse")))
+                if tuned is None or key not in tuned:
+                    tuner = LSSVMRegressorCV(cv=p.get("tune_cv", 10),
+                                             scoring=p.get("tune_scoring", "mse"),
+                                             random_state=random_state, **kw).fit(Xi, y)
+                    pair = (tuner.gamma_, tuner.sigma2_)
+                    if tuned is not None:
+                        tuned[key] = pair
+                else:
+                    pair = tuned[key]
+                model.set_params(gamma=pair[0], sigma2=pair[1])
+            model.fit(Xi, y)
+    except (ValueError, TypeError) as exc:
+        raise spec.ctx.error("params", f"compensator {spec.name!r} ({spec.kind}) could not be "
+                                       f"fitted: {' '.join(str(exc).split())}") from None
+    for attr, key in (("gamma_", "c"), ("sigma2_", "sigma2"), ("weight_param_", "weight_param"),
+                      ("width_", "width"), ("n_centers_", "centres")):
+        v = getattr(model, attr, None)
+        if isinstance(v, (int, float, np.floating, np.integer)) and v is not None:
+            hyper[key] = float(v)
+    if spec.kind == "ir_lssvm":
+        hyper["c"], hyper["sigma2"] = float(model.gamma), float(model.sigma2)
+    if hasattr(model, "best_params_"):
+        hyper.update({k: float(v) for k, v in model.best_params_.items()})
+    return Fitted(spec, model, time.perf_counter() - t0, hyper)
+
+
+# ------------------------------------------------------------------------------ scoring
+def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, window_s: float,
+           cluster_s: float, ddof: int, before: float) -> dict[str, float]:
+    """Paper-style and truth-based scores of one prediction (definitions: module docstring)."""
+    from estimators import metrics as M
+    rate = 1.0 / window_s
+    after = M.bias_stability(y - y_hat, rate, cluster_s, ddof)
+    out = {"stability_before": before, "stability_after": after,
+           "improvement_pct": M.improvement_percent(before, after),
+           "improvement_factor": before / after if after > 0 else float("inf"),
+           "rmse_true": M.rmse(b, y_hat), "mae_true": M.mae(b, y_hat),
+           "r2_true": M.r2(b, y_hat),
+           "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
+           "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))}
+    return out
+
+
+
+
+def worth_showing(name: str) -> bool:
+    """Drawn device coefficients shown beside a unit's scores: non-zero bias/UHFO law terms."""
+    return name.startswith(("gyro.bias.", "uhfo.", "noise.gyro"))
+
+
+def fmt(x: float | None) -> float | None:
+    """A table cell: ``None`` (shown as —) for a missing or non-finite number."""
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def stack(runs: list[RunSeries]):
+    """(X, y) of several runs' windows stacked in run order (the train set)."""
+    from estimators.columns import Columns
+    X = Columns({n: np.concatenate([r.X[n] for r in runs]) for n in runs[0].X.names})
+    return X, np.concatenate([r.y for r in runs])
+
+
+def random_state_for(seed: int, unit: int) -> int:
+    """The estimators' random_state for a study run: from the first train run's noise seed and
+    the Monte Carlo unit."""
+    return int((seed * 1_000_003 + unit) % (2**32 - 1))
