@@ -54,7 +54,7 @@ from sim.studies.single_gyro import (EQUATION_KINDS, KINDS, ORACLE, RAW, Compens
                                      FeatureSpec, Fitted, RunSeries, RunSpec, check_scenarios,
                                      dataset_for, fit, fmt, parse_compensators, parse_features,
                                      parse_runs, random_state_for, read_run, scores, stack,
-                                     worth_showing)
+                                     worth_showing, definitions)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -222,21 +222,7 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
                    f"wall time: data {t_data:.1f} s, total {t_total:.1f} s"])
 
     rep.heading("Definitions", 2)
-    rep.bullets([
-        "y: measured bias per window = pulses / (nominal scale factor × window) − Earth-rate "
-        "projection, °/h; ŷ: a compensator's prediction; y − ŷ: the compensated series.",
-        "b: true bias = window mean of truth/gyro_bias (temperature law + flicker + random "
-        "walk), °/h; r: its flicker + random-walk part (truth/gyro_bias_random).",
-        "stability_before / stability_after: bias stability of y / of y − ŷ (paper 001).",
-        "rmse_true, mae_true, r2_true: ŷ against b. b leaves out the constant that the "
-        "scale-factor error and misalignment add to a static gyro's output (Earth rate × a few "
-        "ppm/arcsec), which the compensators fold into their constant.",
-        "resid_std_true = std(ŷ − b): true bias left after compensation, offset-free (the "
-        "stability a noise-free gyro would show); law_resid_std = std(ŷ − (b − r)): error of "
-        "the learnt temperature law alone.",
-        f"'{ORACLE}': the oracle ŷ = b − r (the true temperature law); its stability_after is "
-        f"the floor for any input-driven model. '{RAW}': no compensation (ŷ = train mean).",
-    ])
+    rep.bullets(definitions())
 
     # -- correlation (paper 001 Table 1)
     rep.heading("Correlation of the bias with the inputs (paper 001 Table 1)", 2)

@@ -506,3 +506,24 @@ def random_state_for(seed: int, unit: int) -> int:
     """The estimators' random_state for a study run: from the first train run's noise seed and
     the Monte Carlo unit."""
     return int((seed * 1_000_003 + unit) % (2**32 - 1))
+
+
+def definitions() -> list[str]:
+    """The report's definitions of the series and scores (module docstring), as bullets."""
+    return [
+        "y: measured bias per window = pulses / (nominal scale factor × window) − Earth-rate "
+        "projection, °/h; ŷ: a compensator's prediction; y − ŷ: the compensated series.",
+        "b: true bias = window mean of truth/gyro_bias (temperature law + flicker + random "
+        "walk), °/h; r: its flicker + random-walk part (truth/gyro_bias_random).",
+        "stability_before / stability_after: bias stability of y / of y − ŷ (papers 001, "
+        "003); improvement_pct = 100·(before − after)/before; improvement_factor = before / "
+        "after (paper 002).",
+        "rmse_true, mae_true, r2_true: ŷ against b. b leaves out the constant that the "
+        "scale-factor error and misalignment add to a static gyro's output (Earth rate × a few "
+        "ppm/arcsec), which the compensators fold into their constant.",
+        "resid_std_true = std(ŷ − b): true bias left after compensation, offset-free (the "
+        "stability a noise-free gyro would show); law_resid_std = std(ŷ − (b − r)): error of "
+        "the learnt temperature law alone.",
+        f"'{ORACLE}': the oracle ŷ = b − r (the true temperature law); its stability_after is "
+        f"the floor for any input-driven model. '{RAW}': no compensation (ŷ = train mean).",
+    ]
