@@ -1,0 +1,406 @@
+"""The ``environments`` recipe (sim/studies/environments.py) and the shipped paper002 study.
+
+A short two-environment study (constant 20 °C and a 5 °C/min cycle, 2.5 h at 10 Hz each, train
+and test seeds, the rlg_002 device) runs once per module; the tests check its report and
+Table 1, recompute its truth-based scores from the HDF5 files with h5py/numpy alone, check
+that a study's rows depend on the study and the unit only, and that mistakes in study files
+are one-line user errors naming the key.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+
+import h5py
+import numpy as np
+import pytest
+
+from sim.errors import UserInputError
+from sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEG_PER_H = 180.0 / math.pi * 3600.0
+WINDOW_S = 100.0
+SKIP_S = 1800.0
+
+CONST = """
+name = "p002_short_const"
+device = "rlg_002"
+seed = 1
+duration_h = 2.5
+[acquisition]
+sample_rate_hz = 10
+thermal_step_s = 1
+[power]
+on_at_s = 0
+[chamber]
+start_c = 20.0
+[[chamber.segments]]
+type = "hold"
+duration_h = 2.5
+"""
+
+CYCLE = """
+name = "p002_short_cycle"
+device = "rlg_002"
+seed = 2
+duration_h = 2.5
+[acquisition]
+sample_rate_hz = 10
+thermal_step_s = 1
+[power]
+on_at_h = 0.5
+[chamber]
+start_c = 0.0
+[[chamber.segments]]
+type = "hold"
+duration_h = 0.5
+[[chamber.segments]]
+type = "repeat"
+count = 3
+segments = [
+  { type = "ramp", to_c = 40.0, rate_c_per_min = 5.0 },
+  { type = "hold", duration_min = 10 },
+  { type = "ramp", to_c = -10.0, rate_c_per_min = 5.0 },
+  { type = "hold", duration_min = 10 },
+]
+"""
+
+STUDY = """
+[study]
+name = "p002_short"
+description = "short paper-002-like study for the tests"
+paper = "002"
+recipe = "environments"
+device_seed = 2002
+
+[data]
+window_s = 100
+
+[features]
+temperature = "g.A"
+
+[metrics]
+cluster_s = 100
+ddof = 1
+
+[[compensator]]
+name = "MLR"
+kind = "mlr_bic"
+inputs = ["T", "dT/dt"]
+params = { candidate_terms = ["T", "dT/dt"], forced_terms = ["T", "dT/dt"] }
+published = { equation = "constant + T + dT/dt" }
+
+[[compensator]]
+name = "RBFNN"
+kind = "rbf"
+inputs = ["T", "dT/dt"]
+params = { goal = 1e-6, spread = 1.0, max_centers = 30 }
+
+[[compensator]]
+name = "Modified RBFNN"
+kind = "rbf_modified"
+inputs = ["T", "dT/dt"]
+params = { rho = 0.05, spread = 1.0 }
+
+[[environment]]
+name = "20 °C"
+train = [{ scenario = "const.toml", seed = 11, skip_h = 0.5 }]
+test = [{ scenario = "const.toml", seed = 12, skip_h = 0.5 }]
+[environment.published]
+stability_before_deg_per_h = 6.796e-3
+stability_after_deg_per_h = { "MLR" = 13.953e-4, "RBFNN" = 8.944e-4, "Modified RBFNN" = 6.922e-4 }
+improvement_factor = { "MLR" = 4.87, "RBFNN" = 7.60, "Modified RBFNN" = 9.82 }
+running_time_s = { "RBFNN" = 142.4, "Modified RBFNN" = 82.6 }
+
+[[environment]]
+name = "5 °C/min"
+train = [{ scenario = "cycle.toml", seed = 21, skip_h = 0.5 }]
+test = [{ scenario = "cycle.toml", seed = 22, skip_h = 0.5 }]
+"""
+
+METHODS = ("MLR", "RBFNN", "Modified RBFNN")
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> pathlib.Path:
+    """Study file and its two scenarios in one folder (scenario paths are relative to it)."""
+    d = tmp_path_factory.mktemp("p002_files")
+    (d / "const.toml").write_text(CONST)
+    (d / "cycle.toml").write_text(CYCLE)
+    (d / "study.toml").write_text(STUDY)
+    return d
+
+
+@pytest.fixture(scope="module")
+def study(folder):
+    return load_study(str(folder / "study.toml"))
+
+
+@pytest.fixture(scope="module")
+def ran(study, tmp_path_factory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("p002_run")
+    assert run_study(study, out, progress=False) == out / "report.md"
+    return out
+
+
+def _csv(path: pathlib.Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _num(cell: str) -> float | None:
+    return float(cell) if cell != "" else None
+
+
+# ------------------------------------------------------------------------------ shipped study
+def test_shipped_paper002_validates_and_lists():
+    study = load_study("paper002")
+    assert (study.recipe, study.paper, study.device_seed) == ("environments", "002", 2002)
+    cfg = recipe_module(study).check(study)
+    assert [e.name for e in cfg.environments] == ["-40 °C", "20 °C", "60 °C", "1 °C/min",
+                                                  "3 °C/min", "5 °C/min"]
+    assert [c.kind for c in cfg.compensators] == ["mlr_bic", "rbf", "rbf_modified"]
+    assert cfg.window_s == 100.0 and cfg.cluster_s == 100.0 and cfg.temperature == "g.A"
+    seeds = []
+    for env in cfg.environments:
+        (train,), (test,) = env.train, env.test
+        assert train.ref == test.ref and train.seed != test.seed      # data sets 1 and 2
+        assert train.skip_s == test.skip_s == 3600.0                  # the 1 h warm-up
+        seeds += [train.seed, test.seed]
+    assert len(set(seeds)) == 12
+    m40, c5 = cfg.environments[0].published, cfg.environments[5].published
+    assert m40.stability_before == pytest.approx(7.218e-3)
+    assert m40.stability_after["MLR (BIC)"] == pytest.approx(13.953e-4)
+    assert m40.improvement_factor["Modified RBFNN"] == pytest.approx(10.43)
+    assert "MLR (BIC)" not in m40.running_time_s                     # "—" in the paper
+    assert c5.improvement_factor["RBFNN"] == pytest.approx(7.61)
+    # Table 1 is before/after: its factors agree with its own σ to the printed digits
+    for env in cfg.environments:
+        p = env.published
+        for name, after in p.stability_after.items():
+            assert p.stability_before / after == pytest.approx(p.improvement_factor[name],
+                                                               rel=0.03)
+    listed = dict(list_studies())
+    assert "paper002" in listed and "modified RBFNN" in listed["paper002"]
+
+
+# ------------------------------------------------------------------------------ bad files
+GOOD = (ROOT / "scenarios" / "studies" / "paper002.toml").read_text()
+LAST_ENV = GOOD.index('[[environment]]\nname = "5 °C/min"')
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ("window_s = 100", "window_secs = 100", "data.window_secs: unknown key"),
+    ('name = "20 °C"\ntrain', 'name = "20 °C"\ntrian', "environment[1].trian: unknown key"),
+    ('inputs = ["T", "dT/dt"]\nparams = { degree = 2 }',
+     'inputs = ["T", "dT/dx"]\nparams = { degree = 2 }', "unknown input 'dT/dx'"),
+    ("stability_before_deg_per_h = 7.218e-3", "stability_before_deg_per_h = -7.218e-3",
+     "environment[0].published.stability_before_deg_per_h: value -0.007218 not allowed"),
+    ("stability_before_deg_per_h = 7.218e-3", 'stability_before_deg_per_h = "7.218e-3"',
+     "environment[0].published.stability_before_deg_per_h: expected a number"),
+    ('improvement_factor = { "MLR (BIC)" = 5.17',
+     'improvement_factor = { "MLR" = 5.17',
+     "environment[0].published.improvement_factor.MLR: unknown key"),
+    ('running_time_s = { "RBFNN" = 140.8', 'running_time_s = { "RBFNN" = -140.8',
+     "environment[0].published.running_time_s.RBFNN: value -140.8 not allowed"),
+    ('name = "60 °C"', 'name = "20 °C"', "environment '20 °C' is named twice"),
+    ('name = "60 °C"', 'name = "60@C"', "environment[2].name: value '60@C' not allowed"),
+    ('seed = 2201', 'seed = "2201"', "environment[0].test[0].seed: expected an integer"),
+    ('scenario = "paper002_const_60", seed = 2103',
+     'scenario = "paper002_const_70", seed = 2103', "unknown scenario 'paper002_const_70'"),
+    ("ddof = 1", "ddof = 2", "metrics.ddof: value 2 not allowed"),
+])
+def test_bad_study_files_are_one_line_user_errors(old, new, expected, tmp_path):
+    assert old in GOOD
+    path = tmp_path / "bad.toml"
+    path.write_text(GOOD.replace(old, new, 1))
+    with pytest.raises(UserInputError) as err:
+        load_study(str(path))
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: ") and "\n" not in msg
+    assert expected in msg
+
+
+def test_missing_environments_and_compensators_are_user_errors(tmp_path):
+    no_env = GOOD[:GOOD.index("[[environment]]")]
+    path = tmp_path / "noenv.toml"
+    path.write_text(no_env)
+    with pytest.raises(UserInputError, match=r"noenv.toml: environment: missing: give at "
+                                             r"least one \[\[environment\]\]"):
+        load_study(str(path))
+    one_env = GOOD[:LAST_ENV]
+    start = one_env.index("[[compensator]]")
+    end = one_env.index("# ------", start)
+    path.write_text(one_env[:start] + one_env[end:])
+    with pytest.raises(UserInputError, match="compensator: missing"):
+        load_study(str(path))
+
+
+# ------------------------------------------------------------------------------ the run
+def test_report_files_and_table1_rows(ran):
+    md = (ran / "report.md").read_text()
+    html = (ran / "report.html").read_text()
+    for heading in ("Runs, seeds and software", "Definitions", "Table 1 re-created",
+                    "Truth-based scores", "Rankings: the paper's claims against ours", "Why",
+                    "Figures", "Study file"):
+        assert heading in md
+    for fig in ("bias_over_time.png", "bias_vs_temperature.png", "allan_deviation.png"):
+        assert (ran / fig).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"({fig})" in md
+    assert html.count("src='data:image/png;base64,") == 3
+    rows = _csv(ran / "table1.csv")
+    cols = list(rows[0])
+    assert cols == ["quantity", "method", "20 °C ours", "20 °C paper", "5 °C/min ours",
+                    "5 °C/min paper"]
+    keyed = {(r["quantity"], r["method"]): r for r in rows}
+    before = keyed[("before σ (×10⁻³ °/h)", "raw")]
+    assert _num(before["20 °C paper"]) == pytest.approx(6.796)
+    assert before["5 °C/min paper"] == ""                          # no published numbers
+    for m in METHODS:
+        after = keyed[("after σ (×10⁻⁴ °/h)", m)]
+        factor = keyed[("improvement factor (before/after)", m)]
+        timing = keyed[("running time (s)", m)]
+        for env in ("20 °C", "5 °C/min"):        # ours: factor = before / after
+            assert _num(factor[f"{env} ours"]) == pytest.approx(
+                _num(before[f"{env} ours"]) * 10 / _num(after[f"{env} ours"]), rel=1e-9)
+            assert 0 < _num(timing[f"{env} ours"]) < 60
+    assert _num(keyed[("improvement factor (before/after)", "Modified RBFNN")]
+                ["20 °C paper"]) == pytest.approx(9.82)
+    assert keyed[("running time (s)", "MLR")]["20 °C paper"] == ""
+    assert ("after σ (×10⁻⁴ °/h)", "truth: temperature law") in keyed
+    # the before check, the ranking table and the generated verdicts
+    check = {r["environment"]: r for r in _csv(ran / "before_check.csv")}
+    assert _num(check["20 °C"]["ours / paper"]) == pytest.approx(
+        _num(before["20 °C ours"]) / 6.796, rel=1e-6)
+    claims = _csv(ran / "ranking_checks.csv")
+    assert {c["claim (paper)"] for c in claims} == {"modified RBFNN ≥ RBFNN", "RBFNN > MLR",
+                                                    "modified RBFNN > MLR"}
+    assert all(c["by σ after"] in ("holds", "holds (tie)", "tie", "does NOT hold")
+               for c in claims)
+    assert "Paper: RBFNN > MLR. Ours: holds by bias stability in" in md
+    fits = {(r["environment"], r["compensator"]): r for r in _csv(ran / "fitted_models.csv")}
+    assert fits[("20 °C", "MLR")]["terms / centres"] == "1 + T + dT/dt"     # forced terms
+    assert len(_csv(ran / "spread_sensitivity.csv")) == 2 * 4
+
+
+def _windows(x: np.ndarray, m: int) -> np.ndarray:
+    n = x.shape[0] // m
+    return x[: n * m].reshape(n, m, *x.shape[1:])
+
+
+def _series(path: pathlib.Path) -> dict[str, np.ndarray]:
+    """Independent re-reading of a dataset with h5py/numpy: the 100 s windows that start at or
+    after SKIP_S with the gyro powered throughout — measured bias y (east gyro: no Earth rate),
+    window-mean T and its least-squares slope (probe g.A), true bias b and its random part r."""
+    with h5py.File(path, "r") as f:
+        rate = float(f["imu"].attrs["sample_rate_hz"])
+        step = float(f.attrs["thermal_step_s"])
+        names = [n.decode() for n in f["truth/coefficient"][:]]
+        k0 = float(f["truth/coefficient_value"][names.index("gyro.k0[x]")])
+        pulses = f["imu/gyro_pulses"][:, 0].astype(np.int64)
+        probes = [p.decode() for p in f["probes/probe"][:]]
+        T = f["probes/temperature"][:, probes.index("g.A")].astype(float)
+        b = f["truth/gyro_bias"][:, 0] * DEG_PER_H
+        r = f["truth/gyro_bias_random"][:, 0] * DEG_PER_H
+        power = f["thermal/power_on"][:]
+        dtheta = f["truth/dtheta_step"][:, 0]
+    ms, mt = round(WINDOW_S * rate), round(WINDOW_S / step)
+    n = min(pulses.shape[0] // ms, T.shape[0] // mt)
+    y = (_windows(pulses, ms)[:n].sum(axis=1) / (k0 * WINDOW_S)
+         - _windows(dtheta, mt)[:n].sum(axis=1) / WINDOW_S) * DEG_PER_H
+    Tw = _windows(T, mt)[:n]
+    t = np.arange(mt) * step
+    slope = np.array([np.polyfit(t, w, 1)[0] for w in Tw])
+    keep = (_windows(power, mt)[:n].min(axis=1) > 0) & (np.arange(n) * WINDOW_S >= SKIP_S)
+    return {"y": y[keep], "T": Tw.mean(axis=1)[keep], "dTdt": slope[keep],
+            "b": _windows(b, mt)[:n].mean(axis=1)[keep],
+            "r": _windows(r, mt)[:n].mean(axis=1)[keep]}
+
+
+def test_truth_scores_match_an_independent_recomputation(ran):
+    table = {(r["environment"], r["compensator"]): {k: _num(v) for k, v in r.items()
+                                                    if k not in ("environment", "compensator")}
+             for r in _csv(ran / "truth_scores.csv")}
+    for env, stem in (("20 °C", "const"), ("5 °C/min", "cycle")):
+        train = _series(ran / "data" / f"{stem}-seed{11 if stem == 'const' else 21}.h5")
+        test = _series(ran / "data" / f"{stem}-seed{12 if stem == 'const' else 22}.h5")
+        assert test["y"].size == 72                                # 2 h of 100 s windows
+        raw = float(np.std(test["y"], ddof=1))
+        # MLR with forced terms: constant + T + dT/dt by numpy least squares
+        A = np.column_stack([np.ones_like(train["T"]), train["T"], train["dTdt"]])
+        coef, *_ = np.linalg.lstsq(A, train["y"], rcond=None)
+        pred = np.column_stack([np.ones_like(test["T"]), test["T"], test["dTdt"]]) @ coef
+        mlr = table[(env, "MLR")]
+        assert mlr["stability_before"] == pytest.approx(raw, rel=1e-6)
+        assert mlr["stability_after"] == pytest.approx(np.std(test["y"] - pred, ddof=1),
+                                                       rel=1e-6)
+        assert mlr["improvement_factor"] == pytest.approx(
+            raw / np.std(test["y"] - pred, ddof=1), rel=1e-6)
+        assert mlr["rmse_true"] == pytest.approx(np.sqrt(np.mean((pred - test["b"]) ** 2)),
+                                                 rel=1e-6)
+        assert mlr["resid_std_true"] == pytest.approx(np.std(pred - test["b"], ddof=1),
+                                                      rel=1e-6)
+        assert mlr["law_resid_std"] == pytest.approx(
+            np.std(pred - (test["b"] - test["r"]), ddof=1), rel=1e-6)
+        # the oracle misses exactly the random part; raw predicts the train mean
+        oracle = table[(env, "truth: temperature law")]
+        assert oracle["rmse_true"] == pytest.approx(np.sqrt(np.mean(test["r"] ** 2)), rel=1e-6)
+        assert oracle["stability_after"] == pytest.approx(
+            np.std(test["y"] - (test["b"] - test["r"]), ddof=1), rel=1e-6)
+        assert oracle["law_resid_std"] == pytest.approx(0.0, abs=1e-12)
+        assert table[(env, "raw")]["rmse_true"] == pytest.approx(
+            np.sqrt(np.mean((np.mean(train["y"]) - test["b"]) ** 2)), rel=1e-6)
+    # the noise budget's white part from the truth's per-sample sigma: σ·√m / W
+    with h5py.File(ran / "data" / "const-seed12.h5", "r") as f:
+        sigma = float(f["truth/gyro_white_sigma"][0])
+    budget = {r["environment"]: r for r in _csv(ran / "noise_budget.csv")}
+    assert _num(budget["20 °C"]["white per window"]) == pytest.approx(
+        sigma * math.sqrt(1000) / WINDOW_S * DEG_PER_H, rel=1e-9)
+
+
+def test_rows_depend_on_study_and_unit_only(study, folder, tmp_path):
+    recipe = recipe_module(study)
+    cfg = recipe.check(study)
+    res = recipe.run(study, cfg, tmp_path / "a", unit=0, progress=False, make_report=False)
+    assert res.report is None and not list((tmp_path / "a").glob("*.md"))
+    metrics = {(c, m) for c, m, _ in res.rows}
+    for env in ("20 °C", "5 °C/min"):
+        for name in METHODS + ("raw", "truth: temperature law"):
+            assert (name, f"improvement_factor@{env}") in metrics
+            assert (name, f"resid_std_true@{env}") in metrics
+    assert not any(m.startswith("fit_s") for _, m in metrics)     # no wall times in rows
+    assert all(math.isfinite(v) for _, _, v in res.rows)
+    payload = {"text": study.text, "source": study.source, "name": study.name,
+               "base_dir": str(folder)}
+    again = study_unit(payload, 0)                      # fresh folder: simulated again
+    assert again["rows"] == res.rows and again["params"] == res.params
+    other = study_unit(payload, 1)                      # Monte Carlo unit: another device
+    assert other["params"].keys() == res.params.keys()
+    assert other["params"]["gyro.bias.c1[x]"] != res.params["gyro.bias.c1[x]"]
+    assert [(c, m) for c, m, _ in other["rows"]] == [(c, m) for c, m, _ in res.rows]
+
+
+def test_several_test_runs_give_per_run_rows_and_their_mean(folder, tmp_path):
+    text = STUDY.replace('test = [{ scenario = "cycle.toml", seed = 22, skip_h = 0.5 }]',
+                         'test = [{ scenario = "cycle.toml", seed = 22, skip_h = 0.5 }, '
+                         '{ scenario = "cycle.toml", seed = 23, skip_h = 0.5 }]')
+    study = parse_study(text, str(folder / "two.toml"), base_dir=folder)
+    recipe = recipe_module(study)
+    res = recipe.run(study, recipe.check(study), tmp_path, unit=0, progress=False,
+                     make_report=False)
+    rows = {(c, m): v for c, m, v in res.rows}
+    a = rows[("MLR", "stability_after@5 °C/min:cycle-seed22")]
+    b = rows[("MLR", "stability_after@5 °C/min:cycle-seed23")]
+    assert a != b
+    assert rows[("MLR", "stability_after@5 °C/min")] == pytest.approx((a + b) / 2, rel=1e-12)
+    assert not any(m.startswith("stability_after@20 °C:") for _, m in rows)
+
+
+def test_a_bad_parameter_value_is_a_user_error_at_fit_time(folder, tmp_path):
+    text = STUDY.replace("rho = 0.05", "rho = 1.5")
+    study = parse_study(text, "badrho.toml", base_dir=folder)
+    with pytest.raises(UserInputError, match="badrho.toml: compensator\\[2\\].params: "
+                                             "compensator 'Modified RBFNN'"):
+        run_study(study, tmp_path, progress=False)
