@@ -71,9 +71,9 @@ from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (DEG_PER_H_PER_RAD_PER_S, EQUATION_KINDS, ORACLE, RAW,
                                      CompensatorSpec, FeatureSpec, Fitted, RunSeries, RunSpec,
-                                     check_scenarios, dataset_for, fit, fmt, parse_compensators,
-                                     parse_features, parse_runs, random_state_for, read_run,
-                                     scores, stack, worth_showing)
+                                     check_scenarios, dataset_for, definitions, fit, fmt,
+                                     parse_compensators, parse_features, parse_runs,
+                                     random_state_for, read_run, scores, stack, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics")
 DATA_KEYS = ("window_s", "gyro")
@@ -858,10 +858,19 @@ def _figures(rep: Report, results: list[EnvResult], config: Config) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from estimators import metrics as M
     names = [c.name for c in config.compensators]
     colour = {n: f"C{i}" for i, n in enumerate(names)}
+    cut = (f" Panels marked 'axis cut' show ±{CLIP_SIGMAS:g} raw σ only: a model's spikes "
+           "go beyond (full numbers in the tables).")
+    _time_figure(rep, results, config, names, colour, plt, cut)
+    if config.temperature:
+        _temperature_figure(rep, results, config, names, colour, plt, cut)
+    _allan_figure(rep, results, config, names, colour, plt)
 
+
+def _time_figure(rep: Report, results: list[EnvResult], config: Config, names: list[str],
+                 colour: dict[str, str], plt, cut: str) -> None:
+    """Raw and compensated bias of each test run over time."""
     fig, axes = _grid(len(results), plt)
     for ax, r in zip(axes, results):
         rs, p = r.tests[0], r.predictions[r.tests[0].label]
@@ -878,11 +887,13 @@ def _figures(rep: Report, results: list[EnvResult], config: Config) -> None:
         ax.set_ylabel("bias [°/h]", fontsize=8)
     axes[0].legend(fontsize=6)
     fig.tight_layout()
-    cut = (f" Panels marked 'axis cut' show ±{CLIP_SIGMAS:g} raw σ only: a model's spikes "
-           "go beyond (full numbers in the tables).")
     rep.figure(fig, "bias_over_time", f"Raw and compensated bias ({config.window_s:g} s means) "
                                       "of each environment's test run." + cut)
 
+
+def _temperature_figure(rep: Report, results: list[EnvResult], config: Config,
+                        names: list[str], colour: dict[str, str], plt, cut: str) -> None:
+    """Bias against the probe temperature: measured, true law and predictions."""
     fig, axes = _grid(len(results), plt)
     for ax, r in zip(axes, results):
         rs, p = r.tests[0], r.predictions[r.tests[0].label]
@@ -903,6 +914,11 @@ def _figures(rep: Report, results: list[EnvResult], config: Config) -> None:
                                            "run: measured, the true temperature law and the "
                                            "fitted models' predictions." + cut)
 
+
+def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: list[str],
+                  colour: dict[str, str], plt) -> None:
+    """Overlapping Allan deviation before and after compensation (allantools)."""
+    from estimators import metrics as M
     fig, axes = _grid(len(results), plt)
     rate = 1.0 / config.window_s
     for ax, r in zip(axes, results):
@@ -947,19 +963,12 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
 
 
 def _definitions() -> list[str]:
-    return [
-        "y: measured bias per window = pulses / (nominal scale factor × window) − Earth-rate "
-        "projection (none on the east gyro), °/h; ŷ: a model's prediction; y − ŷ: the "
-        "compensated series. Inputs: window means of T and the least-squares slope dT/dt.",
-        "b: true bias (window mean of truth/gyro_bias); r: its flicker + random-walk part "
-        "(truth/gyro_bias_random); b − r: the true temperature law.",
-        "σ before / σ after (stability_before / stability_after): bias stability of y / of "
-        "y − ŷ on the test run; improvement factor = before / after (paper 002 Table 1).",
-        "rmse_true, mae_true, r2_true: ŷ against b; resid_std_true = std(ŷ − b): the true bias "
-        "left after compensation, offset-free; law_resid_std = std(ŷ − (b − r)): the error of "
-        "the learnt temperature law alone.",
-        f"'{ORACLE}': the oracle ŷ = b − r; its σ after is the floor of any model of the "
-        f"inputs. '{RAW}': no compensation (ŷ = train mean).",
+    """The shared definitions (:func:`sim.studies.single_gyro.definitions`) plus this recipe's."""
+    return definitions() + [
+        "Inputs: window means of the probe temperature T [°C] and its least-squares slope "
+        "dT/dt [K/s] in each window. The east gyro (paper 002 §4.1) sees no Earth rate.",
+        "σ (Table 1) = bias stability; 'σ before' of the raw bias y, 'σ after' of y − ŷ, on "
+        "the environment's test run.",
         "Each environment has its own model per compensator, fitted on its train run(s) "
         "(paper 002's data set 1) and scored on its test run(s) (data set 2: the same "
         "scenario, another noise seed).",
