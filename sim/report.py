@@ -139,6 +139,12 @@ class Report:
         self._items.append(_Item("table", table))
         return table
 
+    def attachment(self, table: Table) -> Table:
+        """A table too long to show (e.g. a time series): written as CSV, linked from the
+        report with its title, note and size."""
+        self._items.append(_Item("attachment", table))
+        return table
+
     def figure(self, fig: Any, name: str, caption: str = "") -> str:
         """Add a matplotlib figure; it is rendered to PNG now and closed. Returns its file name."""
         import matplotlib.pyplot as plt
@@ -160,7 +166,7 @@ class Report:
 
     @property
     def tables(self) -> list[Table]:
-        return [item.payload for item in self._items if item.kind == "table"]
+        return [item.payload for item in self._items if item.kind in ("table", "attachment")]
 
     # -- output ----------------------------------------------------------------------------
     def markdown(self) -> str:
@@ -177,6 +183,11 @@ class Report:
                 out += [f"**{t.title}** ([CSV]({t.csv_name}))", "", t.markdown(), ""]
                 if t.note:
                     out += [f"*{t.note}*", ""]
+            elif item.kind == "attachment":
+                t = item.payload
+                out += [f"**{t.title}**: [{t.csv_name}]({t.csv_name}), {len(t.rows)} rows × "
+                        f"{len(t.columns)} columns ({', '.join(t.columns)})"
+                        + (f". *{t.note}*" if t.note else ""), ""]
             elif item.kind == "figure":
                 cap = item.extra["caption"]
                 out += [f"![{cap or item.extra['name']}]({item.extra['name']})", ""]
@@ -204,6 +215,12 @@ class Report:
                 body.append(f"<h4>{html.escape(t.title)}</h4>" + t.html())
                 if t.note:
                     body.append(f"<p class='note'>{html.escape(t.note)}</p>")
+            elif item.kind == "attachment":
+                t = item.payload
+                body.append(f"<p><b>{html.escape(t.title)}</b>: <a href='{html.escape(t.csv_name)}'>"
+                            f"{html.escape(t.csv_name)}</a>, {len(t.rows)} rows × "
+                            f"{len(t.columns)} columns ({html.escape(', '.join(t.columns))})"
+                            + (f". <i>{html.escape(t.note)}</i>" if t.note else "") + "</p>")
             elif item.kind == "figure":
                 data = base64.b64encode(item.payload).decode("ascii")
                 cap = html.escape(item.extra["caption"])
@@ -230,7 +247,7 @@ class Report:
         for item in self._items:
             if item.kind == "figure":
                 write_atomic(folder / item.extra["name"], item.payload)
-            elif item.kind == "table":
+            elif item.kind in ("table", "attachment"):
                 write_atomic(folder / item.payload.csv_name, item.payload.csv_text())
         write_atomic(folder / "report.md", self.markdown())
         write_atomic(folder / "report.html", self.html())

@@ -187,9 +187,11 @@ def str_list(table: dict, key: str, ctx: Ctx, min_len: int = 0) -> tuple[str, ..
 
 
 def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
-                      published_keys: tuple[str, ...]) -> CompensatorSpec:
+                      published_keys: tuple[str, ...], *, min_inputs: int = 1
+                      ) -> CompensatorSpec:
     """One ``[[compensator]]`` table (``ctx`` names the array); ``published_keys``: what its
-    ``published`` table may hold (numbers, or ``equation``: text)."""
+    ``published`` table may hold (numbers, or ``equation``: text); ``min_inputs``: 0 where the
+    recipe adds inputs itself."""
     cctx = ctx.item(i)
     if not isinstance(item, dict):
         raise Ctx(ctx.source).error(cctx.path, f"expected a table, got {item!r}")
@@ -198,7 +200,7 @@ def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
     if not name.strip() or name in (RAW, ORACLE):
         raise cctx.error("name", f"value {name!r} not allowed (empty or reserved)")
     kind = get_str(item, "kind", cctx, choices=KINDS)
-    inputs = str_list(item, "inputs", cctx, min_len=1)
+    inputs = str_list(item, "inputs", cctx, min_len=min_inputs)
     for x in inputs:
         if x not in features:
             raise cctx.error("inputs", f"unknown input {x!r}; the [features] table gives: "
@@ -239,12 +241,14 @@ def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> F
 
 
 def parse_compensators(data: dict, ctx: Ctx, features: list[str],
-                       published_keys: tuple[str, ...]) -> tuple[CompensatorSpec, ...]:
+                       published_keys: tuple[str, ...], *, min_inputs: int = 1
+                       ) -> tuple[CompensatorSpec, ...]:
     """Every ``[[compensator]]`` table (at least one; names unique)."""
     items = data.get("compensator")
     if not isinstance(items, list) or not items:
         raise ctx.error("compensator", "missing: give at least one [[compensator]] table")
-    comps = tuple(parse_compensator(item, i, ctx.child("compensator"), features, published_keys)
+    comps = tuple(parse_compensator(item, i, ctx.child("compensator"), features, published_keys,
+                                    min_inputs=min_inputs)
                   for i, item in enumerate(items))
     names = [c.name for c in comps]
     dup = {n for n in names if names.count(n) > 1}
