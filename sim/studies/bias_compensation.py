@@ -94,7 +94,8 @@ def check(study: Study) -> Config:
     check_scenarios(study, train + test)
     features = parse_features(data, ctx, window_s, gyro)
     feature_names = features.feature_names()
-    comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS)
+    comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS,
+                               base_dir=study.base_dir)
     names = [c.name for c in comps]
     mtable = get_table(data, "metrics", ctx, {})
     mctx = ctx.child("metrics")

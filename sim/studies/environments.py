@@ -200,7 +200,8 @@ def check(study: Study) -> Config:
     window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
     gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
     features = parse_features(data, ctx, window_s, gyro)
-    comps = parse_compensators(data, ctx, features.feature_names(), COMPENSATOR_PUBLISHED_KEYS)
+    comps = parse_compensators(data, ctx, features.feature_names(), COMPENSATOR_PUBLISHED_KEYS,
+                               base_dir=study.base_dir)
     envs = _parse_environments(data, ctx, [c.name for c in comps])
     for env in envs:
         check_scenarios(study, env.train + env.test)

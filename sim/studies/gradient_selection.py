@@ -200,7 +200,8 @@ def check(study: Study) -> Config:
     check_scenarios(study, train + test)
     features = parse_features(data, ctx, window_s, gyro)
     stripped, selections = _selections(data, ctx, features.gradients)
-    comps = parse_compensators(stripped, ctx, features.feature_names(), (), min_inputs=0)
+    comps = parse_compensators(stripped, ctx, features.feature_names(), (), min_inputs=0,
+                               base_dir=study.base_dir)
     for c in comps:
         if not c.inputs and c.name not in selections:
             raise c.ctx.error("inputs", "empty: give inputs or a select table")
