@@ -7,7 +7,7 @@ listed in :data:`SHARED`.
 import pkgutil
 
 #: Modules of this package that recipes share and that are not recipes themselves.
-SHARED = ("single_gyro",)
+SHARED = ("single_gyro", "environments_report")
 
 
 def recipe_names() -> tuple[str, ...]:

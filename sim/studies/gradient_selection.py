@@ -54,7 +54,6 @@ from typing import Any
 import numpy as np
 
 from sim.config import Ctx, check_known_keys, get_float, get_int, get_list, get_str, get_table
-from sim.errors import UserInputError
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSeries,
