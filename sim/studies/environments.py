@@ -241,7 +241,7 @@ class EnvResult:
     random_state: int                                 # the estimators' random_state
 
 
-def _stability(x: np.ndarray, config: Config) -> float:
+def stability(x: np.ndarray, config: Config) -> float:
     """Bias stability [°/h] of a window series: std (ddof) of ``cluster_s`` means."""
     from estimators.metrics import bias_stability
     return bias_stability(x, 1.0 / config.window_s, config.cluster_s, config.ddof)
@@ -263,7 +263,7 @@ def _load_runs(study: Study, config: Config, workdir: pathlib.Path, unit: int,
     return out
 
 
-def _predict(f: Fitted, rs: RunSeries) -> np.ndarray:
+def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
     return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
 
 
@@ -289,17 +289,17 @@ def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
     for spec in bar:
         fitted.append(fit(spec, Xtr, ytr, random_state, {}))
     bar.close()
-    train_after = {f.spec.name: float(np.mean([_stability(rs.y - _predict(f, rs), config)
+    train_after = {f.spec.name: float(np.mean([stability(rs.y - predict(f, rs), config)
                                                for rs in train])) for f in fitted}
-    train_raw = float(np.mean([_stability(rs.y, config) for rs in train]))
+    train_raw = float(np.mean([stability(rs.y, config) for rs in train]))
 
     per_test: dict[str, dict[str, dict[str, float]]] = {}
     predictions: dict[str, dict[str, np.ndarray]] = {}
     for spec in env.test:
         rs = loaded[(spec.label, spec.skip_s)].series
-        before = _stability(rs.y, config)
+        before = stability(rs.y, config)
         preds = {RAW: np.full_like(rs.y, np.mean(ytr)),
-                 **{f.spec.name: _predict(f, rs) for f in fitted},
+                 **{f.spec.name: predict(f, rs) for f in fitted},
                  ORACLE: rs.true_bias - rs.true_random}
         predictions[spec.label] = preds
         per_test[spec.label] = {

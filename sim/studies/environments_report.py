@@ -19,7 +19,7 @@ from sim.report import Report, Table
 from sim.study import Study
 from sim.studies.environments import (BEFORE_FACTOR, LADDER, NOISE_DOMINATED_REL,
                                       PAPER_MLR_TERMS, SPREADS, TIE_REL, TIMING_REPEATS, Config,
-                                      EnvResult, _predict, _stability)
+                                      EnvResult, predict, stability)
 from sim.studies.single_gyro import (DEG_PER_H_PER_RAD_PER_S, EQUATION_KINDS, ORACLE, RAW,
                                      Fitted, RunSeries, definitions, fit, fmt, scores, stack,
                                      worth_showing)
@@ -66,7 +66,7 @@ def _budget(res: EnvResult, config: Config) -> NoiseBudget:
     T = rs.X["T"] if "T" in rs.X else np.zeros(1)
     rate = rs.X["dT/dt"] * 60.0 if "dT/dt" in rs.X else np.zeros(1)
     return NoiseBudget(raw=sc[RAW]["stability_before"], floor=sc[ORACLE]["stability_after"],
-                       white=white, quantisation=quant, slow=_stability(rs.true_random, config),
+                       white=white, quantisation=quant, slow=stability(rs.true_random, config),
                        law=float(np.std(rs.true_bias - rs.true_random, ddof=config.ddof)),
                        t_span=float(np.ptp(T)), rate_span=float(np.ptp(rate)))
 
@@ -281,15 +281,15 @@ def _sensitivity(results: list[EnvResult], config: Config,
     for r in results:
         Xtr, ytr = stack(r.train)
         rs = r.tests[0]
-        before = _stability(rs.y, config)
+        before = stability(rs.y, config)
         for spread in spreads:
             rec: dict[str, Any] = {"environment": r.env.name, "spread": spread}
             vals = {}
             for kind, f in nets.items():
                 spec = dataclasses.replace(f.spec, params={**f.spec.params, "spread": spread})
                 fitted = fit(spec, Xtr, ytr, r.random_state, {})
-                yh = _predict(fitted, rs)
-                vals[kind] = (_stability(rs.y - yh, config),
+                yh = predict(fitted, rs)
+                vals[kind] = (stability(rs.y - yh, config),
                               float(np.std(yh - rs.true_bias, ddof=config.ddof)))
                 rec[f"{f.spec.name} centres"] = fitted.hyper.get("centres")
             for kind, f in nets.items():
@@ -502,8 +502,8 @@ def _paper_mlr(r: EnvResult, f: Fitted, config: Config) -> dict[str, float]:
     Xtr, ytr = stack(r.train)
     model = fit(spec, Xtr, ytr, r.random_state, {})
     rs = r.tests[0]
-    return scores(rs.y, _predict(model, rs), rs.true_bias, rs.true_random, config.window_s,
-                  config.cluster_s, config.ddof, _stability(rs.y, config))
+    return scores(rs.y, predict(model, rs), rs.true_bias, rs.true_random, config.window_s,
+                  config.cluster_s, config.ddof, stability(rs.y, config))
 
 
 def _mlr_terms(results: list[EnvResult], config: Config) -> str | None:
@@ -664,7 +664,7 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
                 out.append(f"{env.name}, {role}: scenario {ld.scenario.name}, seed {rs.seed}, "
                            f"device_seed {rs.device_seed}, first {s.skip_s / 3600:g} h dropped, "
                            f"{rs.y.size} windows of {config.window_s:g} s, raw σ "
-                           f"{_stability(rs.y, config):.5f} °/h, dataset {rs.path.name} "
+                           f"{stability(rs.y, config):.5f} °/h, dataset {rs.path.name} "
                            f"({'reused' if ld.reused else 'simulated'})")
     out.append(f"bias stability σ: std (ddof={config.ddof}) of {config.cluster_s:g} s means; "
                f"improvement factor = σ before / σ after (paper 002 Table 1)")
