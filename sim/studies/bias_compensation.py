@@ -47,13 +47,13 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import check_known_keys, get_float, get_int, get_str, get_table
+from sim.config import check_known_keys, get_float, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, KINDS, ORACLE, RAW, CompensatorSpec,
-                                     FeatureSpec, Fitted, RunSeries, RunSpec, check_scenarios,
-                                     dataset_for, fit, fmt, parse_compensators, parse_features,
-                                     parse_runs, random_state_for, read_run, scores, stack,
+                                     FeatureSpec, Fitted, RunSeries, RunSpec, dataset_for, fit,
+                                     fmt, parse_compensators, parse_data, parse_features,
+                                     parse_metrics, random_state_for, read_run, scores, stack,
                                      worth_showing, definitions)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
@@ -84,28 +84,14 @@ def check(study: Study) -> Config:
     data = study.tables
     ctx = study.ctx()
     check_known_keys(data, TOP_KEYS, ctx)
-    dtable = get_table(data, "data", ctx)
-    dctx = ctx.child("data")
-    check_known_keys(dtable, DATA_KEYS, dctx)
-    train = parse_runs(dtable, "train", dctx)
-    test = parse_runs(dtable, "test", dctx)
-    window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
-    gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
-    check_scenarios(study, train + test)
+    d = parse_data(study, DATA_KEYS)
+    train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
     features = parse_features(data, ctx, window_s, gyro)
     feature_names = features.feature_names()
     comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS,
                                base_dir=study.base_dir)
     names = [c.name for c in comps]
-    mtable = get_table(data, "metrics", ctx, {})
-    mctx = ctx.child("metrics")
-    check_known_keys(mtable, METRIC_KEYS, mctx)
-    cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
-    ratio = cluster_s / window_s
-    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise mctx.error("cluster_s", f"value {cluster_s:g} not allowed; must be a whole "
-                                      f"multiple of data.window_s = {window_s:g}")
-    ddof = get_int(mtable, "ddof", mctx, 1, min=0, max=1)
+    mtable, mctx, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     baseline = get_str(mtable, "baseline", mctx, RAW, choices=[RAW] + names)
 
     ptable = get_table(data, "published", ctx, {})

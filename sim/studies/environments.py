@@ -65,11 +65,12 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_int, get_list, get_str, get_table
+from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
                                      RunSeries, RunSpec, check_scenarios, dataset_for, fit,
-                                     parse_compensators, parse_features, parse_runs,
+                                     parse_compensators, parse_data, parse_features,
+                                     parse_metrics, parse_runs,
                                      random_state_for, read_run, scores, stack, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics")
@@ -191,26 +192,15 @@ def check(study: Study) -> Config:
     data = study.tables
     ctx = study.ctx()
     check_known_keys(data, TOP_KEYS, ctx)
-    dtable = get_table(data, "data", ctx, {})
-    dctx = ctx.child("data")
-    check_known_keys(dtable, DATA_KEYS, dctx)
-    window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
-    gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
+    d = parse_data(study, DATA_KEYS, runs=False)
+    window_s, gyro = d.window_s, d.gyro
     features = parse_features(data, ctx, window_s, gyro)
     comps = parse_compensators(data, ctx, features.feature_names(), COMPENSATOR_PUBLISHED_KEYS,
                                base_dir=study.base_dir)
     envs = _parse_environments(data, ctx, [c.name for c in comps])
     for env in envs:
         check_scenarios(study, env.train + env.test)
-    mtable = get_table(data, "metrics", ctx, {})
-    mctx = ctx.child("metrics")
-    check_known_keys(mtable, METRIC_KEYS, mctx)
-    cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
-    ratio = cluster_s / window_s
-    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise mctx.error("cluster_s", f"value {cluster_s:g} not allowed; must be a whole "
-                                      f"multiple of data.window_s = {window_s:g}")
-    ddof = get_int(mtable, "ddof", mctx, 1, min=0, max=1)
+    _, _, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     return Config(**vars(features), environments=envs, compensators=comps,
                   cluster_s=cluster_s, ddof=ddof)
 

@@ -53,12 +53,12 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_int, get_list, get_str, get_table
+from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSeries,
-                                     RunSpec, check_scenarios, dataset_for, definitions, fit, fmt,
-                                     parse_compensators, parse_features, parse_runs,
+                                     RunSpec, dataset_for, definitions, fit, fmt,
+                                     parse_compensators, parse_data, parse_features, parse_metrics,
                                      random_state_for, read_run, scores, stack, str_list,
                                      worth_showing)
 
@@ -189,14 +189,8 @@ def check(study: Study) -> Config:
     data = study.tables
     ctx = study.ctx()
     check_known_keys(data, TOP_KEYS, ctx)
-    dtable = get_table(data, "data", ctx)
-    dctx = ctx.child("data")
-    check_known_keys(dtable, DATA_KEYS, dctx)
-    train = parse_runs(dtable, "train", dctx)
-    test = parse_runs(dtable, "test", dctx)
-    window_s = get_float(dtable, "window_s", dctx, 100.0, min=0.0, min_exclusive=True)
-    gyro = get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z"))
-    check_scenarios(study, train + test)
+    d = parse_data(study, DATA_KEYS)
+    train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
     features = parse_features(data, ctx, window_s, gyro)
     stripped, selections = _selections(data, ctx, features.gradients)
     comps = parse_compensators(stripped, ctx, features.feature_names(), (), min_inputs=0,
@@ -220,18 +214,11 @@ def check(study: Study) -> Config:
     tables = tuple(_paper_table(item, i, ctx.child("paper_table"), labels, names)
                    for i, item in enumerate(get_list(data, "paper_table", ctx, [])))
 
-    mtable = get_table(data, "metrics", ctx, {})
-    mctx = ctx.child("metrics")
-    check_known_keys(mtable, METRIC_KEYS, mctx)
-    cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
-    ratio = cluster_s / window_s
-    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-        raise mctx.error("cluster_s", f"value {cluster_s:g} not allowed; must be a whole "
-                                      f"multiple of data.window_s = {window_s:g}")
+    mtable, mctx, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     return Config(**vars(features), train=train, test=test, compensators=comps,
                   selections=selections, points=points, published_matrix=matrix,
                   paper_tables=tables, cluster_s=cluster_s,
-                  ddof=get_int(mtable, "ddof", mctx, 1, min=0, max=1))
+                  ddof=ddof)
 
 
 # ------------------------------------------------------------------------------ selection

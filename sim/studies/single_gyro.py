@@ -297,6 +297,49 @@ def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
                                published=published)
 
 
+@dataclass(frozen=True)
+class DataTable:
+    """The ``[data]`` table: train and test runs (if the recipe has them there), the
+    averaging window [s] and the gyro axis."""
+
+    train: tuple[RunSpec, ...]
+    test: tuple[RunSpec, ...]
+    window_s: float
+    gyro: str | None
+
+
+def parse_data(study: Study, keys: tuple[str, ...], *, runs: bool = True) -> DataTable:
+    """``[data]`` with ``keys`` allowed; with ``runs``, its train/test lists (every scenario
+    must exist and parse) and the table is required, else it may be left out."""
+    ctx = study.ctx()
+    dtable = get_table(study.tables, "data", ctx) if runs else get_table(study.tables, "data",
+                                                                          ctx, {})
+    dctx = ctx.child("data")
+    check_known_keys(dtable, keys, dctx)
+    train = parse_runs(dtable, "train", dctx) if runs else ()
+    test = parse_runs(dtable, "test", dctx) if runs else ()
+    check_scenarios(study, train + test)
+    return DataTable(train=train, test=test,
+                     window_s=get_float(dtable, "window_s", dctx, 100.0, min=0.0,
+                                        min_exclusive=True),
+                     gyro=get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z")))
+
+
+def parse_metrics(data: dict, ctx: Ctx, window_s: float, keys: tuple[str, ...]
+                  ) -> tuple[dict, Ctx, float, int]:
+    """``[metrics]`` with ``keys`` allowed: (table, its Ctx, cluster_s [s] — a whole multiple
+    of ``window_s``, default one window —, ddof of the bias-stability std, default 1)."""
+    mtable = get_table(data, "metrics", ctx, {})
+    mctx = ctx.child("metrics")
+    check_known_keys(mtable, keys, mctx)
+    cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
+    ratio = cluster_s / window_s
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise mctx.error("cluster_s", f"value {cluster_s:g} not allowed; must be a whole "
+                                      f"multiple of data.window_s = {window_s:g}")
+    return mtable, mctx, cluster_s, get_int(mtable, "ddof", mctx, 1, min=0, max=1)
+
+
 def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> FeatureSpec:
     """The ``[features]`` table (``ctx``: the file's root) into a :class:`FeatureSpec`."""
     ftable = get_table(data, "features", ctx, {})
