@@ -230,6 +230,12 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     for f in fitted:
         tables.setdefault(f.spec.table or "Other compensators", []).append(f)
     rep.heading(f"Paper-style scores on test run {test_label} (ours beside the paper)", 2)
+    if before_pub:
+        ours = sc[RAW]["stability_after"]          # y − constant: the raw bias stability
+        ratio = ours / before_pub
+        rep.paragraph(f"Before compensation: ours {ours:.5f} °/h vs paper {before_pub:.5f} °/h "
+                      f"(ratio {ratio:.2f}; "
+                      f"{'within' if 1 / 1.5 <= ratio <= 1.5 else 'NOT within'} a factor 1.5).")
     for tname, group in tables.items():
         recs = []
         for f in group:
