@@ -299,3 +299,22 @@ def test_a_threshold_nothing_reaches_is_a_user_error(tmp_path):
     study = load_study(str(_write(tmp_path, text)))
     with pytest.raises(UserInputError, match="no gradient among .* reaches"):
         run_study(study, tmp_path / "out", progress=False)
+
+
+def test_monte_carlo_unit_draws_another_block_without_a_report(tmp_path):
+    """Unit 1 draws another device and thermal network: other correlations, same row keys,
+    the same result again for the same unit."""
+    from sim.study import study_unit
+    path = _write(tmp_path)
+    payload = {"text": path.read_text(), "source": str(path), "name": "p003short",
+               "base_dir": str(tmp_path)}
+    u0, u1 = study_unit(payload, 0), study_unit(payload, 1)
+    r0 = {m: v for c, m, v in u0["rows"] if c == "correlation"}
+    r1 = {m: v for c, m, v in u1["rows"] if c == "correlation"}
+    assert set(r0) == {f"r[{a}-{b}]" for a, b in itertools.combinations(POINTS, 2)}
+    assert all(np.isfinite(v) for _, _, v in u1["rows"])
+    metrics = {(c, m) for c, m, _ in u1["rows"]}
+    assert ("multi-point", "stability_after@test") in metrics
+    assert ("truth: temperature law", "rmse_true@train-seed3100") in metrics
+    assert r1 != r0
+    assert study_unit(payload, 1) == u1
