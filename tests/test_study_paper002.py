@@ -17,6 +17,7 @@ import h5py
 import numpy as np
 import pytest
 
+from independent_windows import read_windows
 from sim.errors import UserInputError
 from sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
 
@@ -285,38 +286,12 @@ def test_report_files_and_table1_rows(ran):
     assert len(_csv(ran / "spread_sensitivity.csv")) == 2 * 4
 
 
-def _windows(x: np.ndarray, m: int) -> np.ndarray:
-    n = x.shape[0] // m
-    return x[: n * m].reshape(n, m, *x.shape[1:])
-
-
 def _series(path: pathlib.Path) -> dict[str, np.ndarray]:
-    """Independent re-reading of a dataset with h5py/numpy: the 100 s windows that start at or
-    after SKIP_S with the gyro powered throughout — measured bias y (east gyro: no Earth rate),
-    window-mean T and its least-squares slope (probe g.A), true bias b and its random part r."""
-    with h5py.File(path, "r") as f:
-        rate = float(f["imu"].attrs["sample_rate_hz"])
-        step = float(f.attrs["thermal_step_s"])
-        names = [n.decode() for n in f["truth/coefficient"][:]]
-        k0 = float(f["truth/coefficient_value"][names.index("gyro.k0[x]")])
-        pulses = f["imu/gyro_pulses"][:, 0].astype(np.int64)
-        probes = [p.decode() for p in f["probes/probe"][:]]
-        T = f["probes/temperature"][:, probes.index("g.A")].astype(float)
-        b = f["truth/gyro_bias"][:, 0] * DEG_PER_H
-        r = f["truth/gyro_bias_random"][:, 0] * DEG_PER_H
-        power = f["thermal/power_on"][:]
-        dtheta = f["truth/dtheta_step"][:, 0]
-    ms, mt = round(WINDOW_S * rate), round(WINDOW_S / step)
-    n = min(pulses.shape[0] // ms, T.shape[0] // mt)
-    y = (_windows(pulses, ms)[:n].sum(axis=1) / (k0 * WINDOW_S)
-         - _windows(dtheta, mt)[:n].sum(axis=1) / WINDOW_S) * DEG_PER_H
-    Tw = _windows(T, mt)[:n]
-    t = np.arange(mt) * step
-    slope = np.array([np.polyfit(t, w, 1)[0] for w in Tw])
-    keep = (_windows(power, mt)[:n].min(axis=1) > 0) & (np.arange(n) * WINDOW_S >= SKIP_S)
-    return {"y": y[keep], "T": Tw.mean(axis=1)[keep], "dTdt": slope[keep],
-            "b": _windows(b, mt)[:n].mean(axis=1)[keep],
-            "r": _windows(r, mt)[:n].mean(axis=1)[keep]}
+    """Independent re-reading (tests/independent_windows.py): the 100 s windows that start at
+    or after SKIP_S with the gyro powered throughout — measured bias y, window-mean T and its
+    least-squares slope (probe g.A), true bias b and its random part r."""
+    w = read_windows(path, WINDOW_S, skip_s=SKIP_S, slope_of="g.A")
+    return {"y": w["y"], "T": w["probes"]["g.A"], "dTdt": w["slope"], "b": w["b"], "r": w["r"]}
 
 
 def test_truth_scores_match_an_independent_recomputation(ran):

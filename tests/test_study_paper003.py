@@ -10,16 +10,15 @@ import itertools
 import math
 import pathlib
 
-import h5py
 import numpy as np
 import pytest
 
+from independent_windows import read_windows
 from sim.errors import UserInputError
 from sim.study import list_studies, load_study, parse_study, run_study
 from sim.studies.gradient_selection import improvement_over_traditional
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-DEG_PER_H = 180.0 / math.pi * 3600.0
 POINTS = ["g.A", "g.B", "g.D", "g.G", "g.H"]
 
 CYCLE = """
@@ -153,29 +152,8 @@ def _scores(folder: pathlib.Path, label: str) -> dict[str, dict[str, float]]:
 
 
 def _windows(path: pathlib.Path):
-    """Independent re-reading of a dataset: 100 s window means of the measured bias y, the true
-    bias b and its random part r (°/h), and of every probe (°C)."""
-    with h5py.File(path, "r") as f:
-        rate = float(f.attrs["sample_rate_hz"])
-        step = float(f.attrs["thermal_step_s"])
-        names = [n.decode() for n in f["truth/coefficient"][:]]
-        k0 = float(f["truth/coefficient_value"][names.index("gyro.k0[z]")])
-        lat = math.radians(float(f.attrs["latitude_deg"]))
-        pulses = f["imu/gyro_pulses"][:, 0].astype(np.int64)
-        probes = [p.decode() for p in f["probes/probe"][:]]
-        temps = f["probes/temperature"][:].astype(float)
-        b = f["truth/gyro_bias"][:, 0] * DEG_PER_H
-        r = f["truth/gyro_bias_random"][:, 0] * DEG_PER_H
-    ms, mt = int(round(100 * rate)), int(round(100 / step))
-    n = pulses.shape[0] // ms
-
-    def means(x):
-        return x[: n * mt].reshape(n, mt, *x.shape[1:]).mean(axis=1)
-
-    y = pulses[: n * ms].reshape(n, ms).sum(axis=1) / (k0 * 100.0) * DEG_PER_H \
-        - 7.292115e-5 * math.sin(lat) * DEG_PER_H          # Earth rate on an up gyro
-    P = means(temps)
-    return y, means(b), means(r), {p: P[:, i] for i, p in enumerate(probes)}
+    w = read_windows(path)
+    return w["y"], w["b"], w["r"], w["probes"]
 
 
 def test_correlation_matrix_matches_an_independent_recomputation(short):
