@@ -226,16 +226,25 @@ def test_study_unit_draws_another_device_without_a_report():
 
 
 @pytest.mark.parametrize("old, new, expected", [
-    ('gyro = "z"', 'gyro = "x"', "data.gyro: value 'x' not allowed; the device's gyro axes are z"),
-    ('temperature = "g.A"', 'temperature = "g.Z"', "features.temperature: unknown probe 'g.Z'"),
-    ("window_s = 100", "window_s = 100.05", "data.window_s"),
+    ('gyro = "z"', 'gyro = "x"',
+     "data.gyro: value 'x' not allowed; device 'trplg_001' has gyro axes z"),
+    ('temperature = "g.A"', 'temperature = "g.Z"',
+     "features.temperature: unknown probe 'g.Z'; device 'trplg_001' has g.A, g.B"),
 ])
-def test_mistakes_found_in_the_data_are_user_errors(old, new, expected, demo, tmp_path):
+def test_names_the_device_lacks_are_found_before_anything_is_simulated(old, new, expected,
+                                                                       tmp_path):
+    with pytest.raises(UserInputError, match="early.toml") as err:
+        parse_study(GOOD.replace(old, new, 1), "early.toml",
+                    base_dir=ROOT / "scenarios" / "studies")
+    assert expected in str(err.value) and "\n" not in str(err.value)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_window_that_does_not_fit_the_data_is_a_user_error(demo, tmp_path):
     shutil.copytree(demo / "data", tmp_path / "data")          # reused: no simulation
-    text = GOOD.replace(old, new, 1)
-    if old.startswith("window_s"):
-        text = text.replace("cluster_s = 100", "cluster_s = 100.05", 1)
+    text = GOOD.replace("window_s = 100", "window_s = 100.05", 1).replace(
+        "cluster_s = 100", "cluster_s = 100.05", 1)
     study = parse_study(text, "late.toml", base_dir=ROOT / "scenarios" / "studies")
     with pytest.raises(UserInputError, match="late.toml") as err:
         run_study(study, tmp_path, progress=False)
-    assert expected in str(err.value)
+    assert "data.window_s" in str(err.value)

@@ -52,7 +52,8 @@ from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, KINDS, ORACLE, RAW, CompensatorSpec,
                                      FeatureSpec, Fitted, RunSeries, RunSpec, dataset_for, fit,
-                                     fmt, parse_compensators, parse_data, parse_features,
+                                     fmt, check_features_on_devices, parse_compensators,
+                                     parse_data, parse_features,
                                      parse_metrics, random_state_for, read_run, scores, stack,
                                      worth_showing, definitions)
 
@@ -87,6 +88,7 @@ def check(study: Study) -> Config:
     d = parse_data(study, DATA_KEYS)
     train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
     features = parse_features(data, ctx, window_s, gyro)
+    check_features_on_devices(study, train + test, features)
     feature_names = features.feature_names()
     comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS,
                                base_dir=study.base_dir)

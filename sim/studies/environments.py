@@ -69,7 +69,8 @@ from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
                                      RunSeries, RunSpec, check_scenarios, dataset_for, fit,
-                                     parse_compensators, parse_data, parse_features,
+                                     check_features_on_devices, parse_compensators,
+                                     parse_data, parse_features,
                                      parse_metrics, parse_runs,
                                      random_state_for, read_run, scores, stack, worth_showing)
 
@@ -200,6 +201,7 @@ def check(study: Study) -> Config:
     envs = _parse_environments(data, ctx, [c.name for c in comps])
     for env in envs:
         check_scenarios(study, env.train + env.test)
+        check_features_on_devices(study, env.train + env.test, features)
     _, _, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     return Config(**vars(features), environments=envs, compensators=comps,
                   cluster_s=cluster_s, ddof=ddof)

@@ -58,7 +58,8 @@ from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSeries,
                                      RunSpec, dataset_for, definitions, fit, fmt,
-                                     parse_compensators, parse_data, parse_features, parse_metrics,
+                                     check_features_on_devices, parse_compensators,
+                                     parse_data, parse_features, parse_metrics,
                                      random_state_for, read_run, scores, stack, str_list,
                                      worth_showing)
 
@@ -192,6 +193,7 @@ def check(study: Study) -> Config:
     d = parse_data(study, DATA_KEYS)
     train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
     features = parse_features(data, ctx, window_s, gyro)
+    check_features_on_devices(study, train + test, features)
     stripped, selections = _selections(data, ctx, features.gradients)
     comps = parse_compensators(stripped, ctx, features.feature_names(), (), min_inputs=0,
                                base_dir=study.base_dir)

@@ -358,6 +358,37 @@ def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> F
     return spec
 
 
+def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: FeatureSpec
+                               ) -> None:
+    """Before anything is simulated: every probe the features name, the gyro axis and the
+    UHFO must exist on the device of every run (messages name the study key and list what the
+    device has)."""
+    fctx, dctx = study.ctx("features"), study.ctx("data")
+    seen: set[str] = set()
+    for run in runs:
+        device = scenario_for(study, run.ref, ctx=run.ctx).device
+        if device.name in seen:
+            continue
+        seen.add(device.name)
+        probes = tuple(device.thermal.probes.names)
+        for key, names in (("temperature", (spec.temperature,) if spec.temperature else ()),
+                           ("probes", spec.probes), ("gradients", spec.gradients)):
+            for n in names:
+                if n not in probes:
+                    raise fctx.error(key, f"unknown probe {n!r}; device {device.name!r} has "
+                                          f"{', '.join(probes) or 'no probes'}")
+        gyro = device.parts.get("gyro")
+        axes = tuple(getattr(gyro, "axes", ()) or ())
+        if spec.gyro and spec.gyro not in axes:
+            raise dctx.error("gyro", f"value {spec.gyro!r} not allowed; device {device.name!r} "
+                                     f"has gyro axes {', '.join(axes) or '(none)'}")
+        if not spec.gyro and len(axes) > 1:
+            raise dctx.error("gyro", f"missing: device {device.name!r} has several gyros "
+                                     f"({', '.join(axes)}); say which one")
+        if spec.uhfo and device.parts.get("uhfo") is None:
+            raise fctx.error("uhfo", f"device {device.name!r} logs no UHFO")
+
+
 def parse_compensators(data: dict, ctx: Ctx, features: list[str],
                        published_keys: tuple[str, ...], *, min_inputs: int = 1,
                        base_dir: pathlib.Path | None = None) -> tuple[CompensatorSpec, ...]:
