@@ -240,11 +240,10 @@ def test_names_the_device_lacks_are_found_before_anything_is_simulated(old, new,
     assert not list(tmp_path.iterdir())
 
 
-def test_a_window_that_does_not_fit_the_data_is_a_user_error(demo, tmp_path):
-    shutil.copytree(demo / "data", tmp_path / "data")          # reused: no simulation
+def test_a_window_that_does_not_fit_the_data_is_a_user_error_before_simulating(tmp_path):
     text = GOOD.replace("window_s = 100", "window_s = 100.05", 1).replace(
         "cluster_s = 100", "cluster_s = 100.05", 1)
-    study = parse_study(text, "late.toml", base_dir=ROOT / "scenarios" / "studies")
-    with pytest.raises(UserInputError, match="late.toml") as err:
-        run_study(study, tmp_path, progress=False)
-    assert "data.window_s" in str(err.value)
+    with pytest.raises(UserInputError, match="early.toml") as err:
+        parse_study(text, "early.toml", base_dir=ROOT / "scenarios" / "studies")
+    assert "data.window_s: a 100.05 s window at 10.0 Hz is 1000.5 samples" in str(err.value)
+    assert "scenario 'demo_cycle'" in str(err.value)

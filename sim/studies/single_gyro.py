@@ -360,13 +360,22 @@ def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> F
 
 def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: FeatureSpec
                                ) -> None:
-    """Before anything is simulated: every probe the features name, the gyro axis and the
-    UHFO must exist on the device of every run (messages name the study key and list what the
-    device has)."""
+    """Before anything is simulated: the window must hold a whole number of samples and thermal
+    steps of every run, and every probe the features name, the gyro axis and the UHFO must
+    exist on its device (messages name the study key and list what the device has)."""
+    from estimators.features import samples_per_window
+
     fctx, dctx = study.ctx("features"), study.ctx("data")
     seen: set[str] = set()
     for run in runs:
-        device = scenario_for(study, run.ref, ctx=run.ctx).device
+        scenario = scenario_for(study, run.ref, ctx=run.ctx)
+        acq = scenario.acquisition
+        for rate in (acq.sample_rate_hz, 1.0 / acq.thermal_step_s):
+            try:
+                samples_per_window(rate, spec.window_s)
+            except ValueError as exc:
+                raise dctx.error("window_s", f"{exc} (scenario {scenario.name!r})") from None
+        device = scenario.device
         if device.name in seen:
             continue
         seen.add(device.name)
