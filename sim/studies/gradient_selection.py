@@ -565,7 +565,9 @@ def _rankings(config: Config, per_test, fitted: list[Fitted], Xtr) -> list[str]:
                      "simulated block every gradient is driven by the same few heat paths "
                      "(chamber air → cabinet → block; discharge and ballast power) and the "
                      "nominal design is left/right symmetric; the paper's block, with its "
-                     "Table 3 spread, evidently has gradients that move more independently.")
+                     "Table 3 spread, evidently has gradients that move more independently. "
+                     "Monte Carlo units ≥ 1 draw an asymmetric block (rlgsim montecarlo "
+                     "STUDY --units N) to show how the gap changes with the asymmetry.")
         out.append(text)
     out.append("Nothing here was tuned to reproduce the paper's ranking: the device preset was "
                "fitted to the paper's raw and compensated STDs and Table 3 (docs/sensors.md), "
