@@ -7,18 +7,17 @@ import csv
 import math
 import pathlib
 import shutil
-import subprocess
 
 import h5py
 import numpy as np
 import pytest
 
+from html_render import CHROMIUM, SKIP_REASON, check_report_renders
 from sim.cli import main
 from sim.errors import UserInputError
 from sim.study import list_studies, load_study, parse_study, run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-CHROMIUM = pathlib.Path("/usr/bin/chromium")
 DEG_PER_H = 180.0 / math.pi * 3600.0
 
 
@@ -162,46 +161,9 @@ def test_cli_study_list_and_run(tmp_path, capsys):
     assert "unknown study 'no_such_study'" in capsys.readouterr().err
 
 
-_IMAGE_CHECK = (
-    "<script>window.addEventListener('load', function () {"
-    "var im = document.images, ok = 0;"
-    "for (var i = 0; i < im.length; i++) {"
-    " if (im[i].complete && im[i].naturalWidth > 0 &&"
-    "     im[i].getAttribute('src').indexOf('data:image/png;base64,') === 0) ok++; }"
-    "var d = document.createElement('div'); d.id = 'rlgsim-image-check';"
-    "d.textContent = 'images ' + im.length + ' loaded ' + ok;"
-    "document.body.appendChild(d); });</script>")
-
-
-def _chromium(tmp_path: pathlib.Path, *args: str) -> subprocess.CompletedProcess:
-    profile = tmp_path / f"profile{len(list(tmp_path.glob('profile*')))}"
-    return subprocess.run(
-        [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--no-first-run", f"--user-data-dir={profile}", *args],
-        capture_output=True, text=True, timeout=90)
-
-
-@pytest.mark.skipif(not CHROMIUM.exists(), reason="headless Chromium is not installed "
-                    "(/usr/bin/chromium missing; apt-get install chromium)")
+@pytest.mark.skipif(not CHROMIUM.exists(), reason=SKIP_REASON)
 def test_html_report_renders_in_headless_chromium(demo, tmp_path):
-    html = (demo / "report.html").read_text()
-    n_figures = html.count("<img ")
-    assert n_figures >= 3
-    probe = tmp_path / "probe.html"               # the report plus a script counting images
-    probe.write_text(html.replace("</body>", _IMAGE_CHECK + "</body>"))
-    r = _chromium(tmp_path, "--virtual-time-budget=10000", "--dump-dom", probe.as_uri())
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert f"images {n_figures} loaded {n_figures}" in r.stdout
-    shot = tmp_path / "shot.png"
-    r = _chromium(tmp_path, f"--screenshot={shot}", "--window-size=1200,3000",
-                  (demo / "report.html").as_uri())
-    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
-    from PIL import Image
-    img = np.asarray(Image.open(shot).convert("L"), dtype=float)
-    assert img.shape == (3000, 1200)
-    assert img.std() > 10                          # text, tables and plots, not a blank page
-    assert (img < 128).mean() > 0.01
+    check_report_renders(demo / "report.html", tmp_path, min_figures=3)
 
 
 @pytest.mark.parametrize("name", ["demo", "paper001"])

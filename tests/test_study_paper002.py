@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from independent_windows import read_windows
+from html_render import CHROMIUM, SKIP_REASON, check_report_renders
 from sim.errors import UserInputError
 from sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
 
@@ -379,3 +380,8 @@ def test_a_bad_parameter_value_is_a_user_error_at_fit_time(folder, tmp_path):
     with pytest.raises(UserInputError, match="badrho.toml: compensator\\[2\\].params: "
                                              "compensator 'Modified RBFNN'"):
         run_study(study, tmp_path, progress=False)
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason=SKIP_REASON)
+def test_html_report_renders_in_headless_chromium(ran, tmp_path):
+    check_report_renders(ran / "report.html", tmp_path, min_figures=3)

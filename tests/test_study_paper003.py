@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from independent_windows import read_windows
+from html_render import CHROMIUM, SKIP_REASON, check_report_renders
 from sim.errors import UserInputError
 from sim.study import list_studies, load_study, parse_study, run_study
 from sim.studies.gradient_selection import improvement_over_traditional
@@ -296,3 +297,8 @@ def test_monte_carlo_unit_draws_another_block_without_a_report(tmp_path):
     assert ("truth: temperature law", "rmse_true@train-seed3100") in metrics
     assert r1 != r0
     assert study_unit(payload, 1) == u1
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason=SKIP_REASON)
+def test_html_report_renders_in_headless_chromium(short, tmp_path):
+    check_report_renders(short / "report.html", tmp_path, min_figures=6)
