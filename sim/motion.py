@@ -35,12 +35,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
 from sim.earth import Site
-from sim.turntable import TableMotion, TurntableProgram
+from sim.turntable import TurntableProgram
 from sim.units import DEG
 
 _TIME_TOL_S = 1e-6

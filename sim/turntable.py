@@ -85,8 +85,7 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any, Iterator, Mapping, Sequence
 
-from sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list,
-                        get_str, get_table)
+from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str
 from sim.errors import UserInputError
 
 AXES = ("outer", "inner")

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from _turntable_pulses import (DEG_H, KA, KG, UG, nominal, random_truth, window,
-                               window_slow_noise, write_dataset)
+from _turntable_pulses import (DEG_H, UG, nominal, random_truth, window, window_slow_noise,
+                               write_dataset)
 from estimators.calibration import (PAPER_PARAMETERS, PARAMETERS, CampaignError,
-                                    CampaignSettings, DatasetReader, calibrate_one,
-                                    engineering_values, find_windows, run_campaign,
+                                    CampaignSettings, DatasetReader, engineering_values,
+                                    find_windows, run_campaign,
                                     to_accelerometer_frame)
-from estimators.calibration_filter import (ACCEL_MIS, GYRO_MIS, PARAMS, FilterSettings,
-                                           calibrate_window, model_difference)
+from estimators.calibration_filter import (PARAMS, FilterSettings, calibrate_window,
+                                           model_difference)
 from estimators.strapdown import ARCSEC, SensorModel
 from sim.turntable import TurntableProgram
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import simpy
 
-from sim.scenario import load_scenario, parse_scenario
+from sim.scenario import load_scenario
 from sim.schedule import PiecewiseConstant, TRACKS, build_timeline
 
 from scenario_helpers import quickstart, scenario

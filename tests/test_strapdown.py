@@ -6,7 +6,6 @@ against quadrature in test_motion.py), a sequential quaternion loop, scipy's Rot
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
