@@ -50,21 +50,17 @@ import numpy as np
 from sim.config import check_known_keys, get_float, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (EQUATION_KINDS, KINDS, ORACLE, RAW, CompensatorSpec,
-                                     FeatureSpec, Fitted, RunSeries, RunSpec, dataset_for, fit,
-                                     fmt, check_features_on_devices, parse_compensators,
-                                     parse_data, parse_features,
-                                     parse_metrics, random_state_for, read_run, scores, stack,
-                                     worth_showing, definitions)
+from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
+                                     Fitted, RunSeries, RunSpec, check_features_on_devices,
+                                     definitions, fit, fmt, load_runs, parse_compensators,
+                                     parse_data, parse_features, parse_metrics,
+                                     random_state_for, scores, stack, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
 PUBLISHED_COMP_KEYS = ("stability_deg_per_h", "improvement_pct", "c", "sigma2", "equation")
 METRIC_KEYS = ("cluster_s", "ddof", "baseline")
 PUBLISHED_KEYS = ("stability_before_deg_per_h", "correlation")
-
-__all__ = ["KINDS", "ORACLE", "RAW", "Config", "CompensatorSpec", "RunSeries", "RunSpec",
-           "check", "run", "dataset_for", "fit", "read_run", "scores"]
 
 
 @dataclass(frozen=True)
@@ -120,18 +116,13 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 
     workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
-    runs: dict[str, tuple[RunSeries, Any, bool]] = {}
-    for spec in config.train + config.test:
-        if spec.label in runs:
-            continue
-        path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
-        runs[spec.label] = (read_run(path, config, spec.label, spec.ctx, spec.skip_s), scenario,
-                            reused)
+    runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
+                     progress=progress)
     t_data = time.perf_counter() - t_start
 
-    train = [runs[s.label][0] for s in config.train]
+    train = [runs[s.key].series for s in config.train]
     Xtr, ytr = stack(train)
-    random_state = random_state_for(runs[config.train[0].label][1].seed, unit)
+    random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
 
     fitted: list[Fitted] = []
     tuned: dict = {}
@@ -147,7 +138,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     predictions: dict[str, dict[str, np.ndarray]] = {}
     multi = len(config.test) > 1
     for spec in config.test:
-        rs = runs[spec.label][0]
+        rs = runs[spec.key].series
         rate = 1.0 / config.window_s
         raw_stab = M.bias_stability(rs.y, rate, config.cluster_s, config.ddof)
         preds = {f.spec.name: np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), float)
@@ -166,7 +157,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
             for metric, value in sc.items():
                 rows.append((name, f"{metric}@{spec.label}" if multi else metric, float(value)))
 
-    test0 = runs[config.test[0].label][0]
+    test0 = runs[config.test[0].key].series
     params = {k: v for k, v in test0.coefficients.items() if worth_showing(k)}
     report = None
     if make_report:
@@ -190,18 +181,18 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     if study.description:
         rep.paragraph(study.description)
     test_label = config.test[0].label
-    rs_test = runs[test_label][0]
+    rs_test = runs[config.test[0].key].series
     sc = per_test[test_label]
 
     rep.heading("Runs, seeds and software", 2)
     rep.bullets([f"rlgsim {software_version()}; recipe bias_compensation; unit {unit}"]
                 + [f"{'train' if s in config.train else 'test'} run {s.label}: scenario "
-                   f"{runs[s.label][1].name}, seed {runs[s.label][0].seed}, device_seed "
-                   f"{runs[s.label][0].device_seed}, {runs[s.label][0].y.size} windows of "
+                   f"{runs[s.key].scenario.name}, seed {runs[s.key].series.seed}, device_seed "
+                   f"{runs[s.key].series.device_seed}, {runs[s.key].series.y.size} windows of "
                    f"{config.window_s:g} s, raw bias stability "
-                   f"{_raw_stability(runs[s.label][0], config):.5f} °/h, dataset "
-                   f"{runs[s.label][0].path.name}"
-                   f" ({'reused' if runs[s.label][2] else 'simulated'})"
+                   f"{_raw_stability(runs[s.key].series, config):.5f} °/h, dataset "
+                   f"{runs[s.key].series.path.name}"
+                   f" ({'reused' if runs[s.key].reused else 'simulated'})"
                    for s in dict.fromkeys(config.train + config.test)]
                 + [f"Earth-rate projection on the gyro axis: {rs_test.earth_deg_per_h:.4f} °/h "
                    f"(subtracted from the output: 'bias = output − Earth-rate projection')",

@@ -68,11 +68,10 @@ import numpy as np
 from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
-                                     RunSeries, RunSpec, check_scenarios, dataset_for, fit,
-                                     check_features_on_devices, parse_compensators,
-                                     parse_data, parse_features,
-                                     parse_metrics, parse_runs,
-                                     random_state_for, read_run, scores, stack, worth_showing)
+                                     RunSeries, RunSpec, check_features_on_devices,
+                                     check_scenarios, fit, load_runs, parse_compensators,
+                                     parse_data, parse_features, parse_metrics, parse_runs,
+                                     random_state_for, scores, stack, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics")
 DATA_KEYS = ("window_s", "gyro")
@@ -209,15 +208,6 @@ def check(study: Study) -> Config:
 
 # ------------------------------------------------------------------------------ the run
 @dataclass
-class Loaded:
-    """A run's window series, its scenario and whether the dataset was reused."""
-
-    series: RunSeries
-    scenario: Any
-    reused: bool
-
-
-@dataclass
 class EnvResult:
     """Everything one environment produced (scores in °/h unless the metric says otherwise)."""
 
@@ -239,22 +229,6 @@ def stability(x: np.ndarray, config: Config) -> float:
     return bias_stability(x, 1.0 / config.window_s, config.cluster_s, config.ddof)
 
 
-def _load_runs(study: Study, config: Config, workdir: pathlib.Path, unit: int,
-               progress: bool) -> dict[tuple[str, float], Loaded]:
-    """Simulate (or reuse) and read every run of every environment, once per (label, skip)."""
-    out: dict[tuple[str, float], Loaded] = {}
-    for env in config.environments:
-        for spec in env.train + env.test:
-            key = (spec.label, spec.skip_s)
-            if key in out:
-                continue
-            path, scenario, reused = dataset_for(study, spec, workdir, unit=unit,
-                                                 progress=progress)
-            out[key] = Loaded(read_run(path, config, spec.label, spec.ctx, spec.skip_s),
-                              scenario, reused)
-    return out
-
-
 def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
     return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
 
@@ -271,9 +245,9 @@ def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
     """Fit every compensator on the environment's train runs and score it on its test runs."""
     from tqdm import tqdm
 
-    train = [loaded[(s.label, s.skip_s)].series for s in env.train]
+    train = [loaded[s.key].series for s in env.train]
     Xtr, ytr = stack(train)
-    random_state = random_state_for(loaded[(env.train[0].label, env.train[0].skip_s)]
+    random_state = random_state_for(loaded[env.train[0].key]
                                     .scenario.seed, unit)
     fitted: list[Fitted] = []
     bar = tqdm(config.compensators, desc=f"fitting {env.name}", unit="model",
@@ -288,7 +262,7 @@ def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
     per_test: dict[str, dict[str, dict[str, float]]] = {}
     predictions: dict[str, dict[str, np.ndarray]] = {}
     for spec in env.test:
-        rs = loaded[(spec.label, spec.skip_s)].series
+        rs = loaded[spec.key].series
         before = stability(rs.y, config)
         preds = {RAW: np.full_like(rs.y, np.mean(ytr)),
                  **{f.spec.name: predict(f, rs) for f in fitted},
@@ -298,7 +272,7 @@ def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
             name: scores(rs.y, p, rs.true_bias, rs.true_random, config.window_s,
                          config.cluster_s, config.ddof, before) for name, p in preds.items()}
     return EnvResult(env=env, train=train,
-                     tests=[loaded[(s.label, s.skip_s)].series for s in env.test],
+                     tests=[loaded[s.key].series for s in env.test],
                      fitted=fitted, train_after=train_after, train_raw=train_raw,
                      per_test=per_test, predictions=predictions,
                      scores=_mean_scores(per_test), random_state=random_state)
@@ -329,7 +303,9 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 
     workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
-    loaded = _load_runs(study, config, workdir, unit, progress)
+    loaded = load_runs(study, tuple(s for env in config.environments
+                                    for s in env.train + env.test), config, workdir,
+                       unit=unit, progress=progress)
     t_data = time.perf_counter() - t_start
     with threadpool_limits(limits=1):
         results = [_run_environment(env, config, loaded, unit, progress)

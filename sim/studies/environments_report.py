@@ -659,7 +659,7 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
     for env in config.environments:
         for role, specs in (("train", env.train), ("test", env.test)):
             for s in specs:
-                ld = loaded[(s.label, s.skip_s)]
+                ld = loaded[s.key]
                 rs = ld.series
                 out.append(f"{env.name}, {role}: scenario {ld.scenario.name}, seed {rs.seed}, "
                            f"device_seed {rs.device_seed}, first {s.skip_s / 3600:g} h dropped, "

@@ -56,11 +56,10 @@ import numpy as np
 from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSeries,
-                                     RunSpec, dataset_for, definitions, fit, fmt,
-                                     check_features_on_devices, parse_compensators,
-                                     parse_data, parse_features, parse_metrics,
-                                     random_state_for, read_run, scores, stack, str_list,
+from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
+                                     RunSpec, check_features_on_devices, definitions, fit, fmt,
+                                     load_runs, parse_compensators, parse_data, parse_features,
+                                     parse_metrics, random_state_for, scores, stack, str_list,
                                      worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
@@ -271,18 +270,13 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 
     workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
-    runs: dict[str, tuple[RunSeries, Any, bool]] = {}
-    for spec in config.train + config.test:
-        if spec.label in runs:
-            continue
-        path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
-        runs[spec.label] = (read_run(path, config, spec.label, spec.ctx, spec.skip_s), scenario,
-                            reused)
+    runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
+                     progress=progress)
     t_data = time.perf_counter() - t_start
 
-    train = [runs[s.label][0] for s in config.train]
+    train = [runs[s.key].series for s in config.train]
     Xtr, ytr = stack(train)
-    random_state = random_state_for(runs[config.train[0].label][1].seed, unit)
+    random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
 
     listings: dict[str, list[tuple[str, float, bool]]] = {}
     fitted: list[Fitted] = []
@@ -301,7 +295,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     predictions: dict[str, dict[str, np.ndarray]] = {}
     rate = 1.0 / config.window_s
     for spec in config.test:
-        rs = runs[spec.label][0]
+        rs = runs[spec.key].series
         before = M.bias_stability(rs.y, rate, config.cluster_s, config.ddof)
         preds = {RAW: np.full_like(rs.y, np.mean(ytr))}
         preds.update({f.spec.name: np.asarray(f.model.predict(rs.X.select(f.spec.inputs)),
@@ -320,7 +314,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
             rows.append(("correlation", f"r[{config.points[i]}-{config.points[j]}]",
                          float(corr[i, j])))
 
-    first_test = runs[config.test[0].label][0]
+    first_test = runs[config.test[0].key].series
     params = {k: v for k, v in first_test.coefficients.items() if worth_showing(k)}
     report = None
     if make_report:
@@ -346,7 +340,8 @@ def _report(study: Study, config: Config, runs, fitted: list[Fitted], listings, 
     rep.heading("Runs, seeds and software", 2)
     bullets = [f"rlgsim {software_version()}; recipe gradient_selection; unit {unit}"]
     for s in dict.fromkeys(config.train + config.test):
-        rs, scenario, reused = runs[s.label]
+        ld = runs[s.key]
+        rs, scenario, reused = ld.series, ld.scenario, ld.reused
         role = "train" if s in config.train else "test"
         stab = per_test.get(s.label, {}).get(RAW, {}).get("stability_before")
         bullets.append(f"{role} run {s.label}: scenario {scenario.name}, seed {rs.seed}, "
@@ -373,7 +368,7 @@ def _report(study: Study, config: Config, runs, fitted: list[Fitted], listings, 
         rep.paragraph(para)
     _series_attachments(rep, config, runs, predictions)
     _figures(rep, config, runs, per_test, predictions, fitted, corr)
-    first = runs[config.test[0].label][0]
+    first = runs[config.test[0].key].series
     rep.heading("Drawn device parameters (truth)", 2)
     rep.table(Table.from_records("Device coefficients", [
         {"coefficient": k, "value": v} for k, v in first.coefficients.items()
@@ -579,7 +574,7 @@ def _rankings(config: Config, per_test, fitted: list[Fitted], Xtr) -> list[str]:
 def _series_attachments(rep: Report, config: Config, runs, predictions) -> None:
     rep.heading("Window series (CSV)", 2)
     for spec in config.test:
-        rs = runs[spec.label][0]
+        rs = runs[spec.key].series
         preds = predictions[spec.label]
         cols = {"time_s": rs.time_s, "y_deg_per_h": rs.y, "true_bias_deg_per_h": rs.true_bias,
                 "true_random_deg_per_h": rs.true_random}
@@ -621,7 +616,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
 
     names = [f.spec.name for f in fitted]
     for spec in config.test:
-        rs = runs[spec.label][0]
+        rs = runs[spec.key].series
         preds = predictions[spec.label]
         th = rs.time_s / 3600.0
         fig, (ax, ax2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
@@ -661,7 +656,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
                    "and after compensation (allantools).")
 
     if corr is not None and len(config.points) >= 2:
-        rs = runs[config.test[-1].label][0]
+        rs = runs[config.test[-1].key].series
         preds = predictions[config.test[-1].label]
         i, j = np.unravel_index(np.argmax(np.abs(corr)), corr.shape)
         a, b = config.points[min(i, j)], config.points[max(i, j)]

@@ -109,6 +109,11 @@ class RunSpec:
     skip_s: float = 0.0
 
     @property
+    def key(self) -> tuple[str, float]:
+        """Identifies the loaded series: the dataset (label) and the windows kept (skip)."""
+        return (self.label, self.skip_s)
+
+    @property
     def label(self) -> str:
         stem = pathlib.Path(self.ref).name
         stem = stem[:-5] if stem.endswith(".toml") else stem
@@ -559,6 +564,29 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
                      true_random=window_average(tr, thermal_rate, W)[keep],
                      X=X, earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
                      coefficients=coeff)
+
+
+@dataclass
+class LoadedRun:
+    """A run's window series, its scenario and whether its dataset was reused."""
+
+    series: RunSeries
+    scenario: Any
+    reused: bool
+
+
+def load_runs(study: Study, specs: tuple[RunSpec, ...], features: FeatureSpec,
+              workdir: pathlib.Path, *, unit: int, progress: bool
+              ) -> dict[tuple[str, float], LoadedRun]:
+    """Simulate (or reuse) and read every run once, keyed by :attr:`RunSpec.key`."""
+    out: dict[tuple[str, float], LoadedRun] = {}
+    for spec in specs:
+        if spec.key in out:
+            continue
+        path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
+        out[spec.key] = LoadedRun(read_run(path, features, spec.label, spec.ctx, spec.skip_s),
+                                  scenario, reused)
+    return out
 
 
 # ------------------------------------------------------------------------------ fitting
