@@ -380,28 +380,24 @@ def _short(p: str) -> str:
     return p.split(".", 1)[1] if p.startswith("g.") else p
 
 
+def _matrix_records(points: tuple[str, ...], m: np.ndarray) -> list[dict[str, Any]]:
+    """Rows of a thermometer × thermometer table (empty diagonal)."""
+    return [{"thermometer": _short(a), **{_short(b): None if i == j else fmt(m[i, j])
+                                          for j, b in enumerate(points)}}
+            for i, a in enumerate(points)]
+
+
 def _correlation_section(rep: Report, config: Config, corr: np.ndarray) -> None:
     pts = config.points
     rep.heading("Correlation of the bias with the pairwise gradients (paper 003 Table 3)", 2)
-    recs = []
-    for i, a in enumerate(pts):
-        rec: dict[str, Any] = {"thermometer": _short(a)}
-        for j, b in enumerate(pts):
-            rec[_short(b)] = None if i == j else fmt(corr[i, j])
-        recs.append(rec)
-    rep.table(Table.from_records("Ours: r(bias, T_row − T_column), train run(s)", recs,
+    rep.table(Table.from_records("Ours: r(bias, T_row − T_column), train run(s)",
+                                 _matrix_records(pts, corr),
                                  csv_name="correlation_matrix.csv",
                                  note="signed: T_row − T_column; the matrix of "
                                       "|r| is symmetric."))
     if config.published_matrix is not None:
         pub = config.published_matrix
-        recs = []
-        for i, a in enumerate(pts):
-            rec = {"thermometer": _short(a)}
-            for j, b in enumerate(pts):
-                rec[_short(b)] = None if i == j else float(pub[i, j])
-            recs.append(rec)
-        rep.table(Table.from_records("Paper 003 Table 3", recs,
+        rep.table(Table.from_records("Paper 003 Table 3", _matrix_records(pts, pub),
                                      csv_name="correlation_matrix_paper.csv",
                                      note="the paper prints positive values only (|r|, or "
                                           "gradients oriented to correlate positively)."))
