@@ -50,39 +50,16 @@ def _is_timing(metric: str) -> bool:
     return metric.split("@")[0] in TIMING_METRICS
 
 
-def study_scenario_refs(tables: dict) -> list[str]:
-    """Scenario references found in a study's recipe tables (``scenario = "..."`` entries and
-    plain strings in ``train``/``test``-like lists), in file order."""
-    refs: list[str] = []
-
-    def walk(obj: Any, key: str = "") -> None:
-        if isinstance(obj, dict):
-            for k, v in obj.items():
-                if k == "scenario" and isinstance(v, str):
-                    refs.append(v)
-                else:
-                    walk(v, k)
-        elif isinstance(obj, list):
-            for v in obj:
-                if isinstance(v, str) and key in ("train", "test", "runs", "scenarios"):
-                    refs.append(v)
-                else:
-                    walk(v, key)
-
-    walk({k: v for k, v in tables.items() if k != "study"})
-    return list(dict.fromkeys(refs))
-
-
 def thermal_params(study, unit: int) -> dict[str, float]:
     """Summary of unit ``unit``'s drawn thermal network (:func:`sim.simulate.thermal_summary`)
     when every scenario of the study simulates the same physical unit (the study sets
     ``device_seed``, or all its scenarios share device preset and realisation seed); else {}."""
     from sim.simulate import realised_network, thermal_summary
-    from sim.study import scenario_for
+    from sim.study import scenario_for, scenario_refs
 
     keys = set()
     first = None
-    for ref in study_scenario_refs(study.tables):
+    for ref in scenario_refs(study.tables):
         try:
             sc = scenario_for(study, ref, unit=unit)
         except UserInputError:
@@ -96,10 +73,10 @@ def thermal_params(study, unit: int) -> dict[str, float]:
 
 def chamber_params(study, unit: int, variation) -> dict[str, float]:
     """The chamber variation drawn for the study's first scenario (sim.unit_variations)."""
-    from sim.study import scenario_for
+    from sim.study import scenario_for, scenario_refs
     from sim.unit_variations import draw
 
-    refs = study_scenario_refs(study.tables)
+    refs = scenario_refs(study.tables)
     if not variation.active or not refs:
         return {}
     try:

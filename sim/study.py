@@ -134,6 +134,29 @@ def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = Non
     return apply(dataclasses.replace(scenario, **changes))
 
 
+def scenario_refs(tables: dict) -> list[str]:
+    """Scenario references found in a study's recipe tables (``scenario = "..."`` entries and
+    plain strings in ``train``/``test``-like lists), in file order."""
+    refs: list[str] = []
+
+    def walk(obj: Any, key: str = "") -> None:
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if k == "scenario" and isinstance(v, str):
+                    refs.append(v)
+                else:
+                    walk(v, k)
+        elif isinstance(obj, list):
+            for v in obj:
+                if isinstance(v, str) and key in ("train", "test", "runs", "scenarios"):
+                    refs.append(v)
+                else:
+                    walk(v, key)
+
+    walk({k: v for k, v in tables.items() if k != "study"})
+    return list(dict.fromkeys(refs))
+
+
 def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True
               ) -> pathlib.Path:
     """Run ``study`` (unit 0) and write its report folder; returns the path of report.md."""
@@ -150,7 +173,26 @@ def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = Tru
         raise RuntimeError(f"recipe {study.recipe} returned no report")
     result.report.heading("Study file", 2)
     result.report.verbatim(study.text, title=study.source, language="toml")
+    _input_files(study, result.report)
     return result.report.write(out_dir)
+
+
+def _input_files(study: Study, report: Report) -> None:
+    """The exact text of every scenario the study simulates and of their device and thermal
+    presets (each once), so that the report alone says what was simulated."""
+    report.heading("Scenario and preset files", 2)
+    shown: set[str] = set()
+    for ref in scenario_refs(study.tables):
+        sc = scenario_for(study, ref)
+        for kind, name, source, text in (
+                ("scenario", sc.name, sc.source, sc.text),
+                ("device preset", sc.device.name, sc.device.source, sc.device.text),
+                ("thermal preset", sc.device.thermal.name, sc.device.thermal.source,
+                 sc.device.thermal.text)):
+            if (kind, source) in shown:
+                continue
+            shown.add((kind, source))
+            report.verbatim(text, title=f"{kind} {name} ({source})", language="toml")
 
 
 def study_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:

@@ -209,3 +209,13 @@ def test_a_window_that_does_not_fit_the_data_is_a_user_error_before_simulating(t
         parse_study(text, "early.toml", base_dir=ROOT / "scenarios" / "studies")
     assert "data.window_s: a 100.05 s window at 10.0 Hz is 1000.5 samples" in str(err.value)
     assert "scenario 'demo_cycle'" in str(err.value)
+
+
+def test_report_holds_the_exact_scenario_and_preset_texts(demo):
+    from sim.scenario import load_scenario
+    md = (demo / "report.md").read_text()
+    sc = load_scenario("demo_cycle")
+    for kind, text in (("scenario demo_cycle", sc.text), ("device preset trplg_001", sc.device.text),
+                       (f"thermal preset {sc.device.thermal.name}", sc.device.thermal.text)):
+        assert md.count(f"**{kind} (") == 1                   # train and test: shown once
+        assert text.rstrip("\n") in md
