@@ -215,7 +215,8 @@ def test_report_holds_the_exact_scenario_and_preset_texts(demo):
     from sim.scenario import load_scenario
     md = (demo / "report.md").read_text()
     sc = load_scenario("demo_cycle")
-    for kind, text in (("scenario demo_cycle", sc.text), ("device preset trplg_001", sc.device.text),
+    for kind, text in (("scenario demo_cycle", sc.text),
+                       ("device preset trplg_001", sc.device.text),
                        (f"thermal preset {sc.device.thermal.name}", sc.device.thermal.text)):
         assert md.count(f"**{kind} (") == 1                   # train and test: shown once
         assert text.rstrip("\n") in md
