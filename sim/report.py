@@ -52,7 +52,9 @@ def format_value(value: Any, digits: int = 4) -> str:
 
 
 def slug(text: str) -> str:
-    """A file-name-safe version of ``text``."""
+    """A file-name-safe version of ``text``; a minus sign before a digit becomes "m", so that
+    "-40 °C" and "40 °C" stay apart ("m40_c", "40_c")."""
+    text = re.sub(r"(?:(?<=^)|(?<=[^A-Za-z0-9]))[-−](?=\d)", "m", text)
     return re.sub(r"[^A-Za-z0-9]+", "_", text).strip("_").lower() or "item"
 
 
