@@ -220,3 +220,18 @@ def test_report_holds_the_exact_scenario_and_preset_texts(demo):
                        (f"thermal preset {sc.device.thermal.name}", sc.device.thermal.text)):
         assert md.count(f"**{kind} (") == 1                   # train and test: shown once
         assert text.rstrip("\n") in md
+
+
+def test_several_test_runs_get_their_own_scores_and_figures(tmp_path):
+    text = GOOD.replace('test = [{ scenario = "demo_cycle", seed = 7002 }]',
+                        'test = [{ scenario = "demo_cycle", seed = 7002 }, '
+                        '{ scenario = "demo_cycle", seed = 7003 }]')
+    assert text != GOOD
+    study = parse_study(text, "two.toml", base_dir=ROOT / "scenarios" / "studies")
+    run_study(study, tmp_path, progress=False)
+    for label in ("demo_cycle_seed7002", "demo_cycle_seed7003"):
+        assert (tmp_path / f"scores_{label}.csv").is_file()
+        for fig in ("bias_over_time", "bias_vs_temperature", "allan_deviation"):
+            assert (tmp_path / f"{fig}_{label}.png").stat().st_size > 10_000
+    md = (tmp_path / "report.md").read_text()
+    assert "Test run demo_cycle-seed7003. Top:" in md

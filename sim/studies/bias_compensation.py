@@ -169,11 +169,6 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 # ------------------------------------------------------------------------------ the report
 def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr, unit,
             t_data, t_total) -> Report:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from estimators import metrics as M
     from sim.dataset import software_version
 
     title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
@@ -295,50 +290,75 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     for para in _rankings(config, fitted, sc, int(ytr.size)):
         rep.paragraph(para)
 
-    # -- figures
-    preds = predictions[test_label]
+    # -- figures, per test run
+    multi = len(config.test) > 1
+    for spec in config.test:
+        _run_figures(rep, config, fitted, runs[spec.key].series, predictions[spec.label],
+                     per_test[spec.label], ytr, spec.label, multi)
+
+    rep.heading("Drawn device parameters (truth)", 2)
+    rep.table(Table.from_records("Device coefficients", [
+        {"coefficient": k, "value": v} for k, v in rs_test.coefficients.items()
+        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    return rep
+
+
+def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSeries,
+                 preds: dict[str, np.ndarray], sc: dict, ytr: np.ndarray, label: str,
+                 multi: bool) -> None:
+    """The figures of one test run: bias over time (measured, true, predicted; compensated),
+    bias against temperature with the truth, Allan deviation before and after."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from estimators import metrics as M
+
+    tag = f"_{_slug(label)}" if multi else ""
+    where = f"Test run {label}. " if multi else ""
     best = _best_per_kind(fitted, sc)
-    th = rs_test.time_s / 3600.0
+    th = rs.time_s / 3600.0
     top = min(fitted, key=lambda f: sc[f.spec.name]["stability_after"]).spec.name if fitted \
         else None
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
-    ax.plot(th, rs_test.y, color="0.6", lw=0.8, label="measured bias y")
-    ax.plot(th, rs_test.true_bias, color="k", lw=1.0, ls="--", label="true bias b")
+    ax.plot(th, rs.y, color="0.6", lw=0.8, label="measured bias y")
+    ax.plot(th, rs.true_bias, color="k", lw=1.0, ls="--", label="true bias b")
     if top is not None:
         ax.plot(th, preds[top], color="C3", lw=1.0, label=f"prediction ŷ: {top}")
     ax.set_ylabel("bias [°/h]")
     ax.legend(fontsize=7)
-    ax.set_title(f"Test run {test_label} ({config.window_s:g} s means)")
-    ax2.plot(th, rs_test.y - np.mean(ytr), color="0.6", lw=0.8, label="raw (y − train mean)")
+    ax.set_title(f"Test run {label} ({config.window_s:g} s means)")
+    ax2.plot(th, rs.y - np.mean(ytr), color="0.6", lw=0.8, label="raw (y − train mean)")
     for name in best:
-        ax2.plot(th, rs_test.y - preds[name], lw=0.9, label=f"y − ŷ: {name}")
+        ax2.plot(th, rs.y - preds[name], lw=0.9, label=f"y − ŷ: {name}")
     ax2.set_xlabel("time [h]")
     ax2.set_ylabel("compensated [°/h]")
     ax2.legend(fontsize=7, ncol=2)
-    rep.figure(fig, "bias_over_time", "Top: measured and true bias with the prediction of the "
-                                      "model with the best bias stability. Bottom: the raw and "
-                                      "compensated series of the best model of each kind.")
+    rep.figure(fig, f"bias_over_time{tag}",
+               f"{where}Top: measured and true bias with the prediction of the model with the "
+               "best bias stability. Bottom: the raw and compensated series of the best model "
+               "of each kind.")
 
-    if "T" in rs_test.X:
+    if "T" in rs.X:
         fig, ax = plt.subplots(figsize=(7, 5))
-        T = rs_test.X["T"]
-        ax.scatter(T, rs_test.y, s=4, color="0.6", label="measured bias y")
-        ax.scatter(T, rs_test.true_bias, s=4, color="k", label="true bias b")
-        ax.scatter(T, rs_test.true_bias - rs_test.true_random, s=3, color="C3",
+        T = rs.X["T"]
+        ax.scatter(T, rs.y, s=4, color="0.6", label="measured bias y")
+        ax.scatter(T, rs.true_bias, s=4, color="k", label="true bias b")
+        ax.scatter(T, rs.true_bias - rs.true_random, s=3, color="C3",
                    label="true temperature law b − r")
         if top is not None:
             ax.scatter(T, preds[top], s=3, color="C0", label=f"prediction: {top}")
         ax.set_xlabel(f"T (probe {config.temperature}) [°C]")
         ax.set_ylabel("bias [°/h]")
         ax.legend(fontsize=8)
-        rep.figure(fig, "bias_vs_temperature", "Bias against the probe temperature, test run, "
-                                               "with the truth.")
+        rep.figure(fig, f"bias_vs_temperature{tag}", f"{where}Bias against the probe "
+                                                     "temperature, with the truth.")
 
     fig, ax = plt.subplots(figsize=(7, 5))
     rate = 1.0 / config.window_s
-    for name, series, style in ([("raw", rs_test.y, dict(color="0.5"))]
-                                + [(n, rs_test.y - preds[n], {}) for n in best]
-                                + [(ORACLE, rs_test.y - preds[ORACLE], dict(color="k", ls="--"))]):
+    for name, series, style in ([("raw", rs.y, dict(color="0.5"))]
+                                + [(n, rs.y - preds[n], {}) for n in best]
+                                + [(ORACLE, rs.y - preds[ORACLE], dict(color="k", ls="--"))]):
         if series.size < 8:
             continue
         ad = M.allan_deviation(series, rate, "octave")
@@ -347,14 +367,10 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
     ax.set_ylabel("Allan deviation [°/h]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    rep.figure(fig, "allan_deviation", f"Overlapping Allan deviation of the {config.window_s:g} s "
-                                       "series before and after compensation (allantools).")
+    rep.figure(fig, f"allan_deviation{tag}",
+               f"{where}Overlapping Allan deviation of the {config.window_s:g} s series before "
+               "and after compensation (allantools).")
 
-    rep.heading("Drawn device parameters (truth)", 2)
-    rep.table(Table.from_records("Device coefficients", [
-        {"coefficient": k, "value": v} for k, v in rs_test.coefficients.items()
-        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
-    return rep
 
 
 def _raw_stability(rs: RunSeries, config: Config) -> float:
