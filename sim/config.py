@@ -141,6 +141,16 @@ def get_table(table: Mapping[str, Any], key: str, ctx: Ctx, default: Any = _MISS
     return dict(value)
 
 
+def get_section(table: Mapping[str, Any], key: str, ctx: Ctx, allowed: Iterable[str],
+                default: Any = _MISSING) -> tuple[dict, Ctx]:
+    """A sub-table whose keys must be among ``allowed``, with the :class:`Ctx` that names
+    its keys in messages (``key.<sub-key>``)."""
+    value = get_table(table, key, ctx, default)
+    sub = ctx.child(key)
+    check_known_keys(value, allowed, sub)
+    return value, sub
+
+
 def get_list(table: Mapping[str, Any], key: str, ctx: Ctx, default: Any = _MISSING, *,
              min_len: int = 0) -> list:
     value = _get(table, key, ctx, default)

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import check_known_keys, get_float, get_str, get_table
+from sim.config import check_known_keys, get_float, get_section, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
@@ -92,9 +92,7 @@ def check(study: Study) -> Config:
     mtable, mctx, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     baseline = get_str(mtable, "baseline", mctx, RAW, choices=[RAW] + names)
 
-    ptable = get_table(data, "published", ctx, {})
-    pctx = ctx.child("published")
-    check_known_keys(ptable, PUBLISHED_KEYS, pctx)
+    ptable, pctx = get_section(data, "published", ctx, PUBLISHED_KEYS, {})
     published: dict[str, Any] = {}
     if "stability_before_deg_per_h" in ptable:
         published["stability_before"] = get_float(ptable, "stability_before_deg_per_h", pctx)

@@ -65,7 +65,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
+                        get_table)
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
                                      RunSeries, RunSpec, check_features_on_devices,
@@ -138,9 +139,7 @@ class Config(FeatureSpec):
 def _parse_published(env: dict, ectx: Ctx, names: list[str]) -> EnvPublished:
     """``[environment.published]``: numbers > 0 (running time >= 0), per-compensator tables
     keyed by compensator name."""
-    ptable = get_table(env, "published", ectx, {})
-    pctx = ectx.child("published")
-    check_known_keys(ptable, ENV_PUBLISHED_KEYS, pctx)
+    ptable, pctx = get_section(env, "published", ectx, ENV_PUBLISHED_KEYS, {})
     before = get_float(ptable, "stability_before_deg_per_h", pctx, None, min=0.0,
                        min_exclusive=True)
     per: dict[str, dict[str, float]] = {}

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
@@ -201,9 +201,7 @@ def check(study: Study) -> Config:
             raise c.ctx.error("inputs", "empty: give inputs or a select table")
     names = [c.name for c in comps]
 
-    ctable = get_table(data, "correlation", ctx, {})
-    cctx = ctx.child("correlation")
-    check_known_keys(ctable, CORRELATION_KEYS, cctx)
+    ctable, cctx = get_section(data, "correlation", ctx, CORRELATION_KEYS, {})
     points: tuple[str, ...] = ()
     matrix = None
     if ctable:

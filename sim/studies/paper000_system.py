@@ -65,7 +65,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_str, get_table
+from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_section, get_str
 from sim.errors import UserInputError
 from sim.report import Report, Table
 
@@ -107,21 +107,11 @@ def check(study) -> Config:
     data = study.tables
     ctx = Ctx(study.source)
     check_known_keys(data, TOP_KEYS, ctx)
-    camp = get_table(data, "campaign", ctx, {})
-    cctx = ctx.child("campaign")
-    check_known_keys(camp, CAMPAIGN_KEYS, cctx)
-    models = get_table(data, "models", ctx, {})
-    mctx = ctx.child("models")
-    check_known_keys(models, MODELS_KEYS, mctx)
-    rvr = get_table(models, "hho_rvr", mctx, {})
-    rctx = mctx.child("hho_rvr")
-    check_known_keys(rvr, RVR_KEYS, rctx)
-    lsm = get_table(models, "lsm", mctx, {})
-    lctx = mctx.child("lsm")
-    check_known_keys(lsm, LSM_KEYS, lctx)
-    system = get_table(data, "system", ctx, {})
-    sctx = ctx.child("system")
-    check_known_keys(system, SYSTEM_KEYS, sctx)
+    camp, cctx = get_section(data, "campaign", ctx, CAMPAIGN_KEYS, {})
+    models, mctx = get_section(data, "models", ctx, MODELS_KEYS, {})
+    rvr, rctx = get_section(models, "hho_rvr", mctx, RVR_KEYS, {})
+    lsm, lctx = get_section(models, "lsm", mctx, LSM_KEYS, {})
+    system, sctx = get_section(data, "system", ctx, SYSTEM_KEYS, {})
     temperature = get_str(camp, "temperature", cctx, "sensor")
     if not temperature.strip():
         raise cctx.error("temperature", "value '' not allowed; give \"sensor\" or a probe name")

@@ -65,8 +65,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str, \
-    get_table
+from sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_section,
+                        get_str, get_table)
 from sim.errors import UserInputError
 from sim.study import Study, scenario_for
 
@@ -317,10 +317,8 @@ def parse_data(study: Study, keys: tuple[str, ...], *, runs: bool = True) -> Dat
     """``[data]`` with ``keys`` allowed; with ``runs``, its train/test lists (every scenario
     must exist and parse) and the table is required, else it may be left out."""
     ctx = study.ctx()
-    dtable = get_table(study.tables, "data", ctx) if runs else get_table(study.tables, "data",
-                                                                          ctx, {})
-    dctx = ctx.child("data")
-    check_known_keys(dtable, keys, dctx)
+    dtable, dctx = (get_section(study.tables, "data", ctx, keys) if runs
+                    else get_section(study.tables, "data", ctx, keys, {}))
     train = parse_runs(dtable, "train", dctx) if runs else ()
     test = parse_runs(dtable, "test", dctx) if runs else ()
     check_scenarios(study, train + test)
@@ -334,9 +332,7 @@ def parse_metrics(data: dict, ctx: Ctx, window_s: float, keys: tuple[str, ...]
                   ) -> tuple[dict, Ctx, float, int]:
     """``[metrics]`` with ``keys`` allowed: (table, its Ctx, cluster_s [s] — a whole multiple
     of ``window_s``, default one window —, ddof of the bias-stability std, default 1)."""
-    mtable = get_table(data, "metrics", ctx, {})
-    mctx = ctx.child("metrics")
-    check_known_keys(mtable, keys, mctx)
+    mtable, mctx = get_section(data, "metrics", ctx, keys, {})
     cluster_s = get_float(mtable, "cluster_s", mctx, window_s, min=0.0, min_exclusive=True)
     ratio = cluster_s / window_s
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
@@ -347,9 +343,7 @@ def parse_metrics(data: dict, ctx: Ctx, window_s: float, keys: tuple[str, ...]
 
 def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> FeatureSpec:
     """The ``[features]`` table (``ctx``: the file's root) into a :class:`FeatureSpec`."""
-    ftable = get_table(data, "features", ctx, {})
-    fctx = ctx.child("features")
-    check_known_keys(ftable, FEATURE_KEYS, fctx)
+    ftable, fctx = get_section(data, "features", ctx, FEATURE_KEYS, {})
     gradients = str_list(ftable, "gradients", fctx)
     if len(gradients) == 1:
         raise fctx.error("gradients", "give at least 2 probes (or none)")
