@@ -302,3 +302,20 @@ def test_monte_carlo_unit_draws_another_block_without_a_report(tmp_path):
 @pytest.mark.skipif(not CHROMIUM.exists(), reason=SKIP_REASON)
 def test_html_report_renders_in_headless_chromium(short, tmp_path):
     check_report_renders(short / "report.html", tmp_path, min_figures=6)
+
+
+def test_window_series_do_not_depend_on_the_read_block(short, monkeypatch):
+    """read_run reads a block of windows at a time (bounded memory); the series are the same
+    bytes whatever the block size."""
+    from sim.config import Ctx
+    from sim.studies import single_gyro
+    spec = single_gyro.FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
+    path = short / "data" / "test.h5"
+    ref = single_gyro.read_run(path, spec, "test", Ctx("s.toml"))
+    for block in (1000, 7777, 123_457):
+        monkeypatch.setattr(single_gyro, "READ_BLOCK_SAMPLES", block)
+        got = single_gyro.read_run(path, spec, "test", Ctx("s.toml"))
+        for a, b in ((ref.y, got.y), (ref.true_bias, got.true_bias), (ref.time_s, got.time_s)):
+            assert a.tobytes() == b.tobytes()
+        assert ref.X.names == got.X.names
+        assert all(ref.X[n].tobytes() == got.X[n].tobytes() for n in ref.X.names)

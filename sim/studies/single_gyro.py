@@ -478,19 +478,24 @@ class RunSeries:
     coefficients: dict[str, float]
 
 
+#: Samples read at a time from a dataset (memory stays bounded whatever the run's duration).
+READ_BLOCK_SAMPLES = 1 << 22
+
+
 def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
              skip_s: float = 0.0) -> RunSeries:
     """Build the window series of one dataset (see the module docstring); windows that start
-    before ``skip_s`` are dropped."""
+    before ``skip_s`` are dropped. The dataset is read a block of whole windows at a time
+    (:data:`READ_BLOCK_SAMPLES`), so memory does not grow with the run's duration; every window
+    is computed from its own samples only, so the result does not depend on the block size."""
     import h5py
 
     from estimators.columns import Columns
-    from estimators.features import pairwise_gradients, samples_per_window, temperature_rate, \
-        window_average
+    from estimators.features import pairwise_gradients, samples_per_window
 
     W = config.window_s
     with h5py.File(path, "r") as f:
-        dctx = Ctx(ctx.source, "data")
+        dctx, fctx = Ctx(ctx.source, "data"), Ctx(ctx.source, "features")
         gyros = _strings(f["imu/gyro"][:])
         axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
         if config.gyro and config.gyro not in gyros:
@@ -500,8 +505,7 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
             raise dctx.error("gyro", f"missing: the device has several gyros "
                                      f"({', '.join(gyros)}); say which one")
         if config.uhfo and "imu/uhfo" not in f:
-            raise Ctx(ctx.source, "features").error("uhfo", "the device logs no UHFO")
-        gi = gyros.index(axis)
+            raise fctx.error("uhfo", "the device logs no UHFO")
         rate = float(f["imu"].attrs["sample_rate_hz"])
         step = float(f.attrs["thermal_step_s"])
         try:
@@ -509,55 +513,90 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
             m_t = samples_per_window(1.0 / step, W)
         except ValueError as exc:
             raise dctx.error("window_s", str(exc)) from None
+        probes = _strings(f["probes/probe"][:])
+        wanted = {}                      # probe → column of probes/temperature
+        for key, names in (("temperature", (config.temperature,) if config.temperature else ()),
+                           ("probes", config.probes), ("gradients", config.gradients)):
+            for name in names:
+                if name not in probes:
+                    raise fctx.error(key, f"unknown probe {name!r}; the device's probes are "
+                                          f"{', '.join(probes)}")
+                wanted[name] = probes.index(name)
         coeff = dict(zip(_strings(f["truth/coefficient"][:]),
                          map(float, f["truth/coefficient_value"][:])))
-        k0 = coeff[f"gyro.k0[{axis}]"]
-        pulses = f["imu/gyro_pulses"][:, gi]
-        n_win = min(pulses.shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
-        counts = pulses[: n_win * m_s].astype(np.int64).reshape(n_win, m_s).sum(axis=1)
-        rate_out = counts / (k0 * W)                                           # rad/s
-        body = _strings(f["truth/body"][:])
-        dtheta = f["truth/dtheta_step"][: n_win * m_t, body.index(axis)]
-        earth = dtheta.reshape(n_win, m_t).sum(axis=1) / W                     # rad/s
-        y = (rate_out - earth) * DEG_PER_H_PER_RAD_PER_S
-        tb = f["truth/gyro_bias"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
-        tr = f["truth/gyro_bias_random"][: n_win * m_t, gi] * DEG_PER_H_PER_RAD_PER_S
-        power = f["thermal/power_on"][: n_win * m_t].reshape(n_win, m_t).min(axis=1) > 0
-        probes = _strings(f["probes/probe"][:])
-        temps = f["probes/temperature"][: n_win * m_t, :]
-        uhfo = f["imu/uhfo"][: n_win * m_t, gi].astype(np.float64) if config.uhfo else None
+        n_win = min(f["imu/gyro_pulses"].shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
+        where = _Where(gyro=gyros.index(axis), body=_strings(f["truth/body"][:]).index(axis),
+                       probes=wanted, uhfo=config.uhfo, temperature=config.temperature)
+        per_block = max(1, READ_BLOCK_SAMPLES // max(m_s, m_t))
+        if n_win == 0:
+            raise dctx.error("window_s", f"run {label!r} is shorter than one {W:g} s window")
+        blocks = [_window_block(f, i, min(n_win, i + per_block), m_s, m_t, step, W, where)
+                  for i in range(0, n_win, per_block)]
         seed = int(f.attrs["seed"])
         device_seed = int(f.attrs.get("device_seed", seed))
+    w = {k: np.concatenate([blk[k] for blk in blocks]) for k in blocks[0]}
 
-    def probe(name: str, key: str) -> np.ndarray:
-        if name not in probes:
-            raise Ctx(ctx.source, "features").error(
-                key, f"unknown probe {name!r}; the device's probes are {', '.join(probes)}")
-        return temps[:, probes.index(name)].astype(np.float64)
-
-    thermal_rate = 1.0 / step
+    k0 = coeff[f"gyro.k0[{axis}]"]
+    earth = w["dtheta"] / W                                                    # rad/s
+    y = (w["counts"] / (k0 * W) - earth) * DEG_PER_H_PER_RAD_PER_S
     cols: dict[str, np.ndarray] = {}
     if config.temperature:
-        T = probe(config.temperature, "temperature")
-        cols["T"] = window_average(T, thermal_rate, W)
-        cols["dT/dt"] = temperature_rate(T, thermal_rate, W)
+        cols["T"] = w[f"mean:{config.temperature}"]
+        cols["dT/dt"] = w["slope"]
     if config.uhfo:
-        cols["U"] = window_average(uhfo, thermal_rate, W)
+        cols["U"] = w["uhfo"]
     for name in config.probes:
-        cols[name] = window_average(probe(name, "probes"), thermal_rate, W)
+        cols[name] = w[f"mean:{name}"]
     if config.gradients:
-        means = Columns({g: window_average(probe(g, "gradients"), thermal_rate, W)
-                         for g in config.gradients})
-        cols.update(pairwise_gradients(means).items())
-    keep = power & (np.arange(n_win) * W >= skip_s - 1e-9)
-    X = Columns({k: v[keep] for k, v in cols.items()})
-    time_s = ((np.arange(n_win) + 1) * W)[keep]
+        cols.update(pairwise_gradients(Columns({g: w[f"mean:{g}"]
+                                                for g in config.gradients})).items())
+    keep = w["power"] & (np.arange(n_win) * W >= skip_s - 1e-9)
     return RunSeries(label=label, path=path, seed=seed, device_seed=device_seed,
-                     time_s=time_s, y=y[keep],
-                     true_bias=window_average(tb, thermal_rate, W)[keep],
-                     true_random=window_average(tr, thermal_rate, W)[keep],
-                     X=X, earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
+                     time_s=((np.arange(n_win) + 1) * W)[keep], y=y[keep],
+                     true_bias=w["b"][keep] * DEG_PER_H_PER_RAD_PER_S,
+                     true_random=w["r"][keep] * DEG_PER_H_PER_RAD_PER_S,
+                     X=Columns({k: v[keep] for k, v in cols.items()}),
+                     earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
                      coefficients=coeff)
+
+
+@dataclass(frozen=True)
+class _Where:
+    """Which columns of a dataset a run's series needs."""
+
+    gyro: int                       # column of the gyro in imu/* and truth/gyro_*
+    body: int                       # column of its axis in truth/dtheta_step
+    probes: dict[str, int]          # probe name → column of probes/temperature
+    uhfo: bool
+    temperature: str | None         # the probe whose window slope is dT/dt
+
+
+def _window_block(f, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
+                  where: _Where) -> dict[str, np.ndarray]:
+    """Per-window sums and means of windows ``i … j−1`` (rad for dtheta, rad/s for b and r,
+    °C, K/s, V): only these windows' samples are read."""
+    from estimators.features import temperature_rate, window_average
+    n = j - i
+    t0, t1 = i * m_t, j * m_t
+    thermal_rate = 1.0 / step
+    out = {"counts": f["imu/gyro_pulses"][i * m_s: j * m_s, where.gyro].astype(np.int64)
+           .reshape(n, m_s).sum(axis=1),
+           "dtheta": f["truth/dtheta_step"][t0:t1, where.body].reshape(n, m_t).sum(axis=1),
+           "b": window_average(f["truth/gyro_bias"][t0:t1, where.gyro], thermal_rate, W),
+           "r": window_average(f["truth/gyro_bias_random"][t0:t1, where.gyro], thermal_rate, W),
+           "power": f["thermal/power_on"][t0:t1].reshape(n, m_t).min(axis=1) > 0}
+    if where.probes:
+        cols = sorted(set(where.probes.values()))
+        temps = f["probes/temperature"][t0:t1, cols].astype(np.float64)
+        for name, c in where.probes.items():
+            out[f"mean:{name}"] = window_average(temps[:, cols.index(c)], thermal_rate, W)
+        if where.temperature:
+            T = temps[:, cols.index(where.probes[where.temperature])]
+            out["slope"] = temperature_rate(T, thermal_rate, W)
+    if where.uhfo:
+        out["uhfo"] = window_average(f["imu/uhfo"][t0:t1, where.gyro].astype(np.float64),
+                                     thermal_rate, W)
+    return out
 
 
 @dataclass
