@@ -51,10 +51,10 @@ from sim.config import check_known_keys, get_float, get_section, get_str, get_ta
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
-                                     Fitted, RunSeries, RunSpec, check_features_on_devices,
-                                     definitions, fit, fmt, load_runs, parse_compensators,
-                                     parse_data, parse_features, parse_metrics,
-                                     random_state_for, scores, stack, worth_showing)
+                                     Fitted, RunSeries, RunSpec, definitions, fit, fmt,
+                                     load_runs, parse_compensators, parse_experiment,
+                                     parse_metrics, random_state_for, scores, stack,
+                                     worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -78,13 +78,9 @@ class Config(FeatureSpec):
 
 def check(study: Study) -> Config:
     """Validate the recipe's tables; :class:`UserInputError` naming file/key/value."""
-    data = study.tables
-    ctx = study.ctx()
-    check_known_keys(data, TOP_KEYS, ctx)
-    d = parse_data(study, DATA_KEYS)
-    train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
-    features = parse_features(data, ctx, window_s, gyro)
-    check_features_on_devices(study, train + test, features)
+    data, ctx = study.tables, study.ctx()
+    d, features = parse_experiment(study, TOP_KEYS, DATA_KEYS)
+    train, test, window_s = d.train, d.test, d.window_s
     feature_names = features.feature_names()
     comps = parse_compensators(data, ctx, feature_names, PUBLISHED_COMP_KEYS,
                                base_dir=study.base_dir)

@@ -57,10 +57,9 @@ from sim.config import Ctx, check_known_keys, get_float, get_list, get_section, 
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
-                                     RunSpec, check_features_on_devices, definitions, fit, fmt,
-                                     load_runs, parse_compensators, parse_data, parse_features,
-                                     parse_metrics, random_state_for, scores, stack, str_list,
-                                     worth_showing)
+                                     RunSpec, definitions, fit, fmt, load_runs,
+                                     parse_compensators, parse_experiment, parse_metrics,
+                                     random_state_for, scores, stack, str_list, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -186,13 +185,9 @@ def _paper_table(item: Any, i: int, ctx: Ctx, labels: list[str], names: list[str
 
 def check(study: Study) -> Config:
     """Validate the recipe's tables; :class:`UserInputError` naming file/key/value."""
-    data = study.tables
-    ctx = study.ctx()
-    check_known_keys(data, TOP_KEYS, ctx)
-    d = parse_data(study, DATA_KEYS)
-    train, test, window_s, gyro = d.train, d.test, d.window_s, d.gyro
-    features = parse_features(data, ctx, window_s, gyro)
-    check_features_on_devices(study, train + test, features)
+    data, ctx = study.tables, study.ctx()
+    d, features = parse_experiment(study, TOP_KEYS, DATA_KEYS)
+    train, test, window_s = d.train, d.test, d.window_s
     stripped, selections = _selections(data, ctx, features.gradients)
     comps = parse_compensators(stripped, ctx, features.feature_names(), (), min_inputs=0,
                                base_dir=study.base_dir)

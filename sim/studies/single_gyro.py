@@ -328,6 +328,17 @@ def parse_data(study: Study, keys: tuple[str, ...], *, runs: bool = True) -> Dat
                      gyro=get_str(dtable, "gyro", dctx, None, choices=("x", "y", "z")))
 
 
+def parse_experiment(study: Study, top_keys: tuple[str, ...], data_keys: tuple[str, ...]
+                     ) -> tuple[DataTable, FeatureSpec]:
+    """The common head of a train/test recipe: the file's top-level keys, ``[data]`` with its
+    runs, ``[features]``, and the features checked against every run's device."""
+    check_known_keys(study.tables, top_keys, study.ctx())
+    d = parse_data(study, data_keys)
+    features = parse_features(study.tables, study.ctx(), d.window_s, d.gyro)
+    check_features_on_devices(study, d.train + d.test, features)
+    return d, features
+
+
 def parse_metrics(data: dict, ctx: Ctx, window_s: float, keys: tuple[str, ...]
                   ) -> tuple[dict, Ctx, float, int]:
     """``[metrics]`` with ``keys`` allowed: (table, its Ctx, cluster_s [s] — a whole multiple
