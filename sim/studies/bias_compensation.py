@@ -51,9 +51,9 @@ from sim.config import check_known_keys, get_float, get_section, get_str, get_ta
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
-                                     Fitted, RunSeries, RunSpec, definitions, fit, fmt,
+                                     Fitted, RunSeries, RunSpec, definitions, fit_all, fmt,
                                      load_runs, parse_compensators, parse_experiment,
-                                     parse_metrics, random_state_for, scores, stack,
+                                     parse_metrics, random_state_for, score_run, stack,
                                      worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
@@ -104,10 +104,6 @@ def check(study: Study) -> Config:
 def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         progress: bool = True, make_report: bool = True) -> StudyResult:
     """Simulate, fit every compensator on the train runs, score on the test runs."""
-    from tqdm import tqdm
-
-    from estimators import metrics as M
-
     workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
     runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
@@ -118,35 +114,17 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     Xtr, ytr = stack(train)
     random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
 
-    fitted: list[Fitted] = []
-    tuned: dict = {}
-    bar = tqdm(config.compensators, desc="fitting", unit="model", disable=not progress,
-               leave=False)
-    for spec in bar:
-        bar.set_postfix_str(spec.name[:30])
-        fitted.append(fit(spec, Xtr, ytr, random_state, tuned))
-    bar.close()
+    fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress)
 
     rows: list[tuple[str, str, float]] = []
     per_test: dict[str, dict[str, dict[str, float]]] = {}
     predictions: dict[str, dict[str, np.ndarray]] = {}
     multi = len(config.test) > 1
     for spec in config.test:
-        rs = runs[spec.key].series
-        rate = 1.0 / config.window_s
-        raw_stab = M.bias_stability(rs.y, rate, config.cluster_s, config.ddof)
-        preds = {f.spec.name: np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), float)
-                 for f in fitted}
-        # paper 001 compares the compensated series with the raw bias (zero prediction)
-        preds_all = {RAW: np.full_like(rs.y, np.mean(ytr)), **preds,
-                     ORACLE: rs.true_bias - rs.true_random}
-        before = raw_stab if config.baseline == RAW else M.bias_stability(
-            rs.y - preds[config.baseline], rate, config.cluster_s, config.ddof)
-        table = {name: scores(rs.y, p, rs.true_bias, rs.true_random, config.window_s,
-                              config.cluster_s, config.ddof, before)
-                 for name, p in preds_all.items()}
+        preds, table = score_run(runs[spec.key].series, fitted, ytr, config, config.cluster_s,
+                                 config.ddof, config.baseline)
         per_test[spec.label] = table
-        predictions[spec.label] = preds_all
+        predictions[spec.label] = preds
         for name, sc in table.items():
             for metric, value in sc.items():
                 rows.append((name, f"{metric}@{spec.label}" if multi else metric, float(value)))

@@ -68,11 +68,11 @@ import numpy as np
 from sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
                         get_table)
 from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
-                                     RunSeries, RunSpec, check_features_on_devices,
-                                     check_scenarios, fit, load_runs, parse_compensators,
-                                     parse_data, parse_features, parse_metrics, parse_runs,
-                                     random_state_for, scores, stack, worth_showing)
+from sim.studies.single_gyro import (CompensatorSpec, FeatureSpec, Fitted, RunSeries, RunSpec,
+                                     check_features_on_devices, check_scenarios, fit_all,
+                                     load_runs, parse_compensators, parse_data, parse_features,
+                                     parse_metrics, parse_runs, predict, random_state_for,
+                                     score_run, stack, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics")
 DATA_KEYS = ("window_s", "gyro")
@@ -228,10 +228,6 @@ def stability(x: np.ndarray, config: Config) -> float:
     return bias_stability(x, 1.0 / config.window_s, config.cluster_s, config.ddof)
 
 
-def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
-    return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
-
-
 def _mean_scores(per_test: dict[str, dict[str, dict[str, float]]]) -> dict[str, dict[str, float]]:
     """Each compensator's scores averaged over the test runs."""
     first = next(iter(per_test.values()))
@@ -242,18 +238,12 @@ def _mean_scores(per_test: dict[str, dict[str, dict[str, float]]]) -> dict[str, 
 def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
                      progress: bool) -> EnvResult:
     """Fit every compensator on the environment's train runs and score it on its test runs."""
-    from tqdm import tqdm
-
     train = [loaded[s.key].series for s in env.train]
     Xtr, ytr = stack(train)
     random_state = random_state_for(loaded[env.train[0].key]
                                     .scenario.seed, unit)
-    fitted: list[Fitted] = []
-    bar = tqdm(config.compensators, desc=f"fitting {env.name}", unit="model",
-               disable=not progress, leave=False)
-    for spec in bar:
-        fitted.append(fit(spec, Xtr, ytr, random_state, {}))
-    bar.close()
+    fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress,
+                     desc=f"fitting {env.name}")
     train_after = {f.spec.name: float(np.mean([stability(rs.y - predict(f, rs), config)
                                                for rs in train])) for f in fitted}
     train_raw = float(np.mean([stability(rs.y, config) for rs in train]))
@@ -261,15 +251,8 @@ def _run_environment(env: Environment, config: Config, loaded: dict, unit: int,
     per_test: dict[str, dict[str, dict[str, float]]] = {}
     predictions: dict[str, dict[str, np.ndarray]] = {}
     for spec in env.test:
-        rs = loaded[spec.key].series
-        before = stability(rs.y, config)
-        preds = {RAW: np.full_like(rs.y, np.mean(ytr)),
-                 **{f.spec.name: predict(f, rs) for f in fitted},
-                 ORACLE: rs.true_bias - rs.true_random}
-        predictions[spec.label] = preds
-        per_test[spec.label] = {
-            name: scores(rs.y, p, rs.true_bias, rs.true_random, config.window_s,
-                         config.cluster_s, config.ddof, before) for name, p in preds.items()}
+        predictions[spec.label], per_test[spec.label] = score_run(
+            loaded[spec.key].series, fitted, ytr, config, config.cluster_s, config.ddof)
     return EnvResult(env=env, train=train,
                      tests=[loaded[s.key].series for s in env.test],
                      fitted=fitted, train_after=train_after, train_raw=train_raw,

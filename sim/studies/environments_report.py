@@ -19,10 +19,10 @@ from sim.report import Report, Table
 from sim.study import Study
 from sim.studies.environments import (BEFORE_FACTOR, LADDER, NOISE_DOMINATED_REL,
                                       PAPER_MLR_TERMS, SPREADS, TIE_REL, TIMING_REPEATS, Config,
-                                      EnvResult, predict, stability)
+                                      EnvResult, stability)
 from sim.studies.single_gyro import (DEG_PER_H_PER_RAD_PER_S, EQUATION_KINDS, ORACLE, RAW,
-                                     Fitted, RunSeries, definitions, fit, fmt, scores, stack,
-                                     worth_showing)
+                                     Fitted, RunSeries, definitions, fit, fmt, predict, scores,
+                                     stack, worth_showing)
 
 
 # ------------------------------------------------------------------------------ truth budget

@@ -56,10 +56,10 @@ import numpy as np
 from sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted,
-                                     RunSpec, definitions, fit, fmt, load_runs,
-                                     parse_compensators, parse_experiment, parse_metrics,
-                                     random_state_for, scores, stack, str_list, worth_showing)
+from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
+                                     definitions, fit_all, fmt, load_runs, parse_compensators,
+                                     parse_experiment, parse_metrics, random_state_for, score_run,
+                                     stack, str_list, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -257,10 +257,6 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         progress: bool = True, make_report: bool = True) -> StudyResult:
     """Simulate, correlate, select inputs, fit every compensator on the train runs, score on
     every test run."""
-    from tqdm import tqdm
-
-    from estimators import metrics as M
-
     workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
     runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
@@ -272,31 +268,22 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
 
     listings: dict[str, list[tuple[str, float, bool]]] = {}
-    fitted: list[Fitted] = []
-    bar = tqdm(config.compensators, desc="fitting", unit="model", disable=not progress,
-               leave=False)
-    for spec in bar:
-        bar.set_postfix_str(spec.name[:30])
-        if spec.name in config.selections:
-            spec, listings[spec.name] = select_inputs(spec, config.selections[spec.name],
-                                                      Xtr, ytr)
-        fitted.append(fit(spec, Xtr, ytr, random_state))
-    bar.close()
+
+    def prepare(spec: CompensatorSpec) -> CompensatorSpec:
+        if spec.name not in config.selections:
+            return spec
+        spec, listings[spec.name] = select_inputs(spec, config.selections[spec.name], Xtr, ytr)
+        return spec
+
+    fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress,
+                     prepare=prepare)
 
     rows: list[tuple[str, str, float]] = []
     per_test: dict[str, dict[str, dict[str, float]]] = {}
     predictions: dict[str, dict[str, np.ndarray]] = {}
-    rate = 1.0 / config.window_s
     for spec in config.test:
-        rs = runs[spec.key].series
-        before = M.bias_stability(rs.y, rate, config.cluster_s, config.ddof)
-        preds = {RAW: np.full_like(rs.y, np.mean(ytr))}
-        preds.update({f.spec.name: np.asarray(f.model.predict(rs.X.select(f.spec.inputs)),
-                                              float) for f in fitted})
-        preds[ORACLE] = rs.true_bias - rs.true_random
-        table = {name: scores(rs.y, p, rs.true_bias, rs.true_random, config.window_s,
-                              config.cluster_s, config.ddof, before)
-                 for name, p in preds.items()}
+        preds, table = score_run(runs[spec.key].series, fitted, ytr, config, config.cluster_s,
+                                 config.ddof)
         per_test[spec.label] = table
         predictions[spec.label] = preds
         for name, sc in table.items():

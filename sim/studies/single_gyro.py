@@ -704,6 +704,44 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
     return Fitted(spec, model, time.perf_counter() - t0, hyper)
 
 
+def fit_all(specs, X, y: np.ndarray, random_state: int, *, progress: bool,
+            desc: str = "fitting", prepare=None) -> list[Fitted]:
+    """Fit every compensator on the train windows (a progress bar unless ``progress`` is
+    false). ``prepare(spec) -> spec`` may change a spec first (e.g. add selected inputs); the
+    IR-LSSVM tuning is shared between the specs of one call (see :func:`fit`)."""
+    from tqdm import tqdm
+    fitted: list[Fitted] = []
+    tuned: dict = {}
+    bar = tqdm(specs, desc=desc, unit="model", disable=not progress, leave=False)
+    for spec in bar:
+        bar.set_postfix_str(spec.name[:30])
+        fitted.append(fit(prepare(spec) if prepare else spec, X, y, random_state, tuned))
+    bar.close()
+    return fitted
+
+
+def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
+    """A fitted compensator's prediction ŷ on a run's windows [°/h]."""
+    return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
+
+
+def score_run(rs: RunSeries, fitted: list[Fitted], y_train: np.ndarray, features: FeatureSpec,
+              cluster_s: float, ddof: int, baseline: str = RAW
+              ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, float]]]:
+    """Predictions and :func:`scores` on one test run of every compensator and of the
+    references: ``raw`` (ŷ = the train mean) and the oracle (ŷ = b − r). "Before" is the raw
+    bias stability, or that left by the compensator named ``baseline``."""
+    from estimators.metrics import bias_stability
+    rate = 1.0 / features.window_s
+    preds = {RAW: np.full_like(rs.y, np.mean(y_train)),
+             **{f.spec.name: predict(f, rs) for f in fitted},
+             ORACLE: rs.true_bias - rs.true_random}
+    before = bias_stability(rs.y - (0.0 if baseline == RAW else preds[baseline]), rate,
+                            cluster_s, ddof)
+    return preds, {name: scores(rs.y, p, rs.true_bias, rs.true_random, features.window_s,
+                                cluster_s, ddof, before) for name, p in preds.items()}
+
+
 # ------------------------------------------------------------------------------ scoring
 def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, window_s: float,
            cluster_s: float, ddof: int, before: float) -> dict[str, float]:
