@@ -52,9 +52,8 @@ from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
                                      Fitted, RunSeries, RunSpec, definitions, fit_all, fmt,
-                                     load_runs, parse_compensators, parse_experiment,
-                                     parse_metrics, random_state_for, score_run, stack,
-                                     worth_showing)
+                                     load_experiment, parse_compensators, parse_experiment,
+                                     parse_metrics, score_run, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -104,15 +103,11 @@ def check(study: Study) -> Config:
 def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         progress: bool = True, make_report: bool = True) -> StudyResult:
     """Simulate, fit every compensator on the train runs, score on the test runs."""
-    workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
-    runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
-                     progress=progress)
-    t_data = time.perf_counter() - t_start
-
-    train = [runs[s.key].series for s in config.train]
-    Xtr, ytr = stack(train)
-    random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
+    ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
+                         progress=progress)
+    runs, train, Xtr, ytr, random_state = ex.runs, ex.train, ex.X, ex.y, ex.random_state
+    t_data = ex.t_data
 
     fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress)
 

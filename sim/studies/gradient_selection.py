@@ -57,9 +57,9 @@ from sim.config import Ctx, check_known_keys, get_float, get_list, get_section, 
 from sim.report import Report, Table
 from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
-                                     definitions, fit_all, fmt, load_runs, parse_compensators,
-                                     parse_experiment, parse_metrics, random_state_for, score_run,
-                                     stack, str_list, worth_showing)
+                                     definitions, fit_all, fmt, load_experiment,
+                                     parse_compensators, parse_experiment, parse_metrics,
+                                     score_run, str_list, worth_showing)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -257,15 +257,11 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         progress: bool = True, make_report: bool = True) -> StudyResult:
     """Simulate, correlate, select inputs, fit every compensator on the train runs, score on
     every test run."""
-    workdir = pathlib.Path(workdir)
     t_start = time.perf_counter()
-    runs = load_runs(study, config.train + config.test, config, workdir, unit=unit,
-                     progress=progress)
-    t_data = time.perf_counter() - t_start
-
-    train = [runs[s.key].series for s in config.train]
-    Xtr, ytr = stack(train)
-    random_state = random_state_for(runs[config.train[0].key].scenario.seed, unit)
+    ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
+                         progress=progress)
+    runs, Xtr, ytr, random_state = ex.runs, ex.X, ex.y, ex.random_state
+    t_data = ex.t_data
 
     listings: dict[str, list[tuple[str, float, bool]]] = {}
 

@@ -633,6 +633,33 @@ def load_runs(study: Study, specs: tuple[RunSpec, ...], features: FeatureSpec,
     return out
 
 
+@dataclass
+class Experiment:
+    """The loaded runs of a train/test experiment and its stacked train windows."""
+
+    runs: dict[tuple[str, float], LoadedRun]
+    train: list[RunSeries]
+    X: Any                      # the train windows' inputs (Columns), runs stacked
+    y: np.ndarray               # their measured bias [°/h]
+    random_state: int           # the estimators' (from the first train run's seed and unit)
+    t_data: float               # wall time of simulating/reading the runs [s]
+
+
+def load_experiment(study: Study, train: tuple[RunSpec, ...], test: tuple[RunSpec, ...],
+                    features: FeatureSpec, workdir: pathlib.Path, *, unit: int,
+                    progress: bool) -> Experiment:
+    """Simulate (or reuse) and read the train and test runs; stack the train windows."""
+    import time
+    t0 = time.perf_counter()
+    runs = load_runs(study, train + test, features, pathlib.Path(workdir), unit=unit,
+                     progress=progress)
+    t_data = time.perf_counter() - t0
+    series = [runs[s.key].series for s in train]
+    X, y = stack(series)
+    return Experiment(runs=runs, train=series, X=X, y=y, t_data=t_data,
+                      random_state=random_state_for(runs[train[0].key].scenario.seed, unit))
+
+
 # ------------------------------------------------------------------------------ fitting
 def make_estimator(spec: CompensatorSpec, random_state: int):
     """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
