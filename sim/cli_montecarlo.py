@@ -178,12 +178,8 @@ def run(payload: dict[str, Any], n_units: int, out_dir: str | os.PathLike, *,
         raise UserInputError(f"--units: value {n_units} not allowed; must be >= 1")
     if workers < 1:
         raise UserInputError(f"--workers: value {workers} not allowed; must be >= 1")
-    out = pathlib.Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(f"{out}: cannot create the output folder "
-                             f"({exc.strerror or exc})") from None
+    from sim.report import output_folder
+    out = output_folder(out_dir)
     _blas_one_thread_env()
     client = connect(scheduler) if scheduler and executor is None else None
     t0 = time.perf_counter()

@@ -34,6 +34,19 @@ def write_atomic(path: pathlib.Path, data: bytes | str) -> None:
     os.replace(tmp, path)
 
 
+def output_folder(path: str | os.PathLike) -> pathlib.Path:
+    """Create (if needed) and return a report/output folder; a folder that cannot be created
+    is a :class:`~sim.errors.UserInputError` naming it."""
+    from sim.errors import UserInputError
+    folder = pathlib.Path(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"{folder}: cannot create the output folder "
+                             f"({exc.strerror or exc})") from None
+    return folder
+
+
 def format_value(value: Any, digits: int = 4) -> str:
     """Human formatting for report cells: ``digits`` significant figures, '—' for missing."""
     if value is None:

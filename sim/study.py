@@ -35,7 +35,7 @@ from typing import Any
 from sim import presets
 from sim.config import Ctx, check_known_keys, get_int, get_str, get_table
 from sim.errors import UserInputError
-from sim.report import Report
+from sim.report import Report, output_folder
 from sim.studies import recipe_names
 
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
@@ -160,12 +160,7 @@ def scenario_refs(tables: dict) -> list[str]:
 def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True
               ) -> pathlib.Path:
     """Run ``study`` (unit 0) and write its report folder; returns the path of report.md."""
-    out_dir = pathlib.Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(f"{out_dir}: cannot create the output folder "
-                             f"({exc.strerror or exc})") from None
+    out_dir = output_folder(out_dir)
     recipe = recipe_module(study)
     config = recipe.check(study)
     result = recipe.run(study, config, out_dir, unit=0, progress=progress, make_report=True)

@@ -79,3 +79,14 @@ def test_report_folder(tmp_path):
     assert "<a href='series.csv'>series.csv</a>" in html
     assert {p.name for p in tmp_path.iterdir()} == {            # no temporary files left
         "report.md", "report.html", "scores.csv", "series.csv", "plot.png", "plot_2.png"}
+
+
+def test_an_output_folder_that_cannot_be_created_is_a_user_error(tmp_path):
+    from sim.errors import UserInputError
+    from sim.report import output_folder
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert output_folder(tmp_path / "a" / "b") == tmp_path / "a" / "b"
+    with pytest.raises(UserInputError, match="cannot create the output folder") as err:
+        output_folder(blocker / "sub")
+    assert str(blocker / "sub") in str(err.value) and "\n" not in str(err.value)

@@ -53,7 +53,8 @@ from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
                                      Fitted, RunSeries, RunSpec, definitions, fit_all, fmt,
                                      load_experiment, parse_compensators, parse_experiment,
-                                     parse_metrics, score_run, worth_showing)
+                                     parse_metrics, score_run, worth_showing, before_check,
+                                     truth_score_tables)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -186,11 +187,8 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
         tables.setdefault(f.spec.table or "Other compensators", []).append(f)
     rep.heading(f"Paper-style scores on test run {test_label} (ours beside the paper)", 2)
     if before_pub:
-        ours = sc[RAW]["stability_after"]          # y − constant: the raw bias stability
-        ratio = ours / before_pub
-        rep.paragraph(f"Before compensation: ours {ours:.5f} °/h vs paper {before_pub:.5f} °/h "
-                      f"(ratio {ratio:.2f}; "
-                      f"{'within' if 1 / 1.5 <= ratio <= 1.5 else 'NOT within'} a factor 1.5).")
+        # raw: y − constant, so its stability_after is the raw bias stability
+        rep.paragraph(before_check(sc[RAW]["stability_after"], before_pub))
     for tname, group in tables.items():
         recs = []
         for f in group:
@@ -221,13 +219,7 @@ def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
                                           "does not define it."))
 
     # -- truth-based scores
-    rep.heading("Truth-based scores (what no paper could measure)", 2)
-    for label, table in per_test.items():
-        recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}
-                for name, s in table.items()]
-        rep.table(Table.from_records(f"All scores, test run {label}", recs,
-                                     csv_name=f"scores_{_slug(label)}.csv",
-                                     note="°/h except r2_true (1) and improvement_pct (%)."))
+    truth_score_tables(rep, per_test)
     hyp = [{"compensator": f.spec.name, "kind": f.spec.kind, "fit time s": fmt(f.fit_s),
             **{k: fmt(v) for k, v in f.hyper.items()}} for f in fitted]
     cols = []

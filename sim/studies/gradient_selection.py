@@ -59,7 +59,8 @@ from sim.study import Study, StudyResult
 from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
                                      definitions, fit_all, fmt, load_experiment,
                                      parse_compensators, parse_experiment, parse_metrics,
-                                     score_run, str_list, worth_showing)
+                                     score_run, str_list, worth_showing, before_check,
+                                     truth_score_tables)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -453,21 +454,11 @@ def _paper_table_section(rep: Report, pt: PaperTable, sc: dict) -> None:
                                       "100·(improvement_proposed − improvement_traditional) / "
                                       "improvement_traditional, as the paper computes it."))
     if pt.before:
-        ratio = t["stability_before"] / pt.before
-        rep.paragraph(f"Before compensation: ours {t['stability_before']:.5f} °/h vs paper "
-                      f"{pt.before:.4f} °/h (ratio {ratio:.2f}; "
-                      f"{'within' if 1 / 1.5 <= ratio <= 1.5 else 'NOT within'} a factor 1.5).")
+        rep.paragraph(before_check(t["stability_before"], pt.before))
 
 
 def _truth_section(rep: Report, config: Config, fitted: list[Fitted], per_test) -> None:
-    rep.heading("Truth-based scores (what no paper could measure)", 2)
-    for label, table in per_test.items():
-        recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}
-                for name, s in table.items()]
-        rep.table(Table.from_records(f"All scores, test run {label}", recs,
-                                     csv_name=f"scores_{_slug(label)}.csv",
-                                     note="°/h except r2_true (1), improvement_pct (%) and "
-                                          "improvement_factor (1)."))
+    truth_score_tables(rep, per_test)
     recs = [{"compensator": f.spec.name, "kind": f.spec.kind, "inputs": ", ".join(f.spec.inputs),
              "fit time s": fmt(f.fit_s), **{k: fmt(v) for k, v in f.hyper.items()}}
             for f in fitted]

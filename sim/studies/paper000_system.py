@@ -653,13 +653,18 @@ def _fit_figure(raw, xs, ys, pred, ok, units):
                 label="HHO-RVR")
         ax.plot(x[order], pred[p]["lsm"][order], "--", color="tab:blue", lw=1.2,
                 label="cubic LSM")
-        ax.set_title(p, fontsize=9)
-        ax.set_xlabel("probe temperature [°C]", fontsize=8)
-        ax.set_ylabel(units[p], fontsize=8)
-        ax.tick_params(labelsize=7)
-        if k == 0:
-            ax.legend(fontsize=7)
+        _style_panel(ax, p, units[p], first=k == 0)
     return fig
+
+
+def _style_panel(ax, parameter: str, unit: str, first: bool) -> None:
+    """Title, axis labels and (on the first panel) legend of one parameter's panel."""
+    ax.set_title(parameter, fontsize=9)
+    ax.set_xlabel("probe temperature [°C]", fontsize=8)
+    ax.set_ylabel(unit, fontsize=8)
+    ax.tick_params(labelsize=7)
+    if first:
+        ax.legend(fontsize=7)
 
 
 def _residual_figure(comp_tables, resid, units, probes, cfg):
@@ -673,10 +678,5 @@ def _residual_figure(comp_tables, resid, units, probes, cfg):
             x = tab.column(f"temp_{probe_for(p, cfg.temperature)}_c")[cok]
             ax.plot(x, resid[p][c], style, marker=".", ms=3, lw=0.8, label=LABEL[c])
         ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_title(p, fontsize=9)
-        ax.set_xlabel("probe temperature [°C]", fontsize=8)
-        ax.set_ylabel(units[p], fontsize=8)
-        ax.tick_params(labelsize=7)
-        if k == 0:
-            ax.legend(fontsize=7)
+        _style_panel(ax, p, units[p], first=k == 0)
     return fig

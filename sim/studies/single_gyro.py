@@ -830,3 +830,26 @@ def definitions() -> list[str]:
         f"'{ORACLE}': the oracle ŷ = b − r (the true temperature law); its stability_after is "
         f"the floor for any input-driven model. '{RAW}': no compensation (ŷ = train mean).",
     ]
+
+
+def before_check(ours: float, paper: float, factor: float = 1.5) -> str:
+    """One sentence comparing our raw bias stability with the paper's "before compensation"
+    (issue 7: within a factor 1.5)."""
+    ratio = ours / paper
+    within = 1 / factor <= ratio <= factor
+    return (f"Before compensation: ours {ours:.5f} °/h vs paper {paper:.5f} °/h (ratio "
+            f"{ratio:.2f}; {'within' if within else 'NOT within'} a factor {factor:g}).")
+
+
+def truth_score_tables(rep, per_test: dict[str, dict[str, dict[str, float]]]) -> None:
+    """The report's section of every score of every compensator, one table (and CSV
+    ``scores_<test run>.csv``) per test run."""
+    from sim.report import Table, slug
+    rep.heading("Truth-based scores (what no paper could measure)", 2)
+    for label, table in per_test.items():
+        recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}
+                for name, s in table.items()]
+        rep.table(Table.from_records(f"All scores, test run {label}", recs,
+                                     csv_name=f"scores_{slug(label)}.csv",
+                                     note="°/h except r2_true (1), improvement_pct (%) and "
+                                          "improvement_factor (1)."))
