@@ -17,6 +17,7 @@ HEAD = DEMO[: DEMO.index("[[compensator]]")]
 TAIL = DEMO[DEMO.index("[metrics]"):]
 
 MODEL = '''
+import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 
 
