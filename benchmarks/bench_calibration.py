@@ -34,11 +34,11 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 from _machine import machine  # noqa: E402
 from _turntable_pulses import (SITE, UG, nominal, random_truth, window,  # noqa: E402
                                window_slow_noise)
-from estimators import calibration_filter as cf  # noqa: E402
-from estimators.calibration import CampaignSettings, run_campaign  # noqa: E402
-from estimators.strapdown import navigate, normal_gravity, earth_rate_enu  # noqa: E402
-from sim.motion import Motion, segments_from_program  # noqa: E402
-from sim.turntable import TurntableProgram  # noqa: E402
+from rlgsim.estimators import kalman_calibration as cf  # noqa: E402
+from rlgsim.estimators.calibration import CampaignSettings, run_campaign  # noqa: E402
+from rlgsim.estimators.strapdown import navigate, normal_gravity, earth_rate_enu  # noqa: E402
+from rlgsim.sim.motion import Motion, segments_from_program  # noqa: E402
+from rlgsim.sim.turntable import TurntableProgram  # noqa: E402
 
 #: The rlg_imu_000 preset's noise (scenarios/devices/rlg_imu_000.toml [noise]).
 NOISE = dict(arw_deg_sqrt_h=0.0015, vrw_ug_sqrt_hz=10.0, gyro_bi_deg_h=0.003,

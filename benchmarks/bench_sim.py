@@ -28,9 +28,9 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 from _machine import machine  # noqa: E402
-from sim import presets  # noqa: E402
-from sim.scenario import parse_scenario  # noqa: E402
-from sim.simulate import simulate  # noqa: E402
+from rlgsim.sim import presets  # noqa: E402
+from rlgsim.sim.scenario import parse_scenario  # noqa: E402
+from rlgsim.sim.simulate import simulate  # noqa: E402
 
 
 def scenario_text(hours: float | None, truth_samples: bool) -> str:

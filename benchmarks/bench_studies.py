@@ -1,4 +1,4 @@
-"""Wall time of every shipped study (``sim.study.list_studies()``), run as ``rlgsim study`` does.
+"""Wall time of every shipped study (``rlgsim.sim.study.list_studies()``), run as ``rlgsim study`` does.
 
 Each study runs twice in a fresh temporary folder: "cold" simulates its datasets, "warm" reuses
 them (the second ``rlgsim study`` of the same study), so the difference is the simulation time
@@ -19,7 +19,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from _machine import machine  # noqa: E402
-from sim.study import list_studies, load_study, run_study  # noqa: E402
+from rlgsim.sim.study import list_studies, load_study, run_study  # noqa: E402
 
 
 def time_study(name: str, warm: bool) -> tuple[float, float | None]:

@@ -30,12 +30,12 @@ def main(argv: list[str]) -> None:
     args = p.parse_args(argv)
 
     import h5py
-    import sim.simulate
-    from sim.scenario import load_scenario
-    from sim.simulate import ProbeStage, simulate
+    import rlgsim.sim.simulate
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import ProbeStage, simulate
 
     if not args.all_stages:            # the thermal benchmark: chamber, network, probes
-        sim.simulate.STAGES = [ProbeStage.create]
+        rlgsim.sim.simulate.STAGES = [ProbeStage.create]
 
     print(f"machine: {machine()}")
     t0 = time.perf_counter()

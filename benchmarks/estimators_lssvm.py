@@ -35,9 +35,9 @@ from sklearn.linear_model import Ridge  # noqa: E402
 from sklearn.pipeline import make_pipeline  # noqa: E402
 from sklearn.preprocessing import StandardScaler  # noqa: E402
 
-from estimators.lssvm import LSSVMRegressor  # noqa: E402
-from estimators.lssvm_cv import LSSVMRegressorCV  # noqa: E402
-from estimators.robust_lssvm import RobustLSSVMRegressor  # noqa: E402
+from rlgsim.estimators.lssvm import LSSVMRegressor  # noqa: E402
+from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV  # noqa: E402
+from rlgsim.estimators.robust_lssvm import RobustLSSVMRegressor  # noqa: E402
 
 GAMMA, SIGMA2 = 100.0, 1.0
 NOISE = 0.003  # deg/h

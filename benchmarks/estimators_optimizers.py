@@ -20,9 +20,9 @@ for p in (str(HERE), str(HERE.parent)):
 import numpy as np  # noqa: E402
 
 from _machine import machine  # noqa: E402
-from estimators.optimize import harris_hawks, particle_swarm  # noqa: E402
-from estimators.optimize.functions import rastrigin  # noqa: E402
-from estimators.tuned import PSOSVR  # noqa: E402
+from rlgsim.estimators.optimize import harris_hawks, particle_swarm  # noqa: E402
+from rlgsim.estimators.optimize.functions import rastrigin  # noqa: E402
+from rlgsim.estimators.tuned import PSOSVR  # noqa: E402
 
 
 def gradient_data(n: int = 2000, seed: int = 0):

@@ -40,8 +40,8 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 from _machine import machine  # noqa: E402
-from estimators.rbf_modified import ModifiedRBFNetwork  # noqa: E402
-from estimators.rbf_network import RBFNetwork  # noqa: E402
+from rlgsim.estimators.rbf_modified import ModifiedRBFNetwork  # noqa: E402
+from rlgsim.estimators.rbf_network import RBFNetwork  # noqa: E402
 
 AVERAGE_S = 100.0                 # paper 002: 100 s averaging of 100 Hz data
 HOURS = 8.0                       # paper 002: 8 h per environment

@@ -33,13 +33,13 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 from _machine import machine  # noqa: E402
-from estimators.columns import Columns  # noqa: E402
-from estimators.features import pairwise_gradients, window_average, window_features  # noqa: E402
-from estimators.input_selection import correlation_ranking, select_by_correlation  # noqa: E402,E501
-from estimators.metrics import allan_deviation, bias_stability, improvement_percent  # noqa: E402
-from estimators.mlr import MLRBICRegressor  # noqa: E402
-from estimators.polynomial import PolynomialRegressor  # noqa: E402
-from estimators.stepwise import StepwiseRegressor  # noqa: E402
+from rlgsim.estimators.columns import Columns  # noqa: E402
+from rlgsim.estimators.features import pairwise_gradients, window_average, window_features  # noqa: E402
+from rlgsim.estimators.input_selection import correlation_ranking, select_by_correlation  # noqa: E402,E501
+from rlgsim.estimators.metrics import allan_deviation, bias_stability, improvement_percent  # noqa: E402
+from rlgsim.estimators.mlr import MLRBICRegressor  # noqa: E402
+from rlgsim.estimators.polynomial import PolynomialRegressor  # noqa: E402
+from rlgsim.estimators.stepwise import StepwiseRegressor  # noqa: E402
 
 WINDOW_S = 100.0
 MODEL1_START = ("T", "T^2", "dT/dt")

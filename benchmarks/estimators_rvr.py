@@ -20,8 +20,8 @@ for p in (str(HERE), str(HERE.parent)):
 import numpy as np  # noqa: E402
 
 from _machine import machine  # noqa: E402
-from estimators.rvr import RVR  # noqa: E402
-from estimators.tuned import HHORVR  # noqa: E402
+from rlgsim.estimators.rvr import RVR  # noqa: E402
+from rlgsim.estimators.tuned import HHORVR  # noqa: E402
 
 
 def ramp(n: int, seed: int = 0):

@@ -5,7 +5,7 @@ Input (what real turntable hardware would log too; never the truth): the gyro an
 accelerometer pulses, the probe temperatures and the turntable's commanded programme
 (docs/dataset.md: groups ``imu``, ``probes``, ``timeline``). Windows are the segments of the
 ``calibration`` track; their motions are the ``turntable`` segments carrying the same
-``window`` label. Each window is calibrated independently (:func:`estimators.calibration_filter.
+``window`` label. Each window is calibrated independently (:func:`rlgsim.estimators.kalman_calibration.
 calibrate_window`): a fresh prior, so every row is a separate measurement of the parameters at
 the window's temperature. Only the linearisation point is chained from one window to the next
 (the previous window's result is the next one's starting model; windows are cut into contiguous
@@ -48,10 +48,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from estimators.calibration_filter import (ACCEL_MIS, BA, BG, GYRO_MIS, MA, MG, SAN, SAP, SG,
+from rlgsim.estimators.kalman_calibration import (ACCEL_MIS, BA, BG, GYRO_MIS, MA, MG, SAN, SAP, SG,
                                            UG, DEG_PER_H, CommandedMotion, FilterSettings,
                                            WindowResult, calibrate_window)
-from estimators.strapdown import ARCSEC, SensorModel
+from rlgsim.estimators.strapdown import ARCSEC, SensorModel
 
 G0 = 9.80665
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).

@@ -13,7 +13,7 @@ import pathlib
 
 import numpy as np
 
-from estimators.calibration import AXES, PARAMETERS, CampaignResult
+from rlgsim.estimators.calibration import AXES, PARAMETERS, CampaignResult
 
 _UNITS = {"deg/h": "°/h", "ppm": "ppm", "arcsec": "arcsec", "ug": "µg"}
 

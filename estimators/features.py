@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from sklearn.utils.validation import check_array
 
-from estimators.columns import Columns
+from rlgsim.estimators.columns import Columns
 
 __all__ = [
     "Columns", "samples_per_window", "window_average", "window_end_times", "temperature_rate",

@@ -18,8 +18,8 @@ from sklearn.feature_selection import SelectorMixin, r_regression
 from sklearn.utils.validation import check_array, check_consistent_length, check_is_fitted, \
     validate_data
 
-from estimators._validation import check_not_constant
-from estimators.columns import Columns, resolve_input_names
+from rlgsim.estimators._validation import check_not_constant
+from rlgsim.estimators.columns import Columns, resolve_input_names
 
 
 class RankedInput(NamedTuple):

@@ -80,7 +80,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 from threadpoolctl import threadpool_limits  # a scikit-learn dependency
 
-from estimators._validation import check_folds, check_not_constant
+from rlgsim.estimators._validation import check_folds, check_not_constant
 
 #: ``solver="auto"`` uses the dense solver up to this many samples (an 8e8-byte kernel matrix),
 #: the Nyström (fixed-size) solver above it.
@@ -285,7 +285,7 @@ def validate_fit_input(estimator: BaseEstimator, X, y) -> tuple[np.ndarray, np.n
     """Validate training data: finite float64, matching lengths, >= 2 samples, no constant column.
 
     Builds on scikit-learn's ``validate_data`` (NaN/inf, shapes, lengths) and
-    ``estimators._validation.check_not_constant``; sets ``n_features_in_``.
+    ``rlgsim.estimators._validation.check_not_constant``; sets ``n_features_in_``.
     """
     X, y = validate_data(estimator, X, y, dtype=np.float64, y_numeric=True, ensure_min_samples=2)
     y = np.asarray(y, dtype=np.float64)  # integer targets: residuals must not be truncated

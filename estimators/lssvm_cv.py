@@ -2,14 +2,14 @@
 
 Paper 001 §4.3 tunes its LS-SVM's ``(c, sigma**2)`` by leave-one-out and §2.3 step 1 by ten-fold
 cross-validation; both are done here without refitting per fold, with the exact closed forms of
-:mod:`estimators.lssvm` (Cawley & Talbot 2004 for LOO, An, Liu & Venkatesh 2007 for k-fold):
+:mod:`rlgsim.estimators.lssvm` (Cawley & Talbot 2004 for LOO, An, Liu & Venkatesh 2007 for k-fold):
 ``r_i = alpha_i / (H^-1)_ii`` and ``r_F = [(H^-1)_FF]^-1 alpha_F``.
 
 For each ``sigma2`` the kernel matrix is eigen-decomposed once, ``K = U diag(lambda) U'``; then for
 every ``gamma``, ``A^-1 = U diag(1/(lambda + 1/gamma)) U'``, so ``alpha``, ``b`` and ``diag(A^-1)``
 cost ``O(N**2)`` per ``gamma`` (a k-fold grid point ``O(N**3/k)``), instead of a factorisation per
 grid point and fold. The chosen pair is refitted with the Cholesky solver of
-:class:`estimators.lssvm.LSSVMRegressor`.
+:class:`rlgsim.estimators.lssvm.LSSVMRegressor`.
 
 The inputs are standardised once with the statistics of all the training data (the kernel must
 be fixed for the closed forms to hold), as LS-SVMlab does. Dense only: ``O(N**3)`` per ``sigma2``
@@ -27,7 +27,7 @@ from scipy import linalg
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from estimators.lssvm import (LSSVMRegressor, blas_threads_for, check_positive_grid,
+from rlgsim.estimators.lssvm import (LSSVMRegressor, blas_threads_for, check_positive_grid,
                               cv_residuals, make_folds, rbf, standardisation, validate_fit_input)
 
 SCORES = {
@@ -70,7 +70,7 @@ def lssvm_grid_cv_residuals(Xs: np.ndarray, y: np.ndarray, gammas: np.ndarray,
 
 
 class LSSVMRegressorCV(RegressorMixin, BaseEstimator):
-    """LS-SVM (:class:`estimators.lssvm.LSSVMRegressor`) with grid-searched ``gamma`` and ``sigma2``.
+    """LS-SVM (:class:`rlgsim.estimators.lssvm.LSSVMRegressor`) with grid-searched ``gamma`` and ``sigma2``.
 
     Parameters
     ----------
@@ -83,7 +83,7 @@ class LSSVMRegressorCV(RegressorMixin, BaseEstimator):
     scoring : {"mse", "mae", "median_abs"}, default="mse"
         Criterion on the CV residuals (smaller is better); ``"median_abs"`` is robust.
     fit_intercept, standardize : bool, default=True
-        As in :class:`~estimators.lssvm.LSSVMRegressor`.
+        As in :class:`~rlgsim.estimators.lssvm.LSSVMRegressor`.
     random_state : int, RandomState instance or None, default=None
         Shuffles the k-fold split (unused for leave-one-out).
 

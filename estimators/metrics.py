@@ -29,8 +29,8 @@ from numpy.typing import ArrayLike
 from sklearn.metrics import mean_absolute_error, r2_score, root_mean_squared_error
 from sklearn.utils.validation import check_array, check_consistent_length
 
-from estimators._validation import check_min_samples
-from estimators.features import window_average
+from rlgsim.estimators._validation import check_min_samples
+from rlgsim.estimators.features import window_average
 
 
 def _series(x: ArrayLike, what: str, min_samples: int = 1) -> np.ndarray:

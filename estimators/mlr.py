@@ -28,9 +28,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 
-from estimators._validation import check_min_samples
-from estimators.term_model import TermRegressorMixin, ols, prepare_fit, scaled_terms
-from estimators.terms import Powers, parse_term, polynomial_powers, term_label
+from rlgsim.estimators._validation import check_min_samples
+from rlgsim.estimators.term_model import TermRegressorMixin, ols, prepare_fit, scaled_terms
+from rlgsim.estimators.terms import Powers, parse_term, polynomial_powers, term_label
 
 
 class ScoredModel(NamedTuple):
@@ -86,12 +86,12 @@ class MLRBICRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
     max_exhaustive_terms : int, default 10
         "auto" searches exhaustively up to this many free candidates (2^10 = 1024 fits).
     feature_names : sequence of str, optional
-        Input names (default: a :class:`~estimators.columns.Columns`' names, else x0, x1 ...).
+        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else x0, x1 ...).
 
     Attributes
     ----------
     terms_, powers_, coef_, intercept_, ... : see
-        :class:`~estimators.term_model.TermRegressorMixin`; ``coef_`` are the statsmodels OLS
+        :class:`~rlgsim.estimators.term_model.TermRegressorMixin`; ``coef_`` are the statsmodels OLS
         coefficients of the chosen terms in raw units.
     bic_ : float  BIC of the chosen model.
     pvalues_, bse_ : ndarray  t-test p-values and standard errors of ``coef_`` (statsmodels).

@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 
-from estimators._validation import check_min_samples
-from estimators.term_model import TermRegressorMixin, prepare_fit
-from estimators.terms import design_matrix, polynomial_powers
+from rlgsim.estimators._validation import check_min_samples
+from rlgsim.estimators.term_model import TermRegressorMixin, prepare_fit
+from rlgsim.estimators.terms import design_matrix, polynomial_powers
 
 
 class PolynomialRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
@@ -36,12 +36,12 @@ class PolynomialRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
         additive sum of per-input polynomials.
     feature_names : sequence of str, optional
         Input names for reports; default the names of a
-        :class:`~estimators.columns.Columns`, else ``x0, x1, ...``.
+        :class:`~rlgsim.estimators.columns.Columns`, else ``x0, x1, ...``.
 
     Attributes
     ----------
     terms_, powers_, coef_, intercept_, coef_scaled_, intercept_scaled_, center_, scale_,
-    input_names_ : see :class:`~estimators.term_model.TermRegressorMixin`.
+    input_names_ : see :class:`~rlgsim.estimators.term_model.TermRegressorMixin`.
     condition_number_ : float
         2-norm condition number of the scaled design matrix ``[1, z, z², ...]``.
     n_features_in_ : int

@@ -1,8 +1,8 @@
 """Pieces shared by the two RBF networks: input standardisation, the Gaussian hidden layer and
 orthogonal-least-squares (OLS) forward selection of centres.
 
-Used by :mod:`estimators.rbf_network` (the traditional, MATLAB ``newrb``-style network) and
-:mod:`estimators.rbf_modified` (the Kohonen + OLS network of paper 002).
+Used by :mod:`rlgsim.estimators.rbf_network` (the traditional, MATLAB ``newrb``-style network) and
+:mod:`rlgsim.estimators.rbf_modified` (the Kohonen + OLS network of paper 002).
 
 Gaussian hidden layer
     ``phi_ij = exp(-ln 2 * ||x_i - c_j||**2 / spread**2)``: a neuron's output is 1 at its centre
@@ -65,7 +65,7 @@ from scipy.spatial.distance import cdist
 
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from estimators._validation import check_not_constant
+from rlgsim.estimators._validation import check_not_constant
 
 #: ``-ln 0.5``: a Gaussian neuron outputs 0.5 at distance ``spread`` from its centre (newrb).
 LN2 = math.log(2.0)

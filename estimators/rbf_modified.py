@@ -1,6 +1,6 @@
 """Modified RBF neural network of paper 002 (§3): Kohonen map + orthogonal least squares.
 
-Model (paper 002 eq. 1-2), as in :mod:`estimators.rbf_network`::
+Model (paper 002 eq. 1-2), as in :mod:`rlgsim.estimators.rbf_network`::
 
     y(x) = b + sum_j w_j * exp(-ln 2 * ||z(x) - c_j||**2 / spread**2)
 
@@ -16,7 +16,7 @@ Design (paper 002 §3, Steps 2-4):
    inputs; samples are presented in random order; both draws come from ``random_state``.
 2. Step 3 — the prototype of every node that wins at least one training input is a candidate
    centre (empty nodes represent no data and are dropped). Chen-Cowan-Grant orthogonal least
-   squares (:class:`estimators.rbf_common.ForwardOLS`, modified Gram-Schmidt; paper 002
+   squares (:class:`rlgsim.estimators.rbf_common.ForwardOLS`, modified Gram-Schmidt; paper 002
    eqs. 7-15) orders the candidates by error-reduction ratio and stops once
    ``1 - sum err < rho`` (eq. 16) or ``max_centers`` are chosen.
 3. Step 4 — the output layer (weights and bias) is the least-squares solution on the chosen
@@ -28,7 +28,7 @@ energy over ``sum((y - mean y)**2)``, i.e. 1 - R². (Chen et al. 1991 rank again
 for a gyro bias — a small variation on a large offset — that would let the offset dominate
 ``rho``.) Units: ``y``, ``b``, ``w_j`` in the target's unit; centres in the input units.
 
-Against :class:`estimators.rbf_network.RBFNetwork` (paper 002's claim: the same error with
+Against :class:`rlgsim.estimators.rbf_network.RBFNetwork` (paper 002's claim: the same error with
 fewer centres and less time; ``benchmarks/estimators_rbf.py``, ``tests/test_rbf_network.py``):
 on paper-002-like data it does reach the same training error with fewer centres, and the saving
 comes from ranking with the bias in the model — ``RBFNetwork(centred_ranking=True)`` needs about
@@ -51,7 +51,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import validate_data
 
-from estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_positive, check_spread,
+from rlgsim.estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_positive, check_spread,
                                    fit_standardiser, gaussian_design)
 
 

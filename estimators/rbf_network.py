@@ -16,7 +16,7 @@ empty hidden layer, the network adds, one at a time, the training input whose Ga
 most reduces the error — ranked by ``newrb``'s ratio ``e = (w' t)**2 / (w' w * t' t)`` of the
 candidate column ``w`` made orthogonal to the columns already chosen, against the raw target
 ``t`` — which is the Chen-Cowan-Grant orthogonal-least-squares step without a bias term
-(:class:`estimators.rbf_common.ForwardOLS`, ``bias="after"``). After each addition the linear
+(:class:`rlgsim.estimators.rbf_common.ForwardOLS`, ``bias="after"``). After each addition the linear
 output layer (weights and bias) is the least-squares fit (what ``newrb``'s ``solvelin2``
 computes; here by back substitution in the OLS triangular system), and growing stops once its
 training mean squared error is at most ``goal`` or ``max_centers`` neurons are in place. (Unlike
@@ -36,7 +36,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import validate_data
 
-from estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_spread,
+from rlgsim.estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_spread,
                                    fit_standardiser, gaussian_design)
 
 
@@ -60,7 +60,7 @@ class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         False ranks candidates exactly as ``newrb`` does, against the raw target (the bias only
         enters the least-squares output layer). True puts the bias in the model before ranking,
         so candidates are ranked against the target's variation about its mean — the
-        treatment of :class:`estimators.rbf_modified.ModifiedRBFNetwork`; not ``newrb``, it is
+        treatment of :class:`rlgsim.estimators.rbf_modified.ModifiedRBFNetwork`; not ``newrb``, it is
         there to separate the effect of the ranking from that of the candidate set.
 
     Attributes

@@ -12,7 +12,7 @@ regression: a comparison of iterative weighting schemes", ICANN 2009 ("robustifi
    iteration as in De Brabanter et al. 2009 (default), or only once from the unweighted fit as
    in paper 001 and Suykens et al. 2002 (``rescale=False``);
 3. weights ``v_k = V(e_k / s)`` with ``V`` = Huber, Hampel (c1 = 2.5, c2 = 3), Logistic or Myriad
-   (eqs. 15-18, :mod:`estimators.robust_weights`), floored at ``MIN_WEIGHT``;
+   (eqs. 15-18, :mod:`rlgsim.estimators.robust_weights`), floored at ``MIN_WEIGHT``;
 4. solve the weighted LS-SVM, ``K + diag(1/(gamma v))`` in the bordered system (eq. 14);
 5. back to 2 until the largest weight change is below ``tol`` (``max_iter=1`` is paper 001's
    single re-weighting step).
@@ -32,12 +32,12 @@ the out-of-fold residuals is minimised — ``"median"``: ``median |r_i|``; ``"we
 mean of ``|r_i|`` weighted by Hampel weights of ``r_i`` over their own robust scale (the weighted
 L1 robust CV score of De Brabanter et al., "Robust cross-validation score function for LS-SVM
 non-linear function estimation", ICANN 2002). The folds are refitted on purpose: the
-closed-form CV residuals of :mod:`estimators.lssvm` hold the final weights fixed, and since the
+closed-form CV residuals of :mod:`rlgsim.estimators.lssvm` hold the final weights fixed, and since the
 weights are themselves fitted to the noise, that estimate is optimistic for strongly
 down-weighting parameters (it picks the smallest Myriad ``delta`` on clean data, whose accuracy
 against the truth is the worst). Hampel and Logistic weights have no tuned parameter.
 
-Units: as :class:`estimators.lssvm.LSSVMRegressor` (inputs standardised inside, ``sigma2`` in
+Units: as :class:`rlgsim.estimators.lssvm.LSSVMRegressor` (inputs standardised inside, ``sigma2`` in
 standardised units squared, ``alpha``, ``b``, residuals and ``scale_`` in the unit of ``y``;
 weights dimensionless). Dense solver only: one Cholesky (``N**3/3`` flops) per iteration and
 ``16 N**2`` bytes (the kernel plus a work matrix).
@@ -56,10 +56,10 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from estimators.lssvm import (BorderedSolution, blas_threads_for, check_positive,
+from rlgsim.estimators.lssvm import (BorderedSolution, blas_threads_for, check_positive,
                               check_positive_grid, kernel_expansion, make_folds, rbf,
                               solve_bordered, standardisation, validate_fit_input)
-from estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights, robust_scale,
+from rlgsim.estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights, robust_scale,
                                        weight_function)
 
 #: Weights are floored here so that ``1/(gamma v)`` stays finite; a point at the floor (e.g. a
@@ -185,14 +185,14 @@ class RobustLSSVMRegressor(RegressorMixin, BaseEstimator):
         iteration converges linearly: typically 5-30 solves, but over 100 for a strongly
         re-descending weight (small Myriad ``delta``) on data that leave the scale drifting.
     fit_intercept, standardize : bool, default=True
-        As in :class:`~estimators.lssvm.LSSVMRegressor`.
+        As in :class:`~rlgsim.estimators.lssvm.LSSVMRegressor`.
     random_state : int, RandomState instance or None, default=None
         Shuffles the k-fold split of the robust CV.
 
     Attributes
     ----------
     x_mean_, x_scale_, support_, dual_coef_, intercept_
-        As in :class:`~estimators.lssvm.LSSVMRegressor` (dense).
+        As in :class:`~rlgsim.estimators.lssvm.LSSVMRegressor` (dense).
     weights_ : ndarray of shape (n_samples,)
         Final weights ``v_k`` in ``[MIN_WEIGHT, 1]``; small values flag outliers.
     scale_ : float

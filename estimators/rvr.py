@@ -56,7 +56,7 @@ from ._validation import check_min_samples, check_not_constant
 try:  # the compiled Tipping-Faul core of fastrvm (see module docstring)
     from fastrvm import _sparsebayes_bindings as _sb
 except ImportError as exc:  # pragma: no cover - depends on the installed fastrvm build
-    raise ImportError("estimators.rvr needs the compiled core of fastrvm 0.1.x "
+    raise ImportError("rlgsim.estimators.rvr needs the compiled core of fastrvm 0.1.x "
                       "(fastrvm._sparsebayes_bindings); reinstall fastrvm>=0.1.5") from exc
 
 

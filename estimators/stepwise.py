@@ -29,11 +29,11 @@ from typing import Any, NamedTuple
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 
-from estimators._validation import check_min_samples
-from estimators.mlr import parse_terms, resolve_candidates
-from estimators.term_model import TermRegressorMixin, ols, prepare_fit, scaled_terms, \
+from rlgsim.estimators._validation import check_min_samples
+from rlgsim.estimators.mlr import parse_terms, resolve_candidates
+from rlgsim.estimators.term_model import TermRegressorMixin, ols, prepare_fit, scaled_terms, \
     significance
-from estimators.terms import term_label
+from rlgsim.estimators.terms import term_label
 
 
 class Step(NamedTuple):
@@ -67,12 +67,12 @@ class StepwiseRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
     max_steps : int, default 100
         Safety cap on moves; reaching it gives a ``ConvergenceWarning``.
     feature_names : sequence of str, optional
-        Input names (default: a :class:`~estimators.columns.Columns`' names, else x0, x1 ...).
+        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else x0, x1 ...).
 
     Attributes
     ----------
     terms_, powers_, coef_, intercept_, ... : see
-        :class:`~estimators.term_model.TermRegressorMixin`; ``coef_`` are the statsmodels OLS
+        :class:`~rlgsim.estimators.term_model.TermRegressorMixin`; ``coef_`` are the statsmodels OLS
         coefficients of the final terms in raw units.
     pvalues_, bse_ : ndarray  p-values and standard errors (raw units) of ``coef_``.
     rsquared_ : float  R² of the final fit on the training data.

@@ -30,11 +30,11 @@ Velocity (Savage §7.2): ΔV_k = Δv_k + ½ Δθ_k × Δv_k + (1/12)(Δθ_{k−1
 
 The true velocity on the turntable is zero, and the IMU sits at the table centre, so the
 Coriolis term −2 ω_ie × v (which only keeps a *moving* vehicle's velocity right) is left out of
-the navigation and — consistently — out of the error model (:mod:`estimators.calibration_filter`):
+the navigation and — consistently — out of the error model (:mod:`rlgsim.estimators.kalman_calibration`):
 the navigated velocity is the velocity error itself.
 
 Normal gravity γ: Somigliana's closed formula with WGS-84 constants and the free-air correction
-(NIMA TR8350.2 3rd ed. eqs. 4-1, 4-3), the same model :mod:`sim.earth` uses for the simulation.
+(NIMA TR8350.2 3rd ed. eqs. 4-1, 4-3), the same model :mod:`rlgsim.sim.earth` uses for the simulation.
 """
 
 from __future__ import annotations

@@ -20,9 +20,9 @@ import numpy as np
 import statsmodels.api as sm
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from estimators._validation import check_not_constant
-from estimators.columns import resolve_input_names, select_inputs
-from estimators.terms import Powers, design_matrix, format_equation, raw_coefficients, \
+from rlgsim.estimators._validation import check_not_constant
+from rlgsim.estimators.columns import resolve_input_names, select_inputs
+from rlgsim.estimators.terms import Powers, design_matrix, format_equation, raw_coefficients, \
     term_label, term_pretty
 
 
@@ -113,7 +113,7 @@ class TermRegressorMixin:
                         np.zeros(len(names)), scale)
 
     def predict(self, X: Any) -> np.ndarray:
-        """Model output for inputs ``X`` (array or :class:`~estimators.columns.Columns`
+        """Model output for inputs ``X`` (array or :class:`~rlgsim.estimators.columns.Columns`
         holding the fitted inputs by name); units of the training target."""
         check_is_fitted(self, "coef_scaled_")
         X = select_inputs(X, self.input_names_)

@@ -1,7 +1,7 @@
 """Regressors whose hyper-parameters are tuned inside ``fit`` by a population optimiser.
 
 * :class:`HHORVR` — paper 000 §3.2: the RBF width of a relevance vector regression
-  (:class:`estimators.rvr.RVR`) tuned by Harris hawks optimisation (30 hawks, 500 iterations)
+  (:class:`rlgsim.estimators.rvr.RVR`) tuned by Harris hawks optimisation (30 hawks, 500 iterations)
   with the 5-fold cross-validation RMSE as fitness.
 * :class:`PSOSVR` — paper 003 §3.2-3.3: scikit-learn's epsilon-SVR with C and gamma (and
   optionally epsilon) tuned by particle swarm optimisation on a validation RMSE.
@@ -71,7 +71,7 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
 
     Attributes after ``fit``: ``best_params_`` (dict, natural units), ``best_score_``
     (validation RMSE at the best point, units of y), ``optimize_result_`` (the optimiser's
-    :class:`~estimators.optimize.OptimizeResult`: evaluations, best-so-far curve), ``n_iter_``
+    :class:`~rlgsim.estimators.optimize.OptimizeResult`: evaluations, best-so-far curve), ``n_iter_``
     (optimiser iterations run), ``n_fits_``
     (validation model fits actually run), ``estimator_`` (the refitted model).
     """
@@ -133,7 +133,7 @@ class HHORVR(OptimizerTunedRegressor):
     width_bounds : (low, high) or None
         Search range of the width in units of X (log-uniform). ``None``: 0.01 to 10 times
         sqrt(n_features var(X)) (paper 000's range was lost in the text extraction).
-    fit_intercept, rvr_max_iter, max_basis : passed to :class:`~estimators.rvr.RVR`
+    fit_intercept, rvr_max_iter, max_basis : passed to :class:`~rlgsim.estimators.rvr.RVR`
         (``max_iter``, ``max_basis``); in each fold the candidate basis functions are those of
         its training rows (at most ``max_basis`` of them, evenly spaced).
     optimizer : "hho" (default) or "pso".
@@ -152,7 +152,7 @@ class HHORVR(OptimizerTunedRegressor):
     ----------
     width_ : tuned width (units of X); ``best_params_ = {"width": width_}``.
     best_score_ : CV RMSE at ``width_`` (units of y), pooled over all held-out points.
-    estimator_ : the :class:`~estimators.rvr.RVR` refitted on all data.
+    estimator_ : the :class:`~rlgsim.estimators.rvr.RVR` refitted on all data.
     n_fits_ : distinct widths cross-validated (cache misses); ``optimize_result_.nfev`` counts
         fitness evaluations as the optimiser sees them.
     """

@@ -5,20 +5,20 @@ Measurement equation (paper 000 eq. 20, per accelerometer i, per sample interval
     u_i = D_i(θ)·Δt + E_i(θ)·Δv + n_i                                           [m/s]
     N_i = K_i^±(θ) · u_i,    K^+ if u_i ≥ 0 else K^−                              [pulses]
 
-Δv = ∫f^b dt the exact velocity increment in body axes (:mod:`sim.motion`), D_i the bias
+Δv = ∫f^b dt the exact velocity increment in body axes (:mod:`rlgsim.sim.motion`), D_i the bias
 [m/s²], E_i the installation row (1 on the own axis, two misalignment angles [rad]), n_i the
 velocity-random-walk increment VRW·√Δt·z [m/s], and K^+/K^− the separate positive and negative
 scale factors [pulses/(m/s)] — paper 000 splits them because a quartz-flexure accelerometer's
 torquer and current-to-frequency converter respond differently to the two signs of the input.
-The pulses are counted with the remainder carried (:mod:`sim.pulses`).
+The pulses are counted with the remainder carried (:mod:`rlgsim.sim.pulses`).
 
 Temperature dependence (paper 000 §2(2): the torque coil's magnet and the pendulum's thermal
 imbalance move bias and scale factor): bias law in µg, K^± = K_0·(1 + 10⁻⁶·law_±) with separate
-ppm laws for the two signs, misalignment law in arcsec (all :mod:`sim.tempco`, local node the
+ppm laws for the two signs, misalignment law in arcsec (all :mod:`rlgsim.sim.temperature_laws`, local node the
 accelerometer's own thermal node by default). Typical navigation-grade quartz-flexure figures:
 bias temperature coefficient tens of µg/°C, scale factor tens of ppm/°C (DESIGN.md). Bias
 instability (flicker) and acceleration random walk join the true bias
-(:class:`sim.noise.SlowNoise`).
+(:class:`rlgsim.sim.noise.SlowNoise`).
 
 Evaluation order (float64; the stored truth reproduces the pulses in this order):
 ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``, ``u = u + σ·z``, ``inc = K^±·u`` with
@@ -32,10 +32,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from sim import units
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
-from sim.gyro import row_times, axis_indices, expand, installation_rows
-from sim.tempco import Law, LawSpec
+from rlgsim.ground import units
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from rlgsim.sim.gyro import row_times, axis_indices, expand, installation_rows
+from rlgsim.sim.temperature_laws import Law, LawSpec
 
 _ACCEL_KEYS = ("axes", "nodes", "scale_factor_pulses_per_s_per_g", "node", "t_ref_c", "bias",
                "scale_factor_pos", "scale_factor_neg", "misalignment")
@@ -167,7 +167,7 @@ def phase_increments(kpos: np.ndarray, kneg: np.ndarray, bias: np.ndarray,
 
     ``kpos``/``kneg`` (m, C) [pulses/(m/s)], ``bias`` (m, C) [m/s²], ``installation``
     (m, C, 3), ``dv_t`` (3, n) [m/s], ``z`` (C, n) float32 standard normals or None, ``sigma``
-    (C,) [m/s], ``own_axis`` as in :func:`sim.gyro.phase_increments`. Per sample, in this
+    (C,) [m/s], ``own_axis`` as in :func:`rlgsim.sim.gyro.phase_increments`. Per sample, in this
     order: ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``,
     ``u = u + σ·z``, ``inc = (K⁺ if u ≥ 0 else K⁻)·u``.
     """

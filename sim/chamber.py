@@ -20,7 +20,7 @@ The chamber cannot follow a setpoint faster than ``max_rate_c_per_min``:
 the maximum is slowed to it, and the limited setpoint catches up with the programme during the
 following hold). The chamber air then follows the rate-limited setpoint as a first-order lag
 with time constant ``air_tau_s``; that lag is one more state of the thermal integrator
-(:mod:`sim.thermal_integrator`, column 0 of its state), integrated exactly.
+(:mod:`rlgsim.sim.thermal_integrator`, column 0 of its state), integrated exactly.
 
 The slew-rate limiter is written here because no library offers an exact (event-based,
 closed-form) limiter of a piecewise-linear signal; sampled limiters would put the catch-up
@@ -34,10 +34,10 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list,
+from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list,
                         get_quantity, get_str, unit_keys)
-from sim.errors import UserInputError
-from sim.units import MINUTE
+from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.units import MINUTE
 
 #: Temperatures a chamber programme may ask for [°C] (a generous climatic-chamber range).
 MIN_TEMPERATURE_C = -100.0
@@ -229,7 +229,7 @@ def _parse_segments(items: Any, ctx: Ctx, depth: int = 0) -> tuple[Segment, ...]
 
 
 def _table_error(ctx: Ctx, message: str) -> UserInputError:
-    """A :class:`~sim.errors.UserInputError` about the table at ``ctx`` itself."""
+    """A :class:`~rlgsim.ground.errors.UserInputError` about the table at ``ctx`` itself."""
     where = f"{ctx.source}: " if ctx.source else ""
     return UserInputError(f"{where}{ctx.path}: {message}")
 

@@ -1,7 +1,7 @@
 """Typed, validating access to TOML tables.
 
 Every getter takes the table, the key and a :class:`Ctx` (the file and the dotted path of the
-table) and raises :class:`~sim.errors.UserInputError` with one line naming file, key, value and
+table) and raises :class:`~rlgsim.ground.errors.UserInputError` with one line naming file, key, value and
 what is allowed. Modules that read a part of a scenario or preset use these instead of
 indexing dictionaries, so that every user mistake reads the same way.
 """
@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 _MISSING = object()
 

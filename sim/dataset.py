@@ -29,7 +29,7 @@ from typing import Any, Iterable, Mapping
 import h5py
 import numpy as np
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 #: Root attribute ``rlgsim_format`` of every rlgsim dataset.
 FORMAT = "rlgsim dataset"

@@ -6,7 +6,7 @@ frame with respect to inertial space is the Earth's:
 
     ω_ie^n = (0, Ω cos L, Ω sin L)                                           [rad/s]
 
-with Ω = 7.292115e-5 rad/s (WGS-84, :data:`sim.units.EARTH_RATE`) and L the geodetic latitude
+with Ω = 7.292115e-5 rad/s (WGS-84, :data:`rlgsim.ground.units.EARTH_RATE`) and L the geodetic latitude
 (Titterton & Weston, *Strapdown Inertial Navigation Technology*, 2nd ed., §3.4.3).
 
 Normal gravity (gravitation plus centrifugal acceleration of the rotating Earth, which is what a
@@ -32,8 +32,8 @@ from typing import Mapping
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float
-from sim.units import DEG, EARTH_RATE
+from rlgsim.sim.config import Ctx, check_known_keys, get_float
+from rlgsim.ground.units import DEG, EARTH_RATE
 
 # WGS-84 defining and derived constants (NIMA TR8350.2, 3rd ed., tables 3.1 and 3.3).
 WGS84_A = 6378137.0                      # semi-major axis [m]
@@ -92,7 +92,7 @@ class Site:
         """Build from a scenario's ``[site]`` table (keys ``latitude_deg``, ``height_m``).
 
         A missing table gives the default site (34.0°, 0 m). Bad values raise
-        :class:`~sim.errors.UserInputError` naming file, key and value.
+        :class:`~rlgsim.ground.errors.UserInputError` naming file, key and value.
         """
         table = {} if table is None else table
         check_known_keys(table, ("latitude_deg", "height_m"), ctx)

@@ -5,27 +5,27 @@ Measurement equation (paper 000 eq. 17, per gyro i, per sample interval Δt = 1/
 
     N_i = K_i(θ) · ( D_i(θ)·Δt + E_i(θ)·Δθ + n_i )                             [pulses]
 
-with Δθ = ∫ω_ib^b dt the exact angle increment in body axes (:mod:`sim.motion`), K_i the scale
+with Δθ = ∫ω_ib^b dt the exact angle increment in body axes (:mod:`rlgsim.sim.motion`), K_i the scale
 factor [pulses/rad] (nominal 2.14 pulses/arcsec, paper 000 §4.1), D_i the bias [rad/s], E_i the
 i-th row of the installation matrix (1 on the gyro's own body axis, the two misalignment angles
 [rad] towards the other two body axes) and n_i the angle-random-walk increment
-N·√Δt·z [rad] (:func:`sim.noise.white_increments`). The pulses are counted from the
-accumulated phase with the fractional remainder carried (:mod:`sim.pulses`).
+N·√Δt·z [rad] (:func:`rlgsim.sim.noise.white_increments`). The pulses are counted from the
+accumulated phase with the fractional remainder carried (:mod:`rlgsim.sim.pulses`).
 
 Thermal state θ → parameters (one value per thermal step, held over the step's samples):
 
-* D_i = law_D(θ) + b_flicker + b_rrw: the bias law (:mod:`sim.tempco`; polynomial in the local
+* D_i = law_D(θ) + b_flicker + b_rrw: the bias law (:mod:`rlgsim.sim.temperature_laws`; polynomial in the local
   block temperature, knee and step terms a cubic cannot follow, temperature rate, the
   Langmuir-flow anode-arm term T_D − T_E, multi-point gradients, and the discharge excitation
-  U − U_0 tracked by UHFO, :mod:`sim.uhfo`) plus the slow noise of bias instability and rate
-  random walk (:class:`sim.noise.SlowNoise`), which are part of the *true* bias;
+  U − U_0 tracked by UHFO, :mod:`rlgsim.sim.uhfo`) plus the slow noise of bias instability and rate
+  random walk (:class:`rlgsim.sim.noise.SlowNoise`), which are part of the *true* bias;
 * K_i = K_0·(1 + 10⁻⁶·law_K(θ)) with the scale-factor law in ppm;
 * E_i off-diagonals = law_E(θ) in arcsec (two components per gyro).
 
 Evaluation order (the truth in the dataset reproduces the pulses bit for bit when recomputed in
 this order, float64), with E, D and K the values of the sample's thermal step:
 ``u = ((E_x·Δθ_x + E_y·Δθ_y) + E_z·Δθ_z) + D·Δt``, ``u = u + σ·z`` (σ·z in float64 from the
-float32 normal z), ``inc = K·u``, then :mod:`sim.pulses` counts. While the device is unpowered
+float32 normal z), ``inc = K·u``, then :mod:`rlgsim.sim.pulses` counts. While the device is unpowered
 the increments are zero (no pulses).
 """
 
@@ -36,14 +36,14 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from sim import units
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
-from sim.tempco import Law, LawSpec
+from rlgsim.ground import units
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from rlgsim.sim.temperature_laws import Law, LawSpec
 
 BODY_AXES = ("x", "y", "z")
 
 #: Langmuir-flow bias per mA of leg-current imbalance [°/h/mA] (DESIGN.md, after Aronowitz &
-#: Lim 1979) and the default imbalance per kelvin of anode-arm difference [mA/K] (sim.tempco).
+#: Lim 1979) and the default imbalance per kelvin of anode-arm difference [mA/K] (rlgsim.sim.temperature_laws).
 LANGMUIR_DEG_PER_H_PER_MA = 0.0066
 LEG_IMBALANCE_MA_PER_K = 0.033
 
@@ -115,7 +115,7 @@ class GyroModel:
         ["gx", "gy", "gz"], or ["g"] for one gyro), ``scale_factor_pulses_per_arcsec``
         (default 2.14), ``node`` (default "A": the cathode area, paper 003), ``t_ref_c``
         (default 20) and the law tables ``[gyro.bias]`` (°/h), ``[gyro.scale_factor]`` (ppm),
-        ``[gyro.misalignment]`` (arcsec) — see :mod:`sim.tempco`."""
+        ``[gyro.misalignment]`` (arcsec) — see :mod:`rlgsim.sim.temperature_laws`."""
         check_known_keys(table, _GYRO_KEYS, ctx)
         axes = tuple(str(a) for a in get_list(table, "axes", ctx, ["x", "y", "z"], min_len=1))
         axis_indices(axes, ctx)

@@ -9,16 +9,16 @@ one unit: every coefficient of every law of every axis, and the noise levels, fr
 sub-streams of the given generator (adding a coefficient never changes the others). The
 realisation is the truth of that unit — stored in the dataset's ``truth`` group as a table.
 
-The stage (:class:`ImuSimulator`) runs block by block inside :func:`sim.simulate.simulate`:
+The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.simulate.simulate`:
 
-1. UHFO on the thermal grid (:mod:`sim.uhfo`): the true excitation and its reading;
-2. gyro and accelerometer parameters on the thermal grid (:mod:`sim.gyro`,
-   :mod:`sim.accelerometer`; laws of :mod:`sim.tempco`) plus the slow noise (flicker, random
-   walk; :class:`sim.noise.SlowNoise`), which is part of the true bias;
-3. exact angle / velocity increments of the turntable motion (:mod:`sim.motion`), white noise
-   (float32 standard normals × σ, as :func:`sim.noise.white_increments`) and the phase
+1. UHFO on the thermal grid (:mod:`rlgsim.sim.uhfo`): the true excitation and its reading;
+2. gyro and accelerometer parameters on the thermal grid (:mod:`rlgsim.sim.gyro`,
+   :mod:`rlgsim.sim.accelerometer`; laws of :mod:`rlgsim.sim.temperature_laws`) plus the slow noise (flicker, random
+   walk; :class:`rlgsim.sim.noise.SlowNoise`), which is part of the true bias;
+3. exact angle / velocity increments of the turntable motion (:mod:`rlgsim.sim.motion`), white noise
+   (float32 standard normals × σ, as :func:`rlgsim.sim.noise.white_increments`) and the phase
    increments of eqs. 17/20;
-4. pulse counting with carried remainders (:mod:`sim.pulses`).
+4. pulse counting with carried remainders (:mod:`rlgsim.sim.pulses`).
 
 The state-free inputs of the next block (increments, normals, slow-noise and UHFO drives) are
 computed in a worker thread while the current block runs (:meth:`ImuSimulator._get_inputs`).
@@ -49,16 +49,16 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from sim import pulses as pulse_counter
-from sim.accelerometer import AccelerometerModel, Accelerometers
-from sim.accelerometer import phase_increments as accel_increments
-from sim.config import Ctx, check_known_keys, get_float, get_table
-from sim.errors import UserInputError
-from sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
-from sim.gyro import phase_increments as gyro_increments
-from sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
-from sim.rng import generator
-from sim.uhfo import Uhfo, UhfoModel
+from rlgsim.sim import pulses as pulse_counter
+from rlgsim.sim.accelerometer import AccelerometerModel, Accelerometers
+from rlgsim.sim.accelerometer import phase_increments as accel_increments
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
+from rlgsim.sim.gyro import phase_increments as gyro_increments
+from rlgsim.sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
+from rlgsim.sim.rng import generator
+from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
 _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 
@@ -119,7 +119,7 @@ class ImuModel:
 
     @classmethod
     def from_device(cls, device) -> "ImuModel | None":
-        """The model of a :class:`sim.scenario.Device` (None when it has no ``[gyro]``)."""
+        """The model of a :class:`rlgsim.sim.scenario.Device` (None when it has no ``[gyro]``)."""
         parts = dict(getattr(device, "parts", {}) or {})
         tables = dict(getattr(device, "tables", {}) or {})
         return cls.from_tables(tables, device.source, parts=parts)
@@ -256,7 +256,7 @@ class ImuRealisation:
 
 @dataclass
 class ImuState:
-    """Carried from block to block: pulse remainders (int64 fixed point, :mod:`sim.pulses`),
+    """Carried from block to block: pulse remainders (int64 fixed point, :mod:`rlgsim.sim.pulses`),
     slow-noise states and the UHFO wander."""
 
     gyro_remainder: np.ndarray
@@ -270,7 +270,7 @@ class ImuSimulator:
 
     ``realisation`` (bound or not), ``node_names`` of the thermal network, ``seed``/``unit`` of
     the seed tree, ``rate_hz`` the IMU sample rate, ``step_s`` the thermal step, ``motion`` a
-    :class:`sim.motion.Motion`, ``truth_samples`` store per-sample true increments too,
+    :class:`rlgsim.sim.motion.Motion`, ``truth_samples`` store per-sample true increments too,
     ``prefetch`` draw the next block's random numbers and increments in a worker thread,
     ``n_steps`` the run's length in thermal steps (the thread stops after the last block).
     """
@@ -396,7 +396,7 @@ class ImuSimulator:
               ) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], ImuState]:
         """Rows of the ``imu``, ``turntable`` and ``truth`` groups for block ``b``.
 
-        ``trace`` a :class:`sim.simulate.ThermalTrace` (thermal steps of the block); the
+        ``trace`` a :class:`rlgsim.sim.simulate.ThermalTrace` (thermal steps of the block); the
         turntable kinematics come from ``motion``.
         """
         dt = self.step_s
@@ -493,7 +493,7 @@ def _last_sample_of_step(idx: np.ndarray | int, m: int, n: int) -> np.ndarray:
 
 
 class ImuStage:
-    """The sensor stage of :func:`sim.simulate.simulate`: groups ``imu`` (pulses, UHFO),
+    """The sensor stage of :func:`rlgsim.sim.simulate.simulate`: groups ``imu`` (pulses, UHFO),
     ``turntable`` (table angles, motion labels) and ``truth`` (true parameters, inputs and the
     drawn unit). docs/dataset.md describes every variable."""
 
@@ -573,7 +573,7 @@ class ImuStage:
         segs = self.turntable_segments
         tt.coordinate("time", growing=True, units="s", description=time_desc)
         tt.variable("outer_angle", ("time",), units="degree",
-                    description="outer-axis angle at the end of the step (sim.turntable)")
+                    description="outer-axis angle at the end of the step (rlgsim.sim.turntable)")
         tt.variable("inner_angle", ("time",), units="degree",
                     description="inner-axis angle at the end of the step")
         tt.variable("motion_index", ("time",), units="1", dtype=np.int32,
@@ -612,11 +612,11 @@ class ImuStage:
             "sample_rate_hz": rate, "thermal_step_s": self.sim.step_s,
             "parameter_hold": "every parameter row holds over the samples of its thermal step "
                               "(samples whose mid-point lies in [time - thermal_step_s, time))",
-            "white_noise": "block b (600 s) of axis a: z = sim.rng.generator(seed, unit, "
+            "white_noise": "block b (600 s) of axis a: z = rlgsim.sim.rng.generator(seed, unit, "
                            "'gyro.white' | 'accel.white', a, b).standard_normal(n_b, "
                            "dtype=float32); increment = float64(z) * white_sigma",
             "gyro_equation": "u = ((E_x dth_x + E_y dth_y) + E_z dth_z) + bias*dt; u = u + "
-                             "sigma*z; inc = K*u [pulses]; pulses: sim.pulses fixed point",
+                             "sigma*z; inc = K*u [pulses]; pulses: rlgsim.sim.pulses fixed point",
             "accel_equation": "u = ((E_x dv_x + E_y dv_y) + E_z dv_z) + bias*dt; u = u + "
                               "sigma*z; inc = (K+ if u >= 0 else K-)*u [pulses]",
         })
@@ -682,9 +682,9 @@ class ImuStage:
 
     def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
         """Rows ``{group: {dim: {variable: array}}}`` of block ``b``; ``motion`` the run's
-        :class:`sim.motion.Motion` (the stage's own when None)."""
+        :class:`rlgsim.sim.motion.Motion` (the stage's own when None)."""
         if self.sim.motion is None:                 # first block: adopt the run's kinematics
-            from sim.motion import Motion
+            from rlgsim.sim.motion import Motion
             self.sim.motion = (motion if motion is not None
                                else Motion(self.turntable_segments, self.scenario.site))
         return self.sim.block(state, b, trace)
@@ -693,9 +693,9 @@ class ImuStage:
 def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-sample true (Δθ (n, 3) [rad], Δv (n, 3) [m/s]) of ``n`` samples from ``t0_s``,
     recomputed from a dataset's timeline (turntable track) and site — bit for bit what the run
-    used (:class:`sim.motion.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
-    from sim.earth import Site
-    from sim.motion import Motion, TurntableSegment
+    used (:class:`rlgsim.sim.motion.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
+    from rlgsim.sim.earth import Site
+    from rlgsim.sim.motion import Motion, TurntableSegment
 
     def text(v):
         return v.decode() if isinstance(v, bytes) else str(v)

@@ -3,7 +3,7 @@
 A campaign runs a *unit function* ``fn(payload, unit) -> {"rows": [(compensator, metric,
 value), ...], "params": {name: value, ...}}`` for units ``0 .. N-1``. Unit ``i``'s result may
 depend only on (payload, i) — the study and its seed travel in ``payload`` and every random draw
-is keyed by the unit index (``sim.rng``) — so the results are the same bytes on one worker, two
+is keyed by the unit index (``rlgsim.sim.rng``) — so the results are the same bytes on one worker, two
 workers or a cluster.
 
 Execution goes through the :class:`concurrent.futures.Executor` interface: a local
@@ -32,7 +32,7 @@ import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
-from sim.report import write_atomic
+from rlgsim.sim.report import write_atomic
 
 UNIT_DIR = "units"
 MANIFEST = "campaign.json"
@@ -108,7 +108,7 @@ def commit(out_dir: pathlib.Path, record: UnitRecord) -> None:
 
 def check_manifest(out_dir: pathlib.Path, identity: dict[str, Any]) -> None:
     """Refuse to resume a folder that holds a different campaign (other study or seed)."""
-    from sim.errors import UserInputError
+    from rlgsim.ground.errors import UserInputError
 
     path = pathlib.Path(out_dir) / MANIFEST
     if path.exists():

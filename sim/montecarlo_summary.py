@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from sim.montecarlo import UnitRecord
+from rlgsim.sim.montecarlo import UnitRecord
 
 #: Metrics for which a larger value is better; every other metric is better when smaller.
 #: A study's variants count too: ``r2_true``, ``improvement_pct@test2`` (name before ``@``,

@@ -6,13 +6,13 @@ For sample ``k`` at rate ``f`` (interval [k/f, (k+1)/f), time coordinate (k+1)/f
     Δv_k = ∫ f^b dt,      f^b(t)    = C_n^b(t) f^n,   f^n = (0, 0, γ)          [m/s]
 
 with ω_nb^b the table rate in body axes, ω_ie^n the Earth rate in ENU and γ the normal gravity
-at the site (:mod:`sim.earth`). The navigation frame is ENU at the site and the table does not
+at the site (:mod:`rlgsim.sim.earth`). The navigation frame is ENU at the site and the table does not
 translate, so the transport rate is zero; the IMU's measurement origin is taken to be **at the
 intersection of the table axes (no lever arm)**, so rotations add no centripetal or tangential
 acceleration and the specific force is exactly −gravity in body axes.
 
 Closed form. During a turntable motion the body turns at the constant rate w about an axis u that
-is fixed in the body (:mod:`sim.turntable`), so with C_0 = C_b^n at the motion's start and τ the
+is fixed in the body (:mod:`rlgsim.sim.turntable`), so with C_0 = C_b^n at the motion's start and τ the
 time since it (Rodrigues; Titterton & Weston 2004, eq. 11.2):
 
     C_n^b(τ) = R(u, −wτ) C_0^T,   R(u, α) = I + sin α [u×] + (1 − cos α)[u×]²
@@ -39,9 +39,9 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from sim.earth import Site
-from sim.turntable import TurntableProgram
-from sim.units import DEG
+from rlgsim.sim.earth import Site
+from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.ground.units import DEG
 
 _TIME_TOL_S = 1e-6
 _ANGLE_TOL_DEG = 1e-6
@@ -51,7 +51,7 @@ _ANGLE_TOL_DEG = 1e-6
 class TurntableSegment:
     """A turntable motion placed on the run's time axis (what the timeline's "turntable" track
     holds): ``t0_s``/``t1_s`` [s], ``track`` = "turntable", ``label``, ``attrs`` = the
-    :class:`~sim.turntable.TableMotion` fields (``kind``, ``axis``, ``rate_deg_s``,
+    :class:`~rlgsim.sim.turntable.TableMotion` fields (``kind``, ``axis``, ``rate_deg_s``,
     ``outer_deg``, ``inner_deg`` at ``t0_s``, ``position``, ``window``, ...)."""
 
     t0_s: float
@@ -64,7 +64,7 @@ class TurntableSegment:
 def segments_from_program(program: TurntableProgram, duration_s: float
                           ) -> list[TurntableSegment]:
     """Lay a programme's motions back to back on [0, duration_s] (for standalone use and tests;
-    the run's timeline comes from :mod:`sim.schedule`)."""
+    the run's timeline comes from :mod:`rlgsim.sim.schedule`)."""
     out: list[TurntableSegment] = []
     t = 0.0
     for m in program.motions(until_s=duration_s):
@@ -74,7 +74,7 @@ def segments_from_program(program: TurntableProgram, duration_s: float
 
 
 def body_to_enu(outer_deg: np.ndarray, inner_deg: np.ndarray) -> np.ndarray:
-    """C_b^n = R_x(outer) R_z(inner) (the gimbal convention of :mod:`sim.turntable`), (…, 3, 3)."""
+    """C_b^n = R_x(outer) R_z(inner) (the gimbal convention of :mod:`rlgsim.sim.turntable`), (…, 3, 3)."""
     o = np.asarray(outer_deg, dtype=float) * DEG
     i = np.asarray(inner_deg, dtype=float) * DEG
     co, so, ci, si = np.cos(o), np.sin(o), np.cos(i), np.sin(i)
@@ -134,7 +134,7 @@ class Motion:
     """Exact kinematics of the IMU on the turntable at ``site``.
 
     ``segments``: the timeline's turntable segments in time order (objects with ``t0_s``,
-    ``t1_s`` and the :class:`~sim.turntable.TableMotion` fields either as attributes or in an
+    ``t1_s`` and the :class:`~rlgsim.sim.turntable.TableMotion` fields either as attributes or in an
     ``attrs`` mapping; segments whose ``track`` is not "turntable" are skipped, so the whole
     timeline may be passed). They must be contiguous, and each must start at the angles where the
     previous one ended. After the last segment the table is held static at its final angles.

@@ -53,8 +53,8 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.signal import lfilter
 
-from sim import units
-from sim.config import Ctx, check_known_keys, get_float, get_int
+from rlgsim.ground import units
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_int
 
 #: Allan-deviation floor of flicker noise per unit bias instability, √(2 ln2/π) (IEEE 952 C.4).
 FLICKER_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
@@ -242,7 +242,7 @@ class SlowNoise:
     def __init__(self, bi: np.ndarray, rrw: np.ndarray, dt: float, model: NoiseModel,
                  axes: Sequence[str], seed: int, unit: int,
                  purpose: str | Sequence[str]) -> None:
-        from sim.rng import generator
+        from rlgsim.sim.rng import generator
         self._gen = generator
         self.axes = tuple(axes)
         self.seed, self.unit = seed, unit

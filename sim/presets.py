@@ -12,7 +12,7 @@ disk instead; a relative path is tried against ``base_dir`` (the directory of th
 refers to it) first and the working directory second.
 
 Every problem — unknown name, missing or unreadable file, TOML syntax error — is raised as a
-one-line :class:`~sim.errors.UserInputError` naming the file (and line for syntax errors).
+one-line :class:`~rlgsim.ground.errors.UserInputError` naming the file (and line for syntax errors).
 Parsing uses the standard library's :mod:`tomllib`.
 """
 
@@ -26,7 +26,7 @@ import tomllib
 from dataclasses import dataclass
 from importlib import resources
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 #: Sub-folder of the ``scenarios`` package for each kind of file ("" = the package itself).
 KINDS: dict[str, str] = {"scenario": "", "device": "devices", "thermal": "thermal",
@@ -50,7 +50,7 @@ class TomlFile:
 def _package_dir(kind: str):
     if kind not in KINDS:
         raise ValueError(f"unknown preset kind {kind!r}; known: {', '.join(KINDS)}")
-    root = resources.files("scenarios")
+    root = resources.files("rlgsim.scenarios")
     return root.joinpath(KINDS[kind]) if KINDS[kind] else root
 
 

@@ -36,8 +36,8 @@ def write_atomic(path: pathlib.Path, data: bytes | str) -> None:
 
 def output_folder(path: str | os.PathLike) -> pathlib.Path:
     """Create (if needed) and return a report/output folder; a folder that cannot be created
-    is a :class:`~sim.errors.UserInputError` naming it."""
-    from sim.errors import UserInputError
+    is a :class:`~rlgsim.ground.errors.UserInputError` naming it."""
+    from rlgsim.ground.errors import UserInputError
     folder = pathlib.Path(path)
     try:
         folder.mkdir(parents=True, exist_ok=True)

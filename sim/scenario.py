@@ -4,10 +4,10 @@ A scenario names a device preset, a site, the acquisition rates, the power sched
 chamber programme, the turntable programme, the duration and the seed (docs/scenarios.md lists
 every key with its unit). This module validates the top level and the small tables it owns
 (``site``, ``acquisition``, ``power``); each other table is validated by the module that owns
-it (``[chamber]`` by :class:`sim.chamber.ChamberProgram`, ``[turntable]`` by
-:mod:`sim.turntable`, the device's ``[thermal]`` by :class:`sim.thermal.ThermalNetwork`, its
+it (``[chamber]`` by :class:`rlgsim.sim.chamber.ChamberProgram`, ``[turntable]`` by
+:mod:`rlgsim.sim.turntable`, the device's ``[thermal]`` by :class:`rlgsim.sim.thermal.ThermalNetwork`, its
 sensor tables by the sensor modules — see :data:`DEVICE_TABLES`). Every user mistake is a
-one-line :class:`~sim.errors.UserInputError` naming file, key, value and what is allowed.
+one-line :class:`~rlgsim.ground.errors.UserInputError` naming file, key, value and what is allowed.
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ from typing import Any, Callable
 
 import numpy as np
 
-from sim import presets
-from sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
+from rlgsim.sim import presets
+from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
                         get_quantity, get_str, get_table, unit_keys)
-from sim.chamber import ChamberProgram
-from sim.earth import Site
-from sim.rng import generator
-from sim.thermal import ThermalNetwork
-from sim.thermometers import ProbeSet
-from sim.turntable import TurntableProgram
+from rlgsim.sim.chamber import ChamberProgram
+from rlgsim.sim.earth import Site
+from rlgsim.sim.rng import generator
+from rlgsim.sim.thermal import ThermalNetwork
+from rlgsim.sim.thermometers import ProbeSet
+from rlgsim.sim.turntable import TurntableProgram
 
 #: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
 #: loader can check that steps and samples tile a block without importing the simulator).
@@ -36,13 +36,13 @@ BLOCK_S = 600.0
 #: Tables a device preset may hold besides ``[device]``, each with the validator that owns it:
 #: ``"module:Class.from_config"`` called as ``f(table, ctx)``; the result is stored in
 #: ``Device.parts[name]``. ``None`` = accepted as is (kept raw in ``Device.tables``). Sensor
-#: modules add their tables here (``"gyro": "sim.gyro:GyroModel.from_config"``, ...).
+#: modules add their tables here (``"gyro": "rlgsim.sim.gyro:GyroModel.from_config"``, ...).
 DEVICE_TABLES: dict[str, str | None] = {
-    "gyro": "sim.gyro:GyroModel.from_config",
-    "accelerometer": "sim.accelerometer:AccelerometerModel.from_config",
-    "uhfo": "sim.uhfo:UhfoModel.from_config",
-    "noise": "sim.noise:NoiseModel.from_config",
-    "tolerance": "sim.imu:Tolerance.from_config",
+    "gyro": "rlgsim.sim.gyro:GyroModel.from_config",
+    "accelerometer": "rlgsim.sim.accelerometer:AccelerometerModel.from_config",
+    "uhfo": "rlgsim.sim.uhfo:UhfoModel.from_config",
+    "noise": "rlgsim.sim.noise:NoiseModel.from_config",
+    "tolerance": "rlgsim.sim.imu:Tolerance.from_config",
 }
 
 #: Keys of a device preset's ``[device]`` table.
@@ -136,7 +136,7 @@ class Acquisition:
     sample_rate_hz: float = 100.0   # IMU output rate [Hz]
     thermal_step_s: float = 1.0     # thermal grid step [s]
     chunk_s: float = 3600.0         # simulated time buffered per write [s]
-    truth_samples: bool = False     # also store the true increments per IMU sample (sim.imu)
+    truth_samples: bool = False     # also store the true increments per IMU sample (rlgsim.sim.imu)
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,7 @@ class Scenario:
     text: str                    # the raw TOML, embedded in every dataset
     seed: int
     device: Device
-    site: Site                   # sim.earth.Site
+    site: Site                   # rlgsim.sim.earth.Site
     acquisition: Acquisition
     power: PowerSchedule
     chamber: ChamberProgram

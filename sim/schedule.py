@@ -5,7 +5,7 @@ power switch, the turntable programme, the calibration windows and the data acqu
 process walks through *its own segments* (a hold, a ramp, a rotation, a calibration window, a
 600 s acquisition block) and records them as labelled :class:`TimelineSegment`s on its track.
 simpy sees a handful of events per segment — never one per sample: the numerics (thermal
-propagation, probes, sensors) run later, vectorised per block, in :mod:`sim.simulate`.
+propagation, probes, sensors) run later, vectorised per block, in :mod:`rlgsim.sim.simulate`.
 
 Events are put on the thermal grid ``k·thermal_step_s`` (rounded to the nearest step): power
 switch times and the breakpoints of the rate-limited chamber setpoint. Between grid points the
@@ -132,7 +132,7 @@ def _power_process(env: simpy.Environment, power: PiecewiseConstant, duration: f
 
 
 def _turntable_motions(turntable, duration: float) -> list[TimelineSegment]:
-    """The programme's motions (sim.turntable.TurntableProgram.motions) laid on the time axis."""
+    """The programme's motions (rlgsim.sim.turntable.TurntableProgram.motions) laid on the time axis."""
     if turntable is None:
         return []
     out, t = [], 0.0

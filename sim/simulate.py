@@ -5,22 +5,22 @@ thermal steps and of IMU samples, checked by the scenario loader). For block ``b
 
 1. the *thermal* part samples the timeline (rate-limited chamber setpoint on the grid points,
    power state over each step) and propagates the thermal network exactly
-   (:class:`sim.thermal_integrator.ThermalIntegrator`), giving a :class:`ThermalTrace`;
+   (:class:`rlgsim.sim.thermal_integrator.ThermalIntegrator`), giving a :class:`ThermalTrace`;
 2. every *stage* (:data:`STAGES`: the probes now, the sensors later) turns the trace into its
    arrays: ``stage.block(state, b, trace, motion) -> (arrays, state)``.
 
 Every carried state (thermal state, probe lags, later pulse remainders and noise-filter states)
 goes from block to block, and every random draw of block ``b`` comes from
-``sim.rng.generator(seed, unit, purpose, channel, b)``. The user's ``chunk_s`` only decides how
+``rlgsim.sim.rng.generator(seed, unit, purpose, channel, b)``. The user's ``chunk_s`` only decides how
 many blocks are buffered before a write (memory stays bounded), so the stored arrays are the same
 whatever the chunk size.
 
 Adding a stage (issue 3: the IMU) — write a class with
 
 * ``group`` (dataset group name), ``description`` and ``needs_motion`` (True to receive the
-  turntable kinematics, a :class:`sim.motion.Motion` — ``motion.increments(t0_s, n, rate_hz)``
+  turntable kinematics, a :class:`rlgsim.sim.motion.Motion` — ``motion.increments(t0_s, n, rate_hz)``
   gives the exact angle/velocity increments of ``n`` samples);
-* ``declare(group_writer)`` — create coordinates/variables (see :mod:`sim.dataset`); the growing
+* ``declare(group_writer)`` — create coordinates/variables (see :mod:`rlgsim.sim.dataset`); the growing
   dimension is usually ``time`` (``coordinate("time", growing=True, ...)``; a group may declare
   more than one growing dimension);
 * ``initial_state()`` — the state before block 0 (or ``None`` and build it from the first
@@ -48,10 +48,10 @@ from typing import Any, Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from sim.dataset import DatasetWriter, GroupWriter, check_writable
-from sim.rng import generator
-from sim.schedule import TRACKS, Timeline, build_timeline
-from sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.dataset import DatasetWriter, GroupWriter, check_writable
+from rlgsim.sim.rng import generator
+from rlgsim.sim.schedule import TRACKS, Timeline, build_timeline
+from rlgsim.sim.thermal_integrator import ThermalIntegrator
 
 #: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
 BLOCK_S = 600.0
@@ -80,7 +80,7 @@ class Stage:
 
     group: str
     description: str
-    needs_motion: bool = False     # True: block() receives a sim.motion.Motion (else None)
+    needs_motion: bool = False     # True: block() receives a rlgsim.sim.motion.Motion (else None)
 
     def declare(self, g: GroupWriter) -> None:
         raise NotImplementedError
@@ -181,7 +181,7 @@ def realised_network(scenario):
 
     Monte Carlo units ``unit >= 1`` draw their network from the preset's tolerances with
     ``generator(realisation_seed, unit, "realisation", "thermal", 0)``
-    (:meth:`sim.thermal.ThermalNetwork.realise`). Unit 0 — every plain ``rlgsim run`` and a
+    (:meth:`rlgsim.sim.thermal.ThermalNetwork.realise`). Unit 0 — every plain ``rlgsim run`` and a
     study's own run — simulates the *nominal* design: the presets' bias-stability figures were
     tuned against papers 000-003 on it (tests/test_imu.py), and a drawn network breaks the
     left/right symmetry of the gyro block, which switches on the anode-arm Langmuir term (on
@@ -262,8 +262,8 @@ class ProbeStage(Stage):
 
 #: Stage factories run by :func:`simulate`, in order: ``f(scenario, timeline) -> Stage | None``.
 def _imu_stage(scenario, timeline: Timeline) -> Stage | None:
-    """The sensor stage (:class:`sim.imu.ImuStage`: groups imu, turntable, truth)."""
-    from sim.imu import ImuStage
+    """The sensor stage (:class:`rlgsim.sim.imu.ImuStage`: groups imu, turntable, truth)."""
+    from rlgsim.sim.imu import ImuStage
     return ImuStage.create(scenario, timeline)
 
 
@@ -332,7 +332,7 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
     motion = None
     if any(getattr(s, "needs_motion", False) for s in stages):
-        from sim.motion import Motion
+        from rlgsim.sim.motion import Motion
         motion = Motion(timeline.segments, scenario.site)      # exact turntable kinematics
 
     attrs = {

@@ -12,7 +12,7 @@ A study file (TOML, shipped in ``scenarios/studies/`` or given by path) has a ``
 and further tables that belong to its *recipe*. A recipe is a module in ``sim/studies/`` with
 
     check(study: Study) -> config
-        validate the recipe's tables (raise :class:`~sim.errors.UserInputError` naming
+        validate the recipe's tables (raise :class:`~rlgsim.ground.errors.UserInputError` naming
         file/key/value) and return whatever the recipe needs;
     run(study: Study, config, workdir: pathlib.Path, *, unit: int, progress: bool,
         make_report: bool) -> StudyResult
@@ -32,11 +32,11 @@ import tempfile
 from dataclasses import dataclass, field
 from typing import Any
 
-from sim import presets
-from sim.config import Ctx, check_known_keys, get_int, get_str, get_table
-from sim.errors import UserInputError
-from sim.report import Report, output_folder
-from sim.studies import recipe_names
+from rlgsim.sim import presets
+from rlgsim.sim.config import Ctx, check_known_keys, get_int, get_str, get_table
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.report import Report, output_folder
+from rlgsim.sim.studies import recipe_names
 
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
 RECIPES = recipe_names()      # the modules in sim/studies/
@@ -57,7 +57,7 @@ class Study:
     tables: dict = field(default_factory=dict, repr=False)
 
     def ctx(self, *path: str) -> Ctx:
-        """A :class:`~sim.config.Ctx` for messages about ``path`` in this study's file."""
+        """A :class:`~rlgsim.sim.config.Ctx` for messages about ``path`` in this study's file."""
         return Ctx(self.source, ".".join(path))
 
 
@@ -110,7 +110,7 @@ def list_studies() -> list[tuple[str, str]]:
 
 
 def recipe_module(study: Study):
-    return importlib.import_module(f"sim.studies.{study.recipe}")
+    return importlib.import_module(f"rlgsim.sim.studies.{study.recipe}")
 
 
 def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = None):
@@ -119,7 +119,7 @@ def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = Non
     The study's ``device_seed`` (if any) replaces the scenario's, so all runs of a study are
     the same physical unit; ``unit`` selects the Monte Carlo unit (another drawn device and
     other noise)."""
-    from sim.scenario import load_scenario
+    from rlgsim.sim.scenario import load_scenario
 
     path = (study.base_dir / ref) if study.base_dir is not None else None
     try:
@@ -130,7 +130,7 @@ def scenario_for(study: Study, ref: str, *, unit: int = 0, ctx: Ctx | None = Non
     changes: dict[str, Any] = {"unit": int(unit)}
     if study.device_seed is not None:
         changes["device_seed"] = study.device_seed
-    from sim.unit_variations import apply      # Monte Carlo chamber variations, if any
+    from rlgsim.sim.unit_variations import apply      # Monte Carlo chamber variations, if any
     return apply(dataclasses.replace(scenario, **changes))
 
 
@@ -191,7 +191,7 @@ def _input_files(study: Study, report: Report) -> None:
 
 
 def study_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
-    """Monte Carlo unit function (see :mod:`sim.montecarlo`): run the study for ``unit`` in a
+    """Monte Carlo unit function (see :mod:`rlgsim.sim.montecarlo`): run the study for ``unit`` in a
     temporary folder and return its scores and drawn parameters. ``payload`` carries the study
     text and source so that workers need no access to the user's files."""
     study = parse_study(payload["text"], payload["source"],

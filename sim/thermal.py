@@ -47,8 +47,8 @@ from typing import Any, Mapping
 import numpy as np
 import scipy.linalg
 
-from sim.config import (Ctx, check_known_keys, get_float, get_list, get_str, get_table)
-from sim.errors import UserInputError
+from rlgsim.sim.config import (Ctx, check_known_keys, get_float, get_list, get_str, get_table)
+from rlgsim.ground.errors import UserInputError
 
 #: Stefan–Boltzmann constant [W/(m²·K⁴)] (CODATA 2018, exact).
 STEFAN_BOLTZMANN = 5.670374419e-8
@@ -255,7 +255,7 @@ class ThermalNetwork:
     def from_config(cls, table: Mapping[str, Any], ctx: Ctx) -> "ThermalNetwork":
         """Build from a thermal preset's ``[thermal]`` table (format: module docstring,
         docs/thermal.md). Every key is validated; mistakes raise
-        :class:`~sim.errors.UserInputError` naming file, key and value."""
+        :class:`~rlgsim.ground.errors.UserInputError` naming file, key and value."""
         return _Builder(table, ctx).build()
 
 

@@ -4,7 +4,7 @@ State ``x = [T_air, T_1 … T_n]`` (column 0 the chamber air, docs/architecture.
 model (docs/thermal.md, eqs. (1)–(2))::
 
     τ_air dT_air/dt = s(t) − T_air                      (first-order air lag, τ_air ≥ 0)
-    C dT/dt = −K T + g T_air + u(t) P                   (the network, sim.thermal)
+    C dT/dt = −K T + g T_air + u(t) P                   (the network, rlgsim.sim.thermal)
 
 with the rate-limited chamber setpoint ``s(t)`` linear between grid points (first-order hold,
 FOH) and the power state ``u(t)`` constant over each step (zero-order hold, ZOH). Between grid
@@ -46,7 +46,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-from sim.thermal import ThermalNetwork
+from rlgsim.sim.thermal import ThermalNetwork
 
 #: Rows per matrix product when mapping modal to node temperatures (fixed, see module doc).
 _ROW_BLOCK = 200

@@ -41,9 +41,9 @@ from typing import Any, Mapping
 import numpy as np
 import scipy.signal
 
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
-from sim.errors import UserInputError
-from sim.thermal import ThermalNetwork
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.thermal import ThermalNetwork
 
 _PARAMS = ("tau_s", "noise_sigma_c", "resolution_c")
 #: Upper limits that catch unit mistakes (a lag of more than a day, noise above 10 K ...).

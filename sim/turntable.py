@@ -16,7 +16,7 @@ counter-clockwise seen from the axis tip). The body-to-ENU attitude is
 with R_x, R_z the usual active rotation matrices (Titterton & Weston 2004, §3.6). The table's
 angular velocity in body axes is ω_nb^b = (cos i, −sin i, 0)·d(outer)/dt + (0, 0, 1)·d(inner)/dt;
 a programme moves one axis at a time, so during every motion the body turns about an axis that
-is fixed in the body at a constant rate (closed-form kinematics in :mod:`sim.motion`).
+is fixed in the body at a constant rate (closed-form kinematics in :mod:`rlgsim.sim.motion`).
 
 Rate profile: a rotation is a constant-rate motion of duration |angle|/rate; the table's
 acceleration phases (a few tenths of a second on a real table at 20 °/s) are **ignored** — the
@@ -85,8 +85,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any, Iterator, Mapping, Sequence
 
-from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str
-from sim.errors import UserInputError
+from rlgsim.sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_str
+from rlgsim.ground.errors import UserInputError
 
 AXES = ("outer", "inner")
 KINDS = ("static", "rotate")

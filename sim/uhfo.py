@@ -11,7 +11,7 @@ corr(bias, T) ≈ 0.71. The model:
     U_true(t) = law(T_discharge, dT/dt, …) + w(t)           [V]   (the loop's true voltage)
     UHFO(t)   = LSB · round((U_true + e) / LSB)              [V]   (what the test software logs)
 
-``law`` is a :class:`sim.tempco.LawSpec` in volts on the discharge node (default
+``law`` is a :class:`rlgsim.sim.temperature_laws.LawSpec` in volts on the discharge node (default
 ``<block>.discharge``), ``w`` a first-order Gauss–Markov wander of the discharge
 (standard deviation ``wander_v``, correlation time ``wander_tau_s``) — the part of the
 excitation that no thermometer sees and that makes UHFO a better regressor than temperature —
@@ -33,9 +33,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy.signal import lfilter
 
-from sim.config import Ctx, check_known_keys, get_float
-from sim.rng import generator
-from sim.tempco import Law, LawSpec
+from rlgsim.sim.config import Ctx, check_known_keys, get_float
+from rlgsim.sim.rng import generator
+from rlgsim.sim.temperature_laws import Law, LawSpec
 
 #: Keys of ``[uhfo]`` besides the law keys.
 OWN_KEYS = ("wander_v", "wander_tau_s", "noise_v", "lsb_v")

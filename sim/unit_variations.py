@@ -10,7 +10,7 @@ variations switched on, every scenario a Monte Carlo unit simulates gets
 * a rate factor ``f = exp(R·N(0,1))`` on every ramp rate (a ramp given by duration lasts
   ``1/f`` as long; random-profile rate bounds scale by ``f``),
 
-drawn from ``sim.rng.generator(scenario.seed, unit, "chamber", "variation", 0)`` — per run
+drawn from ``rlgsim.sim.rng.generator(scenario.seed, unit, "chamber", "variation", 0)`` — per run
 (the train and test runs of a unit, which have their own seeds, vary independently, like two
 runs of a real chamber) and per unit, never per worker. The chamber's rate limit and air lag
 stay as they are; a scenario with a fixed duration keeps it (a slower programme is cut, a faster
@@ -18,7 +18,7 @@ one holds its last setpoint).
 
 The variations travel as a :class:`ChamberVariation` in a :class:`contextvars.ContextVar` that
 :func:`varied` sets around a unit's run (so it works on any executor, threads included) and that
-:func:`sim.study.scenario_for` applies through :func:`apply`. Without variations nothing
+:func:`rlgsim.sim.study.scenario_for` applies through :func:`apply`. Without variations nothing
 changes.
 """
 
@@ -31,8 +31,8 @@ import math
 from dataclasses import dataclass
 from typing import Iterator
 
-from sim.chamber import ChamberProgram, Hold, RandomProfile, Ramp, Repeat, Step
-from sim.rng import generator
+from rlgsim.sim.chamber import ChamberProgram, Hold, RandomProfile, Ramp, Repeat, Step
+from rlgsim.sim.rng import generator
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.earth import Site
-from sim.imu import ImuModel, ImuSimulator
-from sim.motion import Motion, segments_from_program
-from sim.rng import generator
+from rlgsim.sim.earth import Site
+from rlgsim.sim.imu import ImuModel, ImuSimulator
+from rlgsim.sim.motion import Motion, segments_from_program
+from rlgsim.sim.rng import generator
 
 #: Node names of a three-gyro IMU (the thermal preset's naming) and of a single gyro block.
 BLOCK_NODES = [*"ABCDEFGH", "discharge", "preamp", "ballast_D", "ballast_E"]
@@ -22,7 +22,7 @@ SITE = Site(34.0, 0.0)
 
 @dataclass
 class Trace:
-    """Stand-in for sim.simulate.ThermalTrace (the fields the sensor stage reads)."""
+    """Stand-in for rlgsim.sim.simulate.ThermalTrace (the fields the sensor stage reads)."""
 
     t_s: np.ndarray
     step_s: float

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from sim.rng import generator
+from rlgsim.sim.rng import generator
 
 
 def toy_unit(payload: dict, unit: int) -> dict:

@@ -8,7 +8,7 @@ import math
 import pathlib
 import tomllib
 
-from sim.scenario import Scenario, parse_scenario
+from rlgsim.sim.scenario import Scenario, parse_scenario
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from _imu_helpers import SITE, cat, make_sim, run
-from sim import pulses, units
-from sim.accelerometer import AccelerometerModel
-from sim.config import Ctx
-from sim.errors import UserInputError
-from sim.motion import body_to_enu
-from sim.turntable import TurntableProgram
+from rlgsim.ground import units
+from rlgsim.sim import pulses
+from rlgsim.sim.accelerometer import AccelerometerModel
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.motion import body_to_enu
+from rlgsim.sim.turntable import TurntableProgram
 
 KA = 5000.0 / units.G0                          # pulses/(m/s): 5000 pulses/s at 1 g0
 

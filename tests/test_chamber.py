@@ -7,10 +7,10 @@ import copy
 import numpy as np
 import pytest
 
-from sim.chamber import (ChamberProgram, Hold, PiecewiseLinear, RandomProfile, Ramp, Repeat,
+from rlgsim.sim.chamber import (ChamberProgram, Hold, PiecewiseLinear, RandomProfile, Ramp, Repeat,
                          Step, rate_limit)
-from sim.config import Ctx
-from sim.errors import UserInputError
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
 
 CTX = Ctx("scen.toml", "chamber")
 

@@ -10,14 +10,14 @@ import pathlib
 import h5py
 import pytest
 
-from sim.cli import main
+from rlgsim.sim.cli.main import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "rlgsim.sim.cli", *args], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=120)
 
 

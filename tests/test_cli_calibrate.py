@@ -1,4 +1,4 @@
-"""``rlgsim calibrate`` (sim/cli_calibrate.py): table, dataset group, figures, user errors."""
+"""``rlgsim calibrate`` (sim/cli/calibrate.py): table, dataset group, figures, user errors."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from _turntable_pulses import random_truth, write_dataset
-from sim.cli import main
-from sim.turntable import TurntableProgram
+from rlgsim.sim.cli.main import main
+from rlgsim.sim.turntable import TurntableProgram
 
 PROG = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
 
@@ -81,7 +81,7 @@ def test_calibrate_a_simulated_run_end_to_end(tmp_path, capsys):
     assert main(["calibrate", str(h5), "-o", str(out), "-q", "--workers", "1"]) == 0
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 2 and [r["status"] for r in rows] == ["ok", "ok"]
-    from estimators.calibration import PARAMETERS
+    from rlgsim.estimators.calibration import PARAMETERS
     z = np.array([[float(r[f"{p.name}_error"]) / float(r[f"{p.name}_sigma"]) for p in PARAMETERS]
                   for r in rows])
     assert np.abs(z).max() < 5.0 and np.sqrt((z ** 2).mean()) < 1.6

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from sim import dataset
-from sim.errors import UserInputError
-from sim.scenario import load_scenario, parse_scenario
-import sim.simulate as simulate_module
-from sim.simulate import BLOCK_S, simulate
+from rlgsim.sim import dataset
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.scenario import load_scenario, parse_scenario
+import rlgsim.sim.simulate as simulate_module
+from rlgsim.sim.simulate import BLOCK_S, simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 QUICKSTART = ROOT / "scenarios" / "quickstart.toml"
@@ -163,7 +163,7 @@ def _start_long_run(tmp_path):
     out = tmp_path / "long.h5"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     err = open(tmp_path / "stderr.txt", "w+")       # a file: a full pipe would block the run
-    proc = subprocess.Popen([sys.executable, "-m", "sim.cli", "run", str(scenario), "-o",
+    proc = subprocess.Popen([sys.executable, "-m", "rlgsim.sim.cli", "run", str(scenario), "-o",
                              str(out), "--quiet"], env=env, cwd=tmp_path, stderr=err)
     proc.err_text = lambda: (err.seek(0), err.read())[1]
     deadline = time.monotonic() + 120
@@ -218,7 +218,7 @@ class _CountingStage(simulate_module.Stage):
         return 0.0
 
     def block(self, state, b, trace, motion):
-        from sim.rng import generator
+        from rlgsim.sim.rng import generator
         n = int(round(len(trace.t_s) * trace.step_s * 10))
         t0 = b * BLOCK_S
         walk = state + np.cumsum(generator(self.seed, 0, "test", "walk", b).standard_normal(n))

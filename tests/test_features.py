@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from estimators.columns import Columns, resolve_input_names, select_inputs
-from estimators.features import (pairwise_gradients, samples_per_window, temperature_rate,
+from rlgsim.estimators.columns import Columns, resolve_input_names, select_inputs
+from rlgsim.estimators.features import (pairwise_gradients, samples_per_window, temperature_rate,
                                  window_average, window_end_times, window_features)
 
 RNG = np.random.default_rng(20240605)

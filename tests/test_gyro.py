@@ -1,4 +1,4 @@
-"""Gyro model (sim/gyro.py, sim/pulses.py, sim/tempco.py): Earth rate, a 360° turn, pulse
+"""Gyro model (sim/gyro.py, sim/pulses.py, sim/temperature_laws.py): Earth rate, a 360° turn, pulse
 conservation, temperature laws, white-noise ADEV through the whole pulse chain."""
 
 from __future__ import annotations
@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from _imu_helpers import SITE, cat, make_sim, run
-from sim import pulses, units
-from sim.config import Ctx
-from sim.errors import UserInputError
-from sim.gyro import GyroModel, installation_rows, sample_step_index
-from sim.motion import Motion, body_to_enu, segments_from_program
-from sim.turntable import Hold, Rotate, TurntableProgram
+from rlgsim.ground import units
+from rlgsim.sim import pulses
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.gyro import GyroModel, installation_rows, sample_step_index
+from rlgsim.sim.motion import Motion, body_to_enu, segments_from_program
+from rlgsim.sim.turntable import Hold, Rotate, TurntableProgram
 
 K_ARCSEC = 2.14
 K = K_ARCSEC / units.ARCSEC                                  # pulses/rad

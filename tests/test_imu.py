@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from sim import presets, units
-from sim.imu import ImuModel, true_increments
-from sim.rng import generator
-from sim.scenario import load_device, parse_scenario
-from sim.simulate import simulate
+from rlgsim.ground import units
+from rlgsim.sim import presets
+from rlgsim.sim.imu import ImuModel, true_increments
+from rlgsim.sim.rng import generator
+from rlgsim.sim.scenario import load_device, parse_scenario
+from rlgsim.sim.simulate import simulate
 
 SHORT = """
 name = "imu_short"
@@ -80,7 +81,7 @@ def test_model_versus_realisation():
 
 
 def test_device_cross_checks(tmp_path):
-    from sim.errors import UserInputError
+    from rlgsim.ground.errors import UserInputError
     bad = {"gyro": {"bias": {"uhfo_deg_per_h_per_v": -0.01}}}
     with pytest.raises(UserInputError, match="depends on UHFO but the device has no"):
         ImuModel.from_tables(bad, "d.toml")
@@ -129,7 +130,7 @@ def _blocks(n: int) -> list[slice]:
 
 
 def _count(inc: np.ndarray) -> np.ndarray:
-    """Independent re-implementation of the documented counter (sim.pulses): int64 fixed point
+    """Independent re-implementation of the documented counter (rlgsim.sim.pulses): int64 fixed point
     with 30 fractional bits, remainder carried from block to block."""
     out = np.empty(inc.shape, dtype=np.int64)
     rem = np.zeros(inc.shape[1], dtype=np.int64)

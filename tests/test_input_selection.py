@@ -7,11 +7,11 @@ import pytest
 from sklearn.pipeline import make_pipeline
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.columns import Columns
-from estimators.features import pairwise_gradients
-from estimators.input_selection import (CorrelationSelector, correlation_ranking,
+from rlgsim.estimators.columns import Columns
+from rlgsim.estimators.features import pairwise_gradients
+from rlgsim.estimators.input_selection import (CorrelationSelector, correlation_ranking,
                                         select_by_correlation)
-from estimators.polynomial import PolynomialRegressor
+from rlgsim.estimators.polynomial import PolynomialRegressor
 
 
 def _paper001_like(n: int = 500, seed: int = 0) -> tuple[Columns, np.ndarray]:

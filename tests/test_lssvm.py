@@ -13,8 +13,8 @@ from sklearn.model_selection import KFold
 from sklearn.preprocessing import StandardScaler
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.lssvm import LSSVMRegressor, rbf
-from estimators.lssvm_cv import LSSVMRegressorCV
+from rlgsim.estimators.lssvm import LSSVMRegressor, rbf
+from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV
 
 
 def truth(X: np.ndarray) -> np.ndarray:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from sklearn import metrics as skm
 
-from estimators.metrics import (allan_deviation, bias_stability, improvement_percent, mae, r2,
+from rlgsim.estimators.metrics import (allan_deviation, bias_stability, improvement_percent, mae, r2,
                                 residual_variance, rmse)
 
 RNG = np.random.default_rng(7)

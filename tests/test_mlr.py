@@ -10,9 +10,9 @@ import pytest
 import statsmodels.api as sm
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.columns import Columns
-from estimators.mlr import MLRBICRegressor
-from estimators.terms import design_matrix
+from rlgsim.estimators.columns import Columns
+from rlgsim.estimators.mlr import MLRBICRegressor
+from rlgsim.estimators.terms import design_matrix
 from selection_bad_inputs import BAD_INPUTS
 
 TRUE_TERMS = {"T", "dT/dt", "U", "T^2"}

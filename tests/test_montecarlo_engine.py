@@ -6,10 +6,10 @@ import pathlib
 
 import pytest
 
-from sim.montecarlo import (finished_units, results_csv, run_campaign, params_csv,
+from rlgsim.sim.montecarlo import (finished_units, results_csv, run_campaign, params_csv,
                             load_records)
-from sim.montecarlo_summary import summarise, worst_units
-from sim.errors import UserInputError
+from rlgsim.sim.montecarlo_summary import summarise, worst_units
+from rlgsim.ground.errors import UserInputError
 
 from mc_toy_units import toy_unit
 

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from sim.config import Ctx
-from sim.earth import Site, normal_gravity
-from sim.errors import UserInputError
-from sim.motion import Motion, TurntableSegment, body_to_enu, segments_from_program
-from sim.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
-from sim.units import DEG, EARTH_RATE
+from rlgsim.sim.config import Ctx
+from rlgsim.sim.earth import Site, normal_gravity
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.motion import Motion, TurntableSegment, body_to_enu, segments_from_program
+from rlgsim.sim.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
+from rlgsim.ground.units import DEG, EARTH_RATE
 
 SITE = Site()
 

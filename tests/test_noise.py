@@ -17,10 +17,10 @@ import allantools
 import numpy as np
 import pytest
 
-from sim import units
-from sim.config import Ctx
-from sim.errors import UserInputError
-from sim.noise import (FLICKER_FLOOR, FlickerBank, NoiseModel, RandomWalk, SlowNoise,
+from rlgsim.ground import units
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.noise import (FLICKER_FLOOR, FlickerBank, NoiseModel, RandomWalk, SlowNoise,
                        white_increments)
 
 

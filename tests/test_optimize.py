@@ -27,10 +27,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from estimators.optimize import OptimizeResult, harris_hawks, particle_swarm
-from estimators.optimize import hho
-from estimators.optimize import pso
-from estimators.optimize.functions import (DOMAINS, rastrigin, rosenbrock, shifted_sphere,
+from rlgsim.estimators.optimize import OptimizeResult, harris_hawks, particle_swarm
+from rlgsim.estimators.optimize import hho
+from rlgsim.estimators.optimize import pso
+from rlgsim.estimators.optimize.functions import (DOMAINS, rastrigin, rosenbrock, shifted_sphere,
                                            sphere)
 
 # ------------------------------------------------------------------------ HHO rules, by hand

@@ -8,9 +8,9 @@ import pytest
 import statsmodels.api as sm
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.columns import Columns
-from estimators.polynomial import PolynomialRegressor
-from estimators.terms import design_matrix
+from rlgsim.estimators.columns import Columns
+from rlgsim.estimators.polynomial import PolynomialRegressor
+from rlgsim.estimators.terms import design_matrix
 
 RNG = np.random.default_rng(11)
 

@@ -17,9 +17,9 @@ import pytest
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.rbf_common import ForwardOLS, gaussian_design
-from estimators.rbf_modified import ModifiedRBFNetwork
-from estimators.rbf_network import RBFNetwork
+from rlgsim.estimators.rbf_common import ForwardOLS, gaussian_design
+from rlgsim.estimators.rbf_modified import ModifiedRBFNetwork
+from rlgsim.estimators.rbf_network import RBFNetwork
 
 
 # -- known smooth functions (°/h) ---------------------------------------------------------

@@ -13,9 +13,9 @@ from scipy import stats
 from sklearn.model_selection import KFold
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.lssvm import LSSVMRegressor, rbf
-from estimators.robust_lssvm import MIN_WEIGHT, RobustLSSVMRegressor, robust_cv_score
-from estimators.robust_weights import (hampel_weights, huber_weights, logistic_weights,
+from rlgsim.estimators.lssvm import LSSVMRegressor, rbf
+from rlgsim.estimators.robust_lssvm import MIN_WEIGHT, RobustLSSVMRegressor, robust_cv_score
+from rlgsim.estimators.robust_weights import (hampel_weights, huber_weights, logistic_weights,
                                        myriad_weights, robust_scale, weight_function)
 
 WEIGHTS = ("huber", "hampel", "logistic", "myriad")
@@ -204,7 +204,7 @@ def test_outlier_weights_flag_the_outliers():
 
 def test_tuned_pipeline_beats_tuned_plain_lssvm_under_outliers():
     """Both tuned as a user would: plain by LOO-MSE, robust by robust LOO (median |r|)."""
-    from estimators.lssvm_cv import LSSVMRegressorCV
+    from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV
     ratios = []
     for seed in SEEDS:
         X, y, _ = curve_data(seed, outlier_fraction=0.10)

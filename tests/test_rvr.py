@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.rvr import RVR, rbf_from_sqdist, squared_distances
+from rlgsim.estimators.rvr import RVR, rbf_from_sqdist, squared_distances
 
 NOISE = 0.1
 
@@ -175,7 +175,7 @@ def test_max_basis_limits_candidates_and_keeps_the_fit():
 
 
 def test_diverged_core_fit_raises_instead_of_returning_garbage(monkeypatch):
-    import estimators.rvr as rvr
+    import rlgsim.estimators.rvr as rvr
 
     def broken(basis, ts, fit_intercept, max_iter):
         return (np.array([3, basis.shape[1]]), np.array([4.5e4, 1.0]), np.array([1.0, 0.0]),

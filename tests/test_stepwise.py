@@ -10,9 +10,9 @@ import statsmodels.api as sm
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.columns import Columns
-from estimators.stepwise import StepwiseRegressor
-from estimators.terms import design_matrix, parse_term
+from rlgsim.estimators.columns import Columns
+from rlgsim.estimators.stepwise import StepwiseRegressor
+from rlgsim.estimators.terms import design_matrix, parse_term
 from selection_bad_inputs import BAD_INPUTS
 
 MODEL1_START = ("T", "T^2", "dT/dt")                          # paper 001 Model 1 initial terms

@@ -12,13 +12,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from _turntable_pulses import SITE, nominal, random_truth, window
-from estimators.calibration_filter import initial_attitude, motion_breaks
-from estimators.strapdown import (ARCSEC, SensorModel, coarse_level, dcm_to_quat, navigate,
+from rlgsim.estimators.kalman_calibration import initial_attitude, motion_breaks
+from rlgsim.estimators.strapdown import (ARCSEC, SensorModel, coarse_level, dcm_to_quat, navigate,
                                   normal_gravity, quat_cumprod, quat_from_rotvec, quat_mul,
                                   quat_to_dcm, rotation_matrix, table_attitude)
-from sim.earth import normal_gravity as sim_gravity
-from sim.motion import body_to_enu
-from sim.turntable import Hold, Rotate, Spin, TurntableProgram
+from rlgsim.sim.earth import normal_gravity as sim_gravity
+from rlgsim.sim.motion import body_to_enu
+from rlgsim.sim.turntable import Hold, Rotate, Spin, TurntableProgram
 
 
 def test_site_model_and_table_convention_match_the_simulator():

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
-from sim.cli import main
-from sim.errors import UserInputError
-from sim.study import list_studies, load_study, parse_study, run_study
+from rlgsim.sim.cli.main import main
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.study import list_studies, load_study, parse_study, run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEG_PER_H = 180.0 / math.pi * 3600.0
@@ -173,7 +173,7 @@ def test_shipped_bias_compensation_studies_validate(name):
 
 
 def test_study_unit_draws_another_device_without_a_report():
-    from sim.study import study_unit
+    from rlgsim.sim.study import study_unit
     study = load_study("demo")
     payload = {"text": study.text, "source": study.source, "name": study.name,
                "base_dir": str(study.base_dir) if study.base_dir else None}
@@ -212,7 +212,7 @@ def test_a_window_that_does_not_fit_the_data_is_a_user_error_before_simulating(t
 
 
 def test_report_holds_the_exact_scenario_and_preset_texts(demo):
-    from sim.scenario import load_scenario
+    from rlgsim.sim.scenario import load_scenario
     md = (demo / "report.md").read_text()
     sc = load_scenario("demo_cycle")
     for kind, text in (("scenario demo_cycle", sc.text),

@@ -14,8 +14,8 @@ import pathlib
 import numpy as np
 import pytest
 
-from sim.errors import UserInputError
-from sim.study import parse_study, recipe_module
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.study import parse_study, recipe_module
 
 PARAMS = [f"gyro_bias_{a}" for a in "xyz"] + [f"gyro_sf_{a}" for a in "xyz"] + \
          [f"accel_bias_{a}" for a in "xyz"] + [f"accel_sf_pos_{a}" for a in "xyz"] + \
@@ -171,8 +171,8 @@ def test_compensated_gyro_pulses_follow_eq_26_with_cumulative_rounding(run):
 def test_existing_dataset_is_reused_and_a_changed_one_is_not(run):
     import dataclasses
 
-    from sim.studies.paper000_system import _dataset_matches
-    from sim.study import scenario_for
+    from rlgsim.sim.studies.paper000_system import _dataset_matches
+    from rlgsim.sim.study import scenario_for
     out, _, _, study, _ = run
     path = out / "data" / "paper000_short_u0.h5"
     scenario = scenario_for(study, "paper000_short")
@@ -216,7 +216,7 @@ def test_defaults_are_the_papers():
 
 
 def test_shipped_study_parses():
-    from sim.study import load_study
+    from rlgsim.sim.study import load_study
     study = load_study("paper000")
     cfg = recipe_module(study).check(study)
     assert cfg.scenario == "paper000_campaign" and cfg.hawks == 30

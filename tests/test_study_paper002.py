@@ -19,8 +19,8 @@ import pytest
 
 from independent_windows import read_windows
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
-from sim.errors import UserInputError
-from sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEG_PER_H = 180.0 / math.pi * 3600.0

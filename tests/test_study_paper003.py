@@ -15,9 +15,9 @@ import pytest
 
 from independent_windows import read_windows
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
-from sim.errors import UserInputError
-from sim.study import list_studies, load_study, parse_study, run_study
-from sim.studies.gradient_selection import improvement_over_traditional
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.study import list_studies, load_study, parse_study, run_study
+from rlgsim.sim.studies.gradient_selection import improvement_over_traditional
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 POINTS = ["g.A", "g.B", "g.D", "g.G", "g.H"]
@@ -283,7 +283,7 @@ def test_a_threshold_nothing_reaches_is_a_user_error(tmp_path):
 def test_monte_carlo_unit_draws_another_block_without_a_report(tmp_path):
     """Unit 1 draws another device and thermal network: other correlations, same row keys,
     the same result again for the same unit."""
-    from sim.study import study_unit
+    from rlgsim.sim.study import study_unit
     path = _write(tmp_path)
     payload = {"text": path.read_text(), "source": str(path), "name": "p003short",
                "base_dir": str(tmp_path)}
@@ -307,8 +307,8 @@ def test_html_report_renders_in_headless_chromium(short, tmp_path):
 def test_window_series_do_not_depend_on_the_read_block(short, monkeypatch):
     """read_run reads a block of windows at a time (bounded memory); the series are the same
     bytes whatever the block size."""
-    from sim.config import Ctx
-    from sim.studies import single_gyro
+    from rlgsim.sim.config import Ctx
+    from rlgsim.sim.studies import single_gyro
     spec = single_gyro.FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
     path = short / "data" / "test.h5"
     ref = single_gyro.read_run(path, spec, "test", Ctx("s.toml"))

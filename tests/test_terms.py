@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.terms import (design_matrix, format_equation, format_number, parse_term,
+from rlgsim.estimators.terms import (design_matrix, format_equation, format_number, parse_term,
                               polynomial_powers, raw_coefficients, term_label, term_pretty)
 
 NAMES = ("T", "dT/dt", "U")

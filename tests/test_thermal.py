@@ -16,10 +16,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import curve_fit
 
-from sim.config import Ctx
-from sim.errors import UserInputError
-from sim.thermal import CHAMBER_AIR, STEFAN_BOLTZMANN, ThermalNetwork
-from sim.thermal_integrator import ThermalIntegrator, ThermalState
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.thermal import CHAMBER_AIR, STEFAN_BOLTZMANN, ThermalNetwork
+from rlgsim.sim.thermal_integrator import ThermalIntegrator, ThermalState
 
 PRESETS = pathlib.Path(__file__).resolve().parents[1] / "scenarios" / "thermal"
 GAIN = ("A", "B", "C")

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from sim.config import Ctx
-from sim.errors import UserInputError
-from sim.thermal import ThermalNetwork
-from sim.thermometers import ProbeSet
+from rlgsim.sim.config import Ctx
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.thermal import ThermalNetwork
+from rlgsim.sim.thermometers import ProbeSet
 
 PRESETS = pathlib.Path(__file__).resolve().parents[1] / "scenarios" / "thermal"
 

@@ -17,9 +17,9 @@ from sklearn.model_selection import KFold
 from sklearn.svm import SVR
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from estimators.cv import holdout, time_kfold, validation_splits
-from estimators.rvr import RVR
-from estimators.tuned import HHORVR, PSOSVR
+from rlgsim.estimators.cv import holdout, time_kfold, validation_splits
+from rlgsim.estimators.rvr import RVR
+from rlgsim.estimators.tuned import HHORVR, PSOSVR
 
 SIGMA = 0.02          # measurement noise of the simulated parameter (its units)
 

@@ -1,4 +1,4 @@
-"""Study recipes: one module per way of running a study (see :mod:`sim.study`).
+"""Study recipes: one module per way of running a study (see :mod:`rlgsim.sim.study`).
 
 Every module here is a recipe (it has ``check`` and ``run``) except the building blocks
 listed in :data:`SHARED`.

@@ -2,8 +2,8 @@
 every compensator of a paper's tables with the published numbers beside ours (paper 001; also
 the demo study).
 
-A study with ``recipe = "bias_compensation"`` (see :mod:`sim.study`) has these tables (runs,
-features and compensators: :mod:`sim.studies.single_gyro`)::
+A study with ``recipe = "bias_compensation"`` (see :mod:`rlgsim.sim.study`) has these tables (runs,
+features and compensators: :mod:`rlgsim.sim.studies.single_gyro`)::
 
     [data]
     train = ["paper001_train"]
@@ -33,8 +33,8 @@ features and compensators: :mod:`sim.studies.single_gyro`)::
     correlation = { T = 0.71, "dT/dt" = -0.43, U = -0.82 }
 
 Each compensator is fitted on the train runs (windows stacked) and applied to each test run;
-the scores (:func:`sim.studies.single_gyro.scores`) are the rows of
-:class:`~sim.study.StudyResult`. The row ``truth: temperature law`` is the oracle
+the scores (:func:`rlgsim.sim.studies.single_gyro.scores`) are the rows of
+:class:`~rlgsim.sim.study.StudyResult`. The row ``truth: temperature law`` is the oracle
 ``ŷ = b − r``: the best any input-driven model can do.
 """
 
@@ -47,10 +47,10 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import check_known_keys, get_float, get_section, get_str, get_table
-from sim.report import Report, Table
-from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
+from rlgsim.sim.config import check_known_keys, get_float, get_section, get_str, get_table
+from rlgsim.sim.report import Report, Table
+from rlgsim.sim.study import Study, StudyResult
+from rlgsim.sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
                                      Fitted, RunSeries, RunSpec, definitions, fit_all, fmt,
                                      load_experiment, parse_compensators, parse_experiment,
                                      parse_metrics, score_run, worth_showing, before_check,
@@ -137,7 +137,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 # ------------------------------------------------------------------------------ the report
 def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr, unit,
             t_data, t_total) -> Report:
-    from sim.dataset import software_version
+    from rlgsim.sim.dataset import software_version
 
     title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
     rep = Report(title)
@@ -271,7 +271,7 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from estimators import metrics as M
+    from rlgsim.estimators import metrics as M
 
     tag = f"_{_slug(label)}" if multi else ""
     where = f"Test run {label}. " if multi else ""
@@ -333,12 +333,12 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
 
 
 def _raw_stability(rs: RunSeries, config: Config) -> float:
-    from estimators.metrics import bias_stability
+    from rlgsim.estimators.metrics import bias_stability
     return bias_stability(rs.y, 1.0 / config.window_s, config.cluster_s, config.ddof)
 
 
 def _slug(text: str) -> str:
-    from sim.report import slug
+    from rlgsim.sim.report import slug
     return slug(text)
 
 

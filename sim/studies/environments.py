@@ -11,7 +11,7 @@ according to the temperature sensor outputs"). §4.2 / Table 1 compare MLR (BIC)
 traditional RBFNN and the modified (Kohonen + OLS) RBFNN by the σ of the 100 s bias before and
 after compensation, the improvement factor before/after, and the running time.
 
-Study tables (runs, features and compensators: :mod:`sim.studies.single_gyro`)::
+Study tables (runs, features and compensators: :mod:`rlgsim.sim.studies.single_gyro`)::
 
     [data]
     window_s = 100                    # averaging window [s] (paper 002 §4.1: 100 s)
@@ -41,9 +41,9 @@ Study tables (runs, features and compensators: :mod:`sim.studies.single_gyro`)::
     cluster_s = 100                   # bias-stability cluster [s], a multiple of window_s
     ddof = 1                          # of the bias-stability std (the paper does not say)
 
-Scores (:func:`sim.studies.single_gyro.scores`) are computed per test run against its raw
+Scores (:func:`rlgsim.sim.studies.single_gyro.scores`) are computed per test run against its raw
 bias stability; with several test runs the environment's score is their mean (and each run's
-own score is a row too, ``metric@environment:run``). Rows of :class:`~sim.study.StudyResult`
+own score is a row too, ``metric@environment:run``). Rows of :class:`~rlgsim.sim.study.StudyResult`
 are ``(compensator, "metric@environment", value)``, including the reference rows ``raw`` (no
 compensation) and ``truth: temperature law`` (the oracle ŷ = b − r, the floor of any
 input-driven model). Wall-clock fit times appear in the report only, never in the rows (a
@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
+from rlgsim.sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
                         get_table)
-from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (CompensatorSpec, FeatureSpec, Fitted, RunSeries, RunSpec,
+from rlgsim.sim.study import Study, StudyResult
+from rlgsim.sim.studies.single_gyro import (CompensatorSpec, FeatureSpec, Fitted, RunSeries, RunSpec,
                                      check_features_on_devices, check_scenarios, fit_all,
                                      load_runs, parse_compensators, parse_data, parse_features,
                                      parse_metrics, parse_runs, predict, random_state_for,
@@ -187,7 +187,7 @@ def _parse_environments(data: dict, ctx: Ctx, names: list[str]) -> tuple[Environ
 
 
 def check(study: Study) -> Config:
-    """Validate the recipe's tables; :class:`~sim.errors.UserInputError` naming file/key/value."""
+    """Validate the recipe's tables; :class:`~rlgsim.ground.errors.UserInputError` naming file/key/value."""
     data = study.tables
     ctx = study.ctx()
     check_known_keys(data, TOP_KEYS, ctx)
@@ -224,7 +224,7 @@ class EnvResult:
 
 def stability(x: np.ndarray, config: Config) -> float:
     """Bias stability [°/h] of a window series: std (ddof) of ``cluster_s`` means."""
-    from estimators.metrics import bias_stability
+    from rlgsim.estimators.metrics import bias_stability
     return bias_stability(x, 1.0 / config.window_s, config.cluster_s, config.ddof)
 
 
@@ -296,7 +296,7 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         params = {k: v for k, v in first_test.coefficients.items() if worth_showing(k)}
         report = None
         if make_report:
-            from sim.studies.environments_report import report as make
+            from rlgsim.sim.studies.environments_report import report as make
             report = make(study, config, loaded, results, unit, t_data,
                           time.perf_counter() - t_start)
     return StudyResult(rows=_rows(results), params=params, report=report)

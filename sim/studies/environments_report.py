@@ -1,4 +1,4 @@
-"""The report of the ``environments`` recipe (paper 002 Table 1; :mod:`sim.studies.environments`).
+"""The report of the ``environments`` recipe (paper 002 Table 1; :mod:`rlgsim.sim.studies.environments`).
 
 Re-creates Table 1 beside the paper's numbers, checks the "before" σ against the paper, scores
 every model against the simulator's truth, checks the paper's ranking (modified RBFNN ≥ RBFNN >
@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from sim.report import Report, Table
-from sim.study import Study
-from sim.studies.environments import (BEFORE_FACTOR, LADDER, NOISE_DOMINATED_REL,
+from rlgsim.sim.report import Report, Table
+from rlgsim.sim.study import Study
+from rlgsim.sim.studies.environments import (BEFORE_FACTOR, LADDER, NOISE_DOMINATED_REL,
                                       PAPER_MLR_TERMS, SPREADS, TIE_REL, TIMING_REPEATS, Config,
                                       EnvResult, stability)
-from sim.studies.single_gyro import (DEG_PER_H_PER_RAD_PER_S, EQUATION_KINDS, ORACLE, RAW,
+from rlgsim.sim.studies.single_gyro import (DEG_PER_H_PER_RAD_PER_S, EQUATION_KINDS, ORACLE, RAW,
                                      Fitted, RunSeries, definitions, fit, fmt, predict, scores,
                                      stack, worth_showing)
 
@@ -628,7 +628,7 @@ def _temperature_figure(rep: Report, results: list[EnvResult], config: Config,
 def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: list[str],
                   colour: dict[str, str], plt) -> None:
     """Overlapping Allan deviation before and after compensation (allantools)."""
-    from estimators import metrics as M
+    from rlgsim.estimators import metrics as M
     fig, axes = _grid(len(results), plt)
     rate = 1.0 / config.window_s
     for ax, r in zip(axes, results):
@@ -653,7 +653,7 @@ def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: 
 
 def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: float,
                  t_total: float) -> list[str]:
-    from sim.dataset import software_version
+    from rlgsim.sim.dataset import software_version
     out = [f"rlgsim {software_version()}; recipe environments; unit {unit}; device_seed "
            f"{study.device_seed if study.device_seed is not None else '(each scenario’s)'}"]
     for env in config.environments:
@@ -673,7 +673,7 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
 
 
 def _definitions() -> list[str]:
-    """The shared definitions (:func:`sim.studies.single_gyro.definitions`) plus this recipe's."""
+    """The shared definitions (:func:`rlgsim.sim.studies.single_gyro.definitions`) plus this recipe's."""
     return definitions() + [
         "Inputs: window means of the probe temperature T [°C] and its least-squares slope "
         "dT/dt [K/s] in each window. The east gyro (paper 002 §4.1) sees no Earth rate.",

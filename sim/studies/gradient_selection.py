@@ -7,7 +7,7 @@ bias with every pairwise temperature gradient (§4.2, Table 3), keeps the gradie
 training/verification cycles (Table 4) and on a random-rate test (Table 5).
 
 A study with ``recipe = "gradient_selection"`` has, besides ``[study]``, the tables of
-:mod:`sim.studies.single_gyro` (``[data]`` train/test/window_s/gyro, ``[features]``,
+:mod:`rlgsim.sim.studies.single_gyro` (``[data]`` train/test/window_s/gyro, ``[features]``,
 ``[[compensator]]``) and::
 
     [[compensator]]                   # a compensator may choose inputs from the train data:
@@ -39,7 +39,7 @@ A study with ``recipe = "gradient_selection"`` has, besides ``[study]``, the tab
 "Improvement from the traditional method" in paper 003 Tables 4-5 is the relative gain of the
 improvement percentage: (91.9 − 65.5)/65.5 = 40.3 %, (91.9 − 67.8)/67.8 = 35.5 %; we compute it
 the same way and also give the ratio of the compensated STDs. Series and scores:
-:mod:`sim.studies.single_gyro`.
+:mod:`rlgsim.sim.studies.single_gyro`.
 """
 
 from __future__ import annotations
@@ -53,10 +53,10 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
-from sim.report import Report, Table
-from sim.study import Study, StudyResult
-from sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
+from rlgsim.sim.report import Report, Table
+from rlgsim.sim.study import Study, StudyResult
+from rlgsim.sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
                                      definitions, fit_all, fmt, load_experiment,
                                      parse_compensators, parse_experiment, parse_metrics,
                                      score_run, str_list, worth_showing, before_check,
@@ -237,9 +237,9 @@ def _column_name(a: str, b: str, names: set[str]) -> str:
 def select_inputs(spec: CompensatorSpec, sel: Selection, X, y: np.ndarray
                   ) -> tuple[CompensatorSpec, list[tuple[str, float, bool]]]:
     """``spec`` with the gradients of ``sel`` that pass |r| ≥ min_abs_r appended to its inputs
-    (strongest first, as estimators.input_selection ranks them); also every candidate with its
+    (strongest first, as rlgsim.estimators.input_selection ranks them); also every candidate with its
     r and whether it was kept."""
-    from estimators.input_selection import correlation_ranking
+    from rlgsim.estimators.input_selection import correlation_ranking
     names = set(X.names)
     cands = [_column_name(a, b, names) for a, b in itertools.combinations(sel.among, 2)]
     ranked = correlation_ranking(X.select(cands), y)
@@ -309,7 +309,7 @@ def improvement_over_traditional(trad_pct: float, prop_pct: float) -> float:
 
 def _report(study: Study, config: Config, runs, fitted: list[Fitted], listings, per_test,
             predictions, corr, Xtr, unit: int, t_data: float, t_total: float) -> Report:
-    from sim.dataset import software_version
+    from rlgsim.sim.dataset import software_version
 
     rep = Report(f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else ""))
     if study.description:
@@ -414,7 +414,7 @@ def _selection_section(rep: Report, listings) -> None:
 
 
 def _slug(text: str) -> str:
-    from sim.report import slug
+    from rlgsim.sim.report import slug
     return slug(text)
 
 
@@ -554,7 +554,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from estimators import metrics as M
+    from rlgsim.estimators import metrics as M
 
     if corr is not None:
         pts = [_short(p) for p in config.points]

@@ -65,9 +65,9 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_section, get_str
-from sim.errors import UserInputError
-from sim.report import Report, Table
+from rlgsim.sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_section, get_str
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.report import Report, Table
 
 #: Paper 000 abstract and §4.2-4.3 (average and maximum improvement of HHO-RVR over LSM, %).
 PAPER_AVG_IMPROVEMENT = {"rmse": 35.27, "mae": 39.29, "r2": 2.29, "residual_variance": 30.34}
@@ -166,7 +166,7 @@ def _dataset_matches(path: pathlib.Path, scenario) -> bool:
 def simulate_or_reuse(scenario, data_dir: pathlib.Path, progress: bool) -> tuple[pathlib.Path, bool]:
     """The scenario's dataset in ``data_dir``: reused when its embedded scenario text, seed,
     unit and device seed match, else simulated. Returns (path, reused)."""
-    from sim.simulate import simulate
+    from rlgsim.sim.simulate import simulate
     data_dir.mkdir(parents=True, exist_ok=True)
     path = data_dir / f"{scenario.name}_u{scenario.unit}.h5"
     if path.is_file() and _dataset_matches(path, scenario):
@@ -177,8 +177,8 @@ def simulate_or_reuse(scenario, data_dir: pathlib.Path, progress: bool) -> tuple
 
 def _fit_models(x: np.ndarray, y: np.ndarray, cfg: Config, seed: int):
     """Fit HHO-RVR and the polynomial LSM of y on x (one parameter). Picklable for workers."""
-    from estimators.polynomial import PolynomialRegressor
-    from estimators.tuned import HHORVR
+    from rlgsim.estimators.polynomial import PolynomialRegressor
+    from rlgsim.estimators.tuned import HHORVR
     X = x[:, None]
     t0 = time.process_time()
     rvr = HHORVR(n_agents=cfg.hawks, max_iter=cfg.iterations, validation=cfg.folds,
@@ -190,7 +190,7 @@ def _fit_models(x: np.ndarray, y: np.ndarray, cfg: Config, seed: int):
 
 
 def _metrics(y: np.ndarray, pred: np.ndarray) -> dict[str, float]:
-    from estimators.metrics import mae, r2, rmse
+    from rlgsim.estimators.metrics import mae, r2, rmse
     return {"rmse": rmse(y, pred), "mae": mae(y, pred), "r2": r2(y, pred)}
 
 
@@ -212,8 +212,8 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
     window-mean temperature of ``probes[name]``); see the module docstring."""
     import h5py
 
-    from estimators.calibration import DatasetReader
-    from estimators.calibration_filter import DEG_PER_H, UG
+    from rlgsim.estimators.calibration import DatasetReader
+    from rlgsim.estimators.kalman_calibration import DEG_PER_H, UG
 
     reader = DatasetReader(src)
     nominal = reader.nominal()
@@ -302,13 +302,13 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
 # ----------------------------------------------------------------------------------- run
 
 def _campaign(path: pathlib.Path, cfg: Config, progress: bool, what: str):
-    from estimators.calibration import CampaignError, CampaignSettings, run_campaign
+    from rlgsim.estimators.calibration import CampaignError, CampaignSettings, run_campaign
     bar = None
     if progress:
         import sys
 
         from tqdm import tqdm
-        from estimators.calibration import DatasetReader, find_windows
+        from rlgsim.estimators.calibration import DatasetReader, find_windows
         r = DatasetReader(path)
         n = len(find_windows(r.segments()))
         r.close()
@@ -327,9 +327,9 @@ def _campaign(path: pathlib.Path, cfg: Config, progress: bool, what: str):
 def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0, progress: bool = True,
         make_report: bool = True):
     """Simulate, calibrate, model, compensate, re-calibrate and score (module docstring)."""
-    from estimators.calibration import PAPER_PARAMETERS, PARAMETERS
-    from estimators.metrics import residual_variance
-    from sim.study import StudyResult, scenario_for
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS, PARAMETERS
+    from rlgsim.estimators.metrics import residual_variance
+    from rlgsim.sim.study import StudyResult, scenario_for
 
     workdir = pathlib.Path(workdir)
     clock: dict[str, float] = {}
@@ -454,7 +454,7 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0, progress: b
 
 
 def _write_predictions(path: pathlib.Path, records: list[dict]) -> None:
-    from sim.report import write_atomic
+    from rlgsim.sim.report import write_atomic
     cols = ["parameter", "window", "temperature_c", "estimate", "truth", "hho_rvr", "lsm"]
     lines = [",".join(cols)] + [",".join(str(r[c]) if isinstance(r[c], (str, int))
                                          else repr(float(r[c])) for c in cols) for r in records]
@@ -486,7 +486,7 @@ def _device_params(path: pathlib.Path) -> dict[str, float]:
 
 def _report(study, cfg, scenario, data_path, reused, raw, xs, ys, pred, fitted, fit_scores,
             truth_scores, avg, avg_truth, resvar, resid, desired, comp_tables, units, clock, ok):
-    from estimators.calibration import PAPER_PARAMETERS
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS
 
     rep = Report(f"Study {study.name}: paper 000 system-level temperature compensation")
     rep.paragraph(
@@ -595,7 +595,7 @@ def _report(study, cfg, scenario, data_path, reused, raw, xs, ys, pred, fitted, 
 
 
 def _verdict(avg, avg_truth, fit_scores, truth_scores, resvar) -> str:
-    from estimators.calibration import PAPER_PARAMETERS
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS
     n_fit = sum(fit_scores[p]["hho_rvr"]["rmse"] < fit_scores[p]["lsm"]["rmse"]
                 for p in PAPER_PARAMETERS)
     parts = [f"In-sample (the paper's Table 2 measure) HHO-RVR has the lower RMSE for {n_fit} of "
@@ -637,7 +637,7 @@ def _grid_axes(title: str):
 
 
 def _fit_figure(raw, xs, ys, pred, ok, units):
-    from estimators.calibration import PAPER_PARAMETERS
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS
     fig, axes = _grid_axes("paper 000: parameters vs temperature")
     for k, p in enumerate(PAPER_PARAMETERS):
         ax = axes.flat[k]
@@ -668,7 +668,7 @@ def _style_panel(ax, parameter: str, unit: str, first: bool) -> None:
 
 
 def _residual_figure(comp_tables, resid, units, probes, cfg):
-    from estimators.calibration import PAPER_PARAMETERS
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS
     fig, axes = _grid_axes(f"residuals after compensation to {cfg.desired_c:g} °C")
     for k, p in enumerate(PAPER_PARAMETERS):
         ax = axes.flat[k]

@@ -2,8 +2,8 @@
 
 A run is one simulated dataset of a single-gyro device; this module turns it into the window
 series the papers model, fits compensators on train runs and scores them on test runs. The
-recipes (:mod:`sim.studies.bias_compensation`, :mod:`sim.studies.environments`,
-:mod:`sim.studies.gradient_selection`) differ in how they group runs and what tables they
+recipes (:mod:`rlgsim.sim.studies.bias_compensation`, :mod:`rlgsim.sim.studies.environments`,
+:mod:`rlgsim.sim.studies.gradient_selection`) differ in how they group runs and what tables they
 re-create; the series, the fitting and the scores are the same and live here.
 
 Study-file pieces parsed here::
@@ -28,7 +28,7 @@ divided by the nominal scale factor (truth group ``gyro.k0``) and the window len
 bias is that rate minus the Earth-rate projection on the gyro axis (the table's known
 input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
 Inputs are window means of the probe readings and the logged UHFO, and the least-squares slope
-of the temperature in each window (:mod:`estimators.features`). Windows in which the device was
+of the temperature in each window (:mod:`rlgsim.estimators.features`). Windows in which the device was
 not powered over the whole window, or that start before a run's ``skip_h``, are dropped. The
 truth series is the window mean of the true bias ``truth/gyro_bias`` (what the simulator added
 to the rate), and ``truth/gyro_bias_random`` its flicker + random-walk part, which no
@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_section,
+from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_list, get_section,
                         get_str, get_table)
-from sim.errors import UserInputError
-from sim.study import Study, scenario_for
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.study import Study, scenario_for
 
 RUN_KEYS = ("scenario", "seed", "skip_h")
 FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
@@ -77,20 +77,20 @@ CUSTOM = "custom"   # kind of a user's own scikit-learn regressor (key ``estimat
 
 #: Compensator kinds: (module, class, extra keys the recipe itself understands).
 KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "polynomial": ("estimators.polynomial", "PolynomialRegressor", ()),
-    "stepwise": ("estimators.stepwise", "StepwiseRegressor", ()),
-    "mlr_bic": ("estimators.mlr", "MLRBICRegressor", ()),
-    "lssvm": ("estimators.lssvm_cv", "LSSVMRegressorCV", ()),
-    "ir_lssvm": ("estimators.robust_lssvm", "RobustLSSVMRegressor",
+    "polynomial": ("rlgsim.estimators.polynomial", "PolynomialRegressor", ()),
+    "stepwise": ("rlgsim.estimators.stepwise", "StepwiseRegressor", ()),
+    "mlr_bic": ("rlgsim.estimators.mlr", "MLRBICRegressor", ()),
+    "lssvm": ("rlgsim.estimators.lssvm_cv", "LSSVMRegressorCV", ()),
+    "ir_lssvm": ("rlgsim.estimators.robust_lssvm", "RobustLSSVMRegressor",
                  ("gammas", "sigma2s", "tune_cv", "tune_scoring")),
-    "rvr": ("estimators.rvr", "RVR", ()),
-    "hho_rvr": ("estimators.tuned", "HHORVR", ()),
-    "pso_svr": ("estimators.tuned", "PSOSVR", ()),
-    "rbf": ("estimators.rbf_network", "RBFNetwork", ()),
-    "rbf_modified": ("estimators.rbf_modified", "ModifiedRBFNetwork", ()),
+    "rvr": ("rlgsim.estimators.rvr", "RVR", ()),
+    "hho_rvr": ("rlgsim.estimators.tuned", "HHORVR", ()),
+    "pso_svr": ("rlgsim.estimators.tuned", "PSOSVR", ()),
+    "rbf": ("rlgsim.estimators.rbf_network", "RBFNetwork", ()),
+    "rbf_modified": ("rlgsim.estimators.rbf_modified", "ModifiedRBFNetwork", ()),
 }
 
-#: Kinds whose fitted model prints an equation (estimators.term_model).
+#: Kinds whose fitted model prints an equation (rlgsim.estimators.term_model).
 EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
 
 ORACLE = "truth: temperature law"
@@ -171,7 +171,7 @@ def load_custom_estimator(ref: str, base_dir: pathlib.Path | None, ctx: Ctx):
     ``"path/to/file.py:Class"`` (relative to the study file). It must follow the scikit-learn
     regressor contract: constructible without arguments, ``get_params``, ``fit(X, y)`` and
     ``predict(X)``; X is a 2-D float array of the inputs in the order the study lists them
-    (an :class:`estimators.columns.Columns`, which also carries their names)."""
+    (an :class:`rlgsim.estimators.columns.Columns`, which also carries their names)."""
     import importlib.util
     import sys
 
@@ -373,7 +373,7 @@ def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: Fea
     """Before anything is simulated: the window must hold a whole number of samples and thermal
     steps of every run, and every probe the features name, the gyro axis and the UHFO must
     exist on its device (messages name the study key and list what the device has)."""
-    from estimators.features import samples_per_window
+    from rlgsim.estimators.features import samples_per_window
 
     fctx, dctx = study.ctx("features"), study.ctx("data")
     seen: set[str] = set()
@@ -455,7 +455,7 @@ def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int
                 progress: bool) -> tuple[pathlib.Path, Any, bool]:
     """Simulate ``spec`` into ``workdir/data/<label>.h5`` unless a matching file is there.
     Returns (path, scenario, reused)."""
-    from sim.simulate import simulate
+    from rlgsim.sim.simulate import simulate
     scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
     if spec.seed is not None:
         scenario = dataclasses.replace(scenario, seed=spec.seed)
@@ -484,7 +484,7 @@ class RunSeries:
     y: np.ndarray               # measured bias: output − Earth projection [°/h]
     true_bias: np.ndarray       # b: window mean of truth/gyro_bias [°/h]
     true_random: np.ndarray     # r: its flicker + random-walk part [°/h]
-    X: Any                      # estimators.columns.Columns of the inputs
+    X: Any                      # rlgsim.estimators.columns.Columns of the inputs
     earth_deg_per_h: float
     coefficients: dict[str, float]
 
@@ -501,8 +501,8 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
     is computed from its own samples only, so the result does not depend on the block size."""
     import h5py
 
-    from estimators.columns import Columns
-    from estimators.features import pairwise_gradients, samples_per_window
+    from rlgsim.estimators.columns import Columns
+    from rlgsim.estimators.features import pairwise_gradients, samples_per_window
 
     W = config.window_s
     with h5py.File(path, "r") as f:
@@ -586,7 +586,7 @@ def _window_block(f, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
                   where: _Where) -> dict[str, np.ndarray]:
     """Per-window sums and means of windows ``i … j−1`` (rad for dtheta, rad/s for b and r,
     °C, K/s, V): only these windows' samples are read."""
-    from estimators.features import temperature_rate, window_average
+    from rlgsim.estimators.features import temperature_rate, window_average
     n = j - i
     t0, t1 = i * m_t, j * m_t
     thermal_rate = 1.0 / step
@@ -697,7 +697,7 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
             warnings.simplefilter("ignore", ConvergenceWarning)
             model = make_estimator(spec, random_state)
             if spec.kind == "ir_lssvm" and not ("gamma" in spec.params and "sigma2" in spec.params):
-                from estimators.lssvm_cv import LSSVMRegressorCV
+                from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV
                 p = spec.params
                 kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
                 key = (spec.inputs, repr(sorted(kw.items())), repr(p.get("tune_cv", 10)),
@@ -758,7 +758,7 @@ def score_run(rs: RunSeries, fitted: list[Fitted], y_train: np.ndarray, features
     """Predictions and :func:`scores` on one test run of every compensator and of the
     references: ``raw`` (ŷ = the train mean) and the oracle (ŷ = b − r). "Before" is the raw
     bias stability, or that left by the compensator named ``baseline``."""
-    from estimators.metrics import bias_stability
+    from rlgsim.estimators.metrics import bias_stability
     rate = 1.0 / features.window_s
     preds = {RAW: np.full_like(rs.y, np.mean(y_train)),
              **{f.spec.name: predict(f, rs) for f in fitted},
@@ -773,7 +773,7 @@ def score_run(rs: RunSeries, fitted: list[Fitted], y_train: np.ndarray, features
 def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, window_s: float,
            cluster_s: float, ddof: int, before: float) -> dict[str, float]:
     """Paper-style and truth-based scores of one prediction (definitions: module docstring)."""
-    from estimators import metrics as M
+    from rlgsim.estimators import metrics as M
     rate = 1.0 / window_s
     after = M.bias_stability(y - y_hat, rate, cluster_s, ddof)
     out = {"stability_before": before, "stability_after": after,
@@ -800,7 +800,7 @@ def fmt(x: float | None) -> float | None:
 
 def stack(runs: list[RunSeries]):
     """(X, y) of several runs' windows stacked in run order (the train set)."""
-    from estimators.columns import Columns
+    from rlgsim.estimators.columns import Columns
     X = Columns({n: np.concatenate([r.X[n] for r in runs]) for n in runs[0].X.names})
     return X, np.concatenate([r.y for r in runs])
 
@@ -844,7 +844,7 @@ def before_check(ours: float, paper: float, factor: float = 1.5) -> str:
 def truth_score_tables(rep, per_test: dict[str, dict[str, dict[str, float]]]) -> None:
     """The report's section of every score of every compensator, one table (and CSV
     ``scores_<test run>.csv``) per test run."""
-    from sim.report import Table, slug
+    from rlgsim.sim.report import Table, slug
     rep.heading("Truth-based scores (what no paper could measure)", 2)
     for label, table in per_test.items():
         recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}

@@ -3,11 +3,11 @@
     rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDRESS] [-o DIR] [--quiet]
                       [--chamber-offset-c S] [--chamber-rate-rel R]
 
-Unit ``i`` is the study run for Monte Carlo unit ``i`` (:func:`sim.study.study_unit`): another
+Unit ``i`` is the study run for Monte Carlo unit ``i`` (:func:`rlgsim.sim.study.study_unit`): another
 device drawn from the presets' tolerance models (IMU realisation and thermal network, keyed by
 ``(device_seed, i)``) and other noise (keyed by ``(seed, i)``); optionally its own chamber-profile
-variation (:mod:`sim.unit_variations`). The campaign engine is
-:mod:`sim.montecarlo` (one task per unit through :class:`concurrent.futures.Executor`: a local
+variation (:mod:`rlgsim.sim.unit_variations`). The campaign engine is
+:mod:`rlgsim.sim.montecarlo` (one task per unit through :class:`concurrent.futures.Executor`: a local
 process pool, or ``dask.distributed.Client(ADDRESS).get_executor()``; per-unit atomic commits;
 resumption; failure records). This module adds the command line, the unit function used by it
 (:func:`montecarlo_unit`: one BLAS thread per worker, timing rows left out so the table is the
@@ -29,7 +29,7 @@ import sys
 import time
 from typing import Any, Callable, Sequence
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 #: Metrics that are wall-clock timings: not a property of the unit, so never in results.csv
 #: (they would make the table depend on the machine and its load).
@@ -51,11 +51,11 @@ def _is_timing(metric: str) -> bool:
 
 
 def thermal_params(study, unit: int) -> dict[str, float]:
-    """Summary of unit ``unit``'s drawn thermal network (:func:`sim.simulate.thermal_summary`)
+    """Summary of unit ``unit``'s drawn thermal network (:func:`rlgsim.sim.simulate.thermal_summary`)
     when every scenario of the study simulates the same physical unit (the study sets
     ``device_seed``, or all its scenarios share device preset and realisation seed); else {}."""
-    from sim.simulate import realised_network, thermal_summary
-    from sim.study import scenario_for, scenario_refs
+    from rlgsim.sim.simulate import realised_network, thermal_summary
+    from rlgsim.sim.study import scenario_for, scenario_refs
 
     keys = set()
     first = None
@@ -72,9 +72,9 @@ def thermal_params(study, unit: int) -> dict[str, float]:
 
 
 def chamber_params(study, unit: int, variation) -> dict[str, float]:
-    """The chamber variation drawn for the study's first scenario (sim.unit_variations)."""
-    from sim.study import scenario_for, scenario_refs
-    from sim.unit_variations import draw
+    """The chamber variation drawn for the study's first scenario (rlgsim.sim.unit_variations)."""
+    from rlgsim.sim.study import scenario_for, scenario_refs
+    from rlgsim.sim.unit_variations import draw
 
     refs = scenario_refs(study.tables)
     if not variation.active or not refs:
@@ -88,15 +88,15 @@ def chamber_params(study, unit: int, variation) -> dict[str, float]:
 
 
 def montecarlo_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
-    """The unit function of ``rlgsim montecarlo``: :func:`sim.study.study_unit` with one BLAS
+    """The unit function of ``rlgsim montecarlo``: :func:`rlgsim.sim.study.study_unit` with one BLAS
     thread (so K workers on K cores do not oversubscribe), without timing rows, and with the
     thermal realisation's summary added to the unit's parameters."""
     import numpy  # noqa: F401  - load the BLAS libraries before limiting them
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
-    from sim.study import parse_study, study_unit
-    from sim.unit_variations import ChamberVariation, varied
+    from rlgsim.sim.study import parse_study, study_unit
+    from rlgsim.sim.unit_variations import ChamberVariation, varied
 
     variation = ChamberVariation(**payload.get("chamber_variation", {}))
     with threadpool_limits(limits=1, user_api="blas"), varied(variation):
@@ -172,13 +172,13 @@ def run(payload: dict[str, Any], n_units: int, out_dir: str | os.PathLike, *,
         unit_fn: Callable[[Any, int], dict] = montecarlo_unit, title: str = "study",
         baseline: str | None = "raw") -> pathlib.Path:
     """Run (or resume) a campaign and write tables and summary; returns report.md's path."""
-    from sim.montecarlo import run_campaign, write_tables
+    from rlgsim.sim.montecarlo import run_campaign, write_tables
 
     if n_units < 1:
         raise UserInputError(f"--units: value {n_units} not allowed; must be >= 1")
     if workers < 1:
         raise UserInputError(f"--workers: value {workers} not allowed; must be >= 1")
-    from sim.report import output_folder
+    from rlgsim.sim.report import output_folder
     out = output_folder(out_dir)
     _blas_one_thread_env()
     client = connect(scheduler) if scheduler and executor is None else None
@@ -221,8 +221,8 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from sim.montecarlo_summary import metric_matrix, summarise, worst_units
-    from sim.report import Report, Table
+    from rlgsim.sim.montecarlo_summary import metric_matrix, summarise, worst_units
+    from rlgsim.sim.report import Report, Table
 
     ok = [r for r in records if r.status == "ok"]
     failed = [r for r in records if r.status != "ok"]
@@ -302,7 +302,7 @@ def varying_params(records) -> list[str]:
 
 
 def _slug(text: str) -> str:
-    from sim.report import slug
+    from rlgsim.sim.report import slug
     return slug(text)
 
 
@@ -354,7 +354,7 @@ def add_subparser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from sim.study import load_study
+    from rlgsim.sim.study import load_study
 
     study = load_study(args.study)
     baseline = None
@@ -370,7 +370,3 @@ def main(args: argparse.Namespace) -> int:
         quiet=args.quiet, title=study.name, baseline=baseline or "raw")
     return 0
 
-
-if __name__ == "__main__":      # python -m sim.cli_montecarlo ... (same as rlgsim montecarlo)
-    from sim.cli import main as cli_main
-    sys.exit(cli_main(["montecarlo", *sys.argv[1:]]))

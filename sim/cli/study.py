@@ -13,7 +13,7 @@ from __future__ import annotations
 import pathlib
 import time
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 DEMO_STUDY = "demo"
 DEMO_DIR = "rlgsim-demo"
@@ -34,7 +34,7 @@ def add_subparser(sub) -> None:
 
 
 def list_studies() -> None:
-    from sim.study import list_studies as shipped
+    from rlgsim.sim.study import list_studies as shipped
     studies = shipped()
     width = max((len(n) for n, _ in studies), default=0)
     for name, desc in studies:
@@ -45,7 +45,7 @@ def run(ref: str, out_dir: str | pathlib.Path | None, *, quiet: bool,
         summary: bool = True) -> pathlib.Path:
     """Run study ``ref`` into ``out_dir``; unless ``quiet``, show progress and (with
     ``summary``) print where the report is. Returns the path of report.md."""
-    from sim.study import load_study, run_study
+    from rlgsim.sim.study import load_study, run_study
     study = load_study(ref)
     out = pathlib.Path(out_dir) if out_dir else pathlib.Path(f"{study.name}-study")
     t0 = time.perf_counter()

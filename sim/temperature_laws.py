@@ -19,7 +19,7 @@ the block. One law covers all of them, each term optional:
 T is the true temperature of the law's node (the thermal network node, not a probe: the
 compensators only ever see probes), dT/dt its backward difference on the thermal grid, the
 gradients node-to-node differences, U the true excitation voltage of the gyro's light-intensity
-loop (:mod:`sim.uhfo`). Laws are evaluated on the thermal grid, one value per step (held over
+loop (:mod:`rlgsim.sim.uhfo`). Laws are evaluated on the thermal grid, one value per step (held over
 the step's samples).
 
 **Langmuir term.** A two-anode laser gyro cancels the Langmuir (gas-flow) bias of its two
@@ -50,7 +50,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from sim.config import Ctx, check_known_keys, get_float, get_list, get_str
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str
 
 #: Canonical coefficient names, in the order they are drawn and reported.
 COEFFS = ("value", "c1", "c2", "c3", "knee", "knee_c", "knee_width", "step", "step_c",

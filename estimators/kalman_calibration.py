@@ -1,7 +1,7 @@
 """Systematic-calibration Kalman filter for one turntable window (paper 000 §4.1).
 
 The IMU stands at the centre of the turntable; a strapdown navigation
-(:mod:`estimators.strapdown`) integrates its compensated pulses; its velocity — whose true
+(:mod:`rlgsim.estimators.strapdown`) integrates its compensated pulses; its velocity — whose true
 value is zero — is the measurement during the static dwells. A Kalman filter (filterpy's
 :class:`~filterpy.kalman.KalmanFilter` for the discrete predict/update) estimates the sensor
 errors from it; the estimates are fed back into the pulse model and the whole window is
@@ -82,7 +82,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from scipy.linalg import expm
 
-from estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
+from rlgsim.estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
                                   earth_rate_enu, navigate, normal_gravity, rotation_matrix,
                                   skew, table_attitude)
 

@@ -8,7 +8,7 @@
     rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDR] [-o DIR]
                                                              a study over N drawn units
 
-Every user mistake (:class:`~sim.errors.UserInputError`, bad arguments) is printed as one line
+Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its
 traceback.
 """
@@ -25,7 +25,7 @@ import threading
 import time
 from typing import Sequence
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 PROG = "rlgsim"
 DEMO_DIR = "rlgsim-demo"
@@ -69,19 +69,19 @@ def _parser() -> argparse.ArgumentParser:
                                     f"report.html)")
     d.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sub.add_parser("list", help="list the shipped scenarios and device presets")
-    from sim.cli_calibrate import add_subparser as add_calibrate
-    add_calibrate(sub)                     # rlgsim calibrate (sim/cli_calibrate.py)
-    from sim.cli_montecarlo import add_subparser as add_montecarlo
-    add_montecarlo(sub)                    # rlgsim montecarlo (sim/cli_montecarlo.py)
-    from sim.cli_study import add_subparser as add_study
-    add_study(sub)                         # rlgsim study (sim/cli_study.py)
+    from rlgsim.sim.cli.calibrate import add_subparser as add_calibrate
+    add_calibrate(sub)                     # rlgsim calibrate (sim/cli/calibrate.py)
+    from rlgsim.sim.cli.montecarlo import add_subparser as add_montecarlo
+    add_montecarlo(sub)                    # rlgsim montecarlo (sim/cli/montecarlo.py)
+    from rlgsim.sim.cli.study import add_subparser as add_study
+    add_study(sub)                         # rlgsim study (sim/cli/study.py)
     return p
 
 
 def _run(scenario_ref: str, output: str | None, chunk_s: float | None, quiet: bool
          ) -> pathlib.Path:
-    from sim.scenario import load_scenario
-    from sim.simulate import simulate
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import simulate
     scenario = load_scenario(scenario_ref)
     t0 = time.perf_counter()
     path = simulate(scenario, output, chunk_s=chunk_s, progress=not quiet,
@@ -95,7 +95,7 @@ def _run(scenario_ref: str, output: str | None, chunk_s: float | None, quiet: bo
 
 
 def _list() -> None:
-    from sim import presets
+    from rlgsim.sim import presets
     for kind, title in (("scenario", "scenarios"), ("device", "device presets")):
         print(f"{title}:")
         names = presets.list_names(kind)
@@ -147,10 +147,10 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.command == "run":
             _run(args.scenario, args.output, args.chunk_s, args.quiet)
         elif args.command == "info":
-            from sim.dataset import summary
+            from rlgsim.sim.dataset import summary
             print(summary(args.file))
         elif args.command == "demo":
-            from sim.cli_study import demo
+            from rlgsim.sim.cli.study import demo
             demo(args.quiet)
         elif args.command == "montecarlo":
             return args.handler(args)
@@ -170,8 +170,3 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,13 +1,13 @@
 """``rlgsim calibrate DATASET [-o table.csv] [--plot]`` — the turntable calibration campaign.
 
-Runs :func:`estimators.calibration.run_campaign` on a dataset (one Kalman calibration per
+Runs :func:`rlgsim.estimators.calibration.run_campaign` on a dataset (one Kalman calibration per
 calibration window, in parallel processes), writes the parameter-versus-temperature table as
 CSV, adds it to the dataset as the group ``calibration`` (docs/dataset.md), and with ``--plot``
 draws every parameter against temperature with ±1σ and the truth.
 
-Registered in :mod:`sim.cli` by :func:`add_subparser`; the dispatch calls :func:`run`. User
+Registered in :mod:`rlgsim.sim.cli` by :func:`add_subparser`; the dispatch calls :func:`run`. User
 mistakes (a missing file, not a dataset, no calibration windows, an unknown probe) become
-:class:`~sim.errors.UserInputError` (one line, exit code 2). Windows that cannot be calibrated
+:class:`~rlgsim.ground.errors.UserInputError` (one line, exit code 2). Windows that cannot be calibrated
 do not stop the campaign: the table says which and why, and they are listed on stderr.
 """
 
@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from sim.errors import UserInputError
+from rlgsim.ground.errors import UserInputError
 
 G0 = 9.80665
 
@@ -86,10 +86,10 @@ def add_subparser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the campaign for parsed ``args``; returns the exit code (0, also when some windows
     failed — the table says why)."""
-    from estimators.calibration import (CampaignError, CampaignSettings, DatasetReader,
+    from rlgsim.estimators.calibration import (CampaignError, CampaignSettings, DatasetReader,
                                         find_windows, run_campaign)
-    from estimators.strapdown import ARCSEC, SensorModel
-    from sim.dataset import check_writable
+    from rlgsim.estimators.strapdown import ARCSEC, SensorModel
+    from rlgsim.sim.dataset import check_writable
 
     path = pathlib.Path(args.dataset)
     if not path.is_file():
@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
                   f"({exc}); the table is in {table}", file=sys.stderr)
     figures = []
     if args.plot:
-        from estimators.calibration_plot import plot_campaign
+        from rlgsim.estimators.calibration_plot import plot_campaign
         figures = plot_campaign(result, table.with_suffix(""), probe=args.probe)
     for r in result.failed:
         print(f"rlgsim: window {r['window']} ({r['label']}, t = {r['t0_s']:.0f}–{r['t1_s']:.0f} "
@@ -163,8 +163,8 @@ def write_group(path: str | os.PathLike, result) -> None:
     ``calibration``."""
     import h5py
 
-    from estimators.calibration import AXES, PARAMETERS, unit_of
-    from sim.dataset import GroupWriter
+    from rlgsim.estimators.calibration import AXES, PARAMETERS, unit_of
+    from rlgsim.sim.dataset import GroupWriter
 
     rows = result.rows
     tmp = f"calibration.tmp-{os.getpid()}"
