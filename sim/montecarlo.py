@@ -27,6 +27,9 @@ import json
 import multiprocessing
 import os
 import pathlib
+import re
+import sys
+import threading
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -82,22 +85,78 @@ def unit_path(out_dir: pathlib.Path, unit: int) -> pathlib.Path:
     return pathlib.Path(out_dir) / UNIT_DIR / f"unit_{unit:06d}.json"
 
 
-def finished_units(out_dir: pathlib.Path) -> set[int]:
-    """Units whose record is already committed in ``out_dir``."""
+#: Name of a committed unit record: ``unit_`` and at least six digits.
+_UNIT_NAME = re.compile(r"unit_(\d{6,})\.json")
+
+
+def _warn(message: str) -> None:
+    """One line on stderr about something in the output folder that was skipped."""
+    print(f"rlgsim: warning: {' '.join(message.split())}", file=sys.stderr)
+
+
+def scan_units(out_dir: pathlib.Path, *, report: bool = False) -> dict[int, UnitRecord]:
+    """The readable committed records under ``out_dir/units/``, by unit.
+
+    A folder edited by hand or by a file manager is tolerated: files whose names are not
+    ``unit_NNNNNN.json`` (``unit_abc.json``, ``unit_000001 (copy).json``) are ignored, and an
+    empty, truncated or otherwise unreadable record (or one holding another unit) counts as
+    missing, so its unit runs again and the record is replaced. With ``report`` each is one
+    warning line on stderr. A *directory* named like a record cannot be replaced: that is a
+    :class:`~rlgsim.ground.errors.UserInputError` naming it. Good records are never touched."""
+    from rlgsim.ground.errors import UserInputError
+
     folder = pathlib.Path(out_dir) / UNIT_DIR
     if not folder.is_dir():
-        return set()
-    return {int(p.stem.split("_")[1]) for p in folder.glob("unit_*.json")}
+        if folder.exists() or folder.is_symlink():
+            raise UserInputError(f"{folder}: expected a folder of unit records, found a file; "
+                                 f"remove it or use another output folder")
+        return {}
+    records: dict[int, UnitRecord] = {}
+    stray: list[str] = []
+    for path in sorted(folder.iterdir()):
+        match = _UNIT_NAME.fullmatch(path.name)
+        if match is None:
+            if path.name.startswith("unit_") and not path.name.startswith("."):
+                stray.append(path.name)
+            continue
+        if path.is_dir():
+            raise UserInputError(f"{path}: a directory named like a unit record; remove or "
+                                 f"rename it to resume the campaign")
+        unit = int(match.group(1))
+        try:
+            if not path.is_file():
+                raise ValueError("not a regular file")
+            if path.stat().st_size > _MAX_RECORD_BYTES:
+                raise ValueError(f"larger than {_MAX_RECORD_BYTES} bytes")
+            record = UnitRecord.from_json(path.read_text(encoding="utf-8"))
+            if record.unit != unit or record.status not in ("ok", "failed"):
+                raise ValueError(f"holds unit {record.unit} with status {record.status!r}")
+        except (OSError, ValueError, TypeError, KeyError, AttributeError,
+                UnicodeDecodeError) as exc:
+            if report:
+                why = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+                _warn(f"{path}: unreadable unit record ({why}); unit {unit} runs again")
+            continue
+        records[unit] = record
+    if report and stray:
+        shown = ", ".join(stray[:5]) + (f" and {len(stray) - 5} more" if len(stray) > 5 else "")
+        _warn(f"{folder}: ignored {len(stray)} file(s) not named unit_NNNNNN.json: {shown}")
+    return records
+
+
+#: A unit record is a few kB; anything much larger is not one (never read it whole).
+_MAX_RECORD_BYTES = 64 << 20
+
+
+def finished_units(out_dir: pathlib.Path) -> set[int]:
+    """Units whose record is already committed (and readable) in ``out_dir``."""
+    return set(scan_units(out_dir))
 
 
 def load_records(out_dir: pathlib.Path, n_units: int) -> list[UnitRecord]:
     """The committed records of units ``0..n_units-1`` that exist, sorted by unit."""
-    records = []
-    for unit in range(n_units):
-        path = unit_path(out_dir, unit)
-        if path.exists():
-            records.append(UnitRecord.from_json(path.read_text(encoding="utf-8")))
-    return records
+    records = scan_units(out_dir)
+    return [records[u] for u in sorted(records) if u < n_units]
 
 
 def commit(out_dir: pathlib.Path, record: UnitRecord) -> None:
@@ -111,8 +170,21 @@ def check_manifest(out_dir: pathlib.Path, identity: dict[str, Any]) -> None:
     from rlgsim.ground.errors import UserInputError
 
     path = pathlib.Path(out_dir) / MANIFEST
-    if path.exists():
-        old = json.loads(path.read_text(encoding="utf-8"))
+    if path.exists() or path.is_symlink():
+        try:
+            if not path.is_file():
+                raise ValueError("not a regular file")
+            if path.stat().st_size > _MAX_RECORD_BYTES:
+                raise ValueError(f"larger than {_MAX_RECORD_BYTES} bytes")
+            old = json.loads(path.read_text(encoding="utf-8"))
+            if not isinstance(old, dict):
+                raise ValueError(f"expected a JSON object, got {type(old).__name__}")
+        except (OSError, ValueError) as exc:
+            why = " ".join(str(exc).split())[:120]
+            raise UserInputError(
+                f"{path}: unreadable campaign file ({why}); the units in this folder cannot be "
+                f"matched to a study: use another output folder, or delete {MANIFEST} to adopt "
+                f"them for this study") from None
         if old != identity:
             diff = [k for k in sorted(set(old) | set(identity)) if old.get(k) != identity.get(k)]
             raise UserInputError(
@@ -123,10 +195,70 @@ def check_manifest(out_dir: pathlib.Path, identity: dict[str, Any]) -> None:
         write_atomic(path, json.dumps(identity, sort_keys=True, indent=1))
 
 
+# -- workers die with their coordinator -------------------------------------------------------
+#: Write ends of the "coordinator alive" pipes of the pools this process started.
+_LIFELINES: dict[int, Any] = {}
+
+
+def _set_parent_death_signal() -> None:
+    """Linux: SIGKILL this process when its parent (the forkserver) dies (prctl
+    PR_SET_PDEATHSIG). Elsewhere a no-op; the lifeline thread covers the coordinator."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+        import signal
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)          # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):                        # pragma: no cover - no prctl
+        pass
+
+
+def _watch_lifeline(lifeline) -> None:
+    """Block on the read end of the coordinator's pipe; EOF (the coordinator exited or was
+    killed, even with SIGKILL) ends this worker at once."""
+    try:
+        while True:
+            lifeline.recv_bytes()                           # nothing is ever sent
+    except (EOFError, OSError):
+        pass
+    os._exit(70)
+
+
+def worker_init(lifeline=None) -> None:
+    """Initializer of every local worker: exit when the coordinator dies (a pipe whose write end
+    only the coordinator holds, watched by a daemon thread; also polled via os.getppid() for a
+    dead forkserver) so a killed campaign never leaves its pool behind."""
+    _set_parent_death_signal()
+    parent = os.getppid()
+    if lifeline is not None:
+        threading.Thread(target=_watch_lifeline, args=(lifeline,), daemon=True,
+                         name="rlgsim-lifeline").start()
+
+    def poll_parent() -> None:                              # portable fallback
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent:
+                os._exit(70)
+    threading.Thread(target=poll_parent, daemon=True, name="rlgsim-parent-poll").start()
+
+
 def local_executor(workers: int) -> cf.Executor:
-    """A process pool; 'forkserver' so workers do not inherit the parent's threads."""
+    """A process pool; 'forkserver' so workers do not inherit the parent's threads. Its workers
+    exit when this process dies (:func:`worker_init`); call :func:`close_executor` after
+    ``shutdown``."""
     ctx = multiprocessing.get_context("forkserver")
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    reader, writer = ctx.Pipe(duplex=False)
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+                                  initializer=worker_init, initargs=(reader,))
+    _LIFELINES[id(pool)] = (reader, writer)
+    return pool
+
+
+def close_executor(pool: cf.Executor) -> None:
+    """Release the lifeline pipe of a pool made by :func:`local_executor` (after shutdown)."""
+    for conn in _LIFELINES.pop(id(pool), ()):
+        conn.close()
 
 
 class Progress:
@@ -165,7 +297,7 @@ def run_campaign(fn: Callable[[Any, int], dict], payload: Any, n_units: int,
     out_dir.mkdir(parents=True, exist_ok=True)
     if identity is not None:
         check_manifest(out_dir, identity)
-    done = finished_units(out_dir)
+    done = set(scan_units(out_dir, report=True))
     todo = [u for u in range(n_units) if u not in done]
     bar = Progress(n_units, n_units - len(todo), progress)
     restarts = 0
@@ -188,6 +320,7 @@ def run_campaign(fn: Callable[[Any, int], dict], payload: Any, n_units: int,
             finally:
                 if own:
                     pool.shutdown(wait=True, cancel_futures=True)
+                    close_executor(pool)
             todo = [u for u in range(n_units) if u not in finished_units(out_dir)]
             if todo:
                 restarts += 1
