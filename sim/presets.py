@@ -22,6 +22,7 @@ import difflib
 import os
 import pathlib
 import re
+import stat
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -69,10 +70,40 @@ def looks_like_path(ref: str) -> bool:
     return ref.endswith(".toml") or "/" in ref or os.sep in ref
 
 
+#: Largest TOML file read [bytes]; scenario, preset and study files are a few kB.
+MAX_TEXT_BYTES = 8 << 20
+#: Deepest nesting of tables and arrays accepted (the shipped files use 4).
+MAX_DEPTH = 64
+
+
+def _depth(data) -> int:
+    """Nesting depth of dicts and lists (iterative: no recursion on hostile input)."""
+    deepest, stack = 0, [(data, 1)]
+    while stack:
+        value, level = stack.pop()
+        if isinstance(value, dict):
+            children = value.values()
+        elif isinstance(value, list):
+            children = value
+        else:
+            continue
+        deepest = max(deepest, level)
+        if deepest > MAX_DEPTH:
+            break
+        stack.extend((c, level + 1) for c in children if isinstance(c, (dict, list)))
+    return deepest
+
+
 def parse_toml(text: str, source: str) -> dict:
-    """Parse TOML text; a syntax error becomes ``source: line L, column C: TOML syntax error``."""
+    """Parse TOML text; a syntax error becomes ``source: line L, column C: TOML syntax error``.
+    A leading UTF-8 byte-order mark is accepted; tables or arrays nested deeper than
+    :data:`MAX_DEPTH` are refused."""
+    text = text.removeprefix("\ufeff")
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise UserInputError(f"{source}: tables or arrays nested too deeply (at most "
+                             f"{MAX_DEPTH} levels allowed)") from None
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         match = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", message)
@@ -86,21 +117,64 @@ def parse_toml(text: str, source: str) -> dict:
             where = "somewhere"
         message = " ".join(message.split())
         raise UserInputError(f"{source}: {where}: TOML syntax error: {message}") from None
+    if _depth(data) > MAX_DEPTH:
+        raise UserInputError(f"{source}: tables or arrays nested too deeply (at most "
+                             f"{MAX_DEPTH} levels allowed)")
+    return data
 
 
-def _read_text(path: pathlib.Path, source: str) -> str:
+_KINDS_OF_FILE = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                  (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                  (stat.S_ISSOCK, "a socket"))
+
+
+def file_kind(mode: int) -> str:
+    """What a non-regular file is, in words (for messages)."""
+    for test, words in _KINDS_OF_FILE:
+        if test(mode):
+            return words
+    return "not a regular file"
+
+
+def read_regular(path: pathlib.Path, source: str, *, max_bytes: int = MAX_TEXT_BYTES,
+                 what: str = "a .toml file", context: str | None = None) -> bytes:
+    """The bytes of a *regular* file of at most ``max_bytes``: a directory, FIFO, device or
+    socket (which would hang or never end) and a larger file are a one-line
+    :class:`UserInputError` naming ``context`` (file and key that referred to it) and the
+    file."""
+    where = f"{context}: " if context else ""
     try:
-        raw = path.read_bytes()
-    except IsADirectoryError:
-        raise UserInputError(f"{source}: is a directory, expected a .toml file") from None
+        st = os.stat(path)
     except FileNotFoundError:
-        raise UserInputError(f"{source}: no such file") from None
+        raise UserInputError(f"{where}{source}: no such file") from None
     except OSError as exc:
-        raise UserInputError(f"{source}: cannot read ({exc.strerror or exc})") from None
+        raise UserInputError(f"{where}{source}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserInputError(f"{where}{source}: is a directory, expected {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserInputError(f"{where}{source}: is {file_kind(st.st_mode)}, not a regular "
+                             f"file; expected {what}")
+    too_big = UserInputError(f"{where}{source}: larger than {max_bytes >> 20} MiB; "
+                             f"expected {what}")
+    if st.st_size > max_bytes:
+        raise too_big
     try:
-        return raw.decode("utf-8")
+        with open(path, "rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise UserInputError(f"{where}{source}: cannot read ({exc.strerror or exc})") from None
+    if len(raw) > max_bytes:
+        raise too_big
+    return raw
+
+
+def _read_text(path: pathlib.Path, source: str, context: str | None = None) -> str:
+    raw = read_regular(path, source, context=context)
+    try:
+        return raw.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as exc:
-        raise UserInputError(f"{source}: not a UTF-8 text file (byte {exc.start}); "
+        where = f"{context}: " if context else ""
+        raise UserInputError(f"{where}{source}: not a UTF-8 text file (byte {exc.start}); "
                              f"expected a TOML file") from None
 
 
@@ -151,7 +225,7 @@ def load(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
     name, folder, entry = locate(ref, kind, base_dir=base_dir, context=context)
     source = str(entry)
     if isinstance(entry, pathlib.Path):
-        text = _read_text(entry, source)
+        text = _read_text(entry, source, context)
     else:
         text = entry.read_text(encoding="utf-8")
     return TomlFile(name=name, source=source, base_dir=folder, text=text,

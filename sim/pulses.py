@@ -34,9 +34,41 @@ FRACTION_BITS = 30
 ONE = 1 << FRACTION_BITS
 
 
+#: Largest |increment| of one sample [pulses]: a sample's pulses are stored as int32.
+MAX_SAMPLE_PULSES = float(2**31 - 2)
+#: Largest sum of |increments| of one call [pulses]: the running fixed-point phase is int64
+#: (2^33 · 2^30 = 2^63), so one block may hold up to 2^33 pulses in total.
+MAX_BLOCK_PULSES = float(2**33 - 2)
+
+
+def check_range(inc: np.ndarray) -> None:
+    """Refuse increments the counter cannot represent exactly — NaN or infinite, more than
+    :data:`MAX_SAMPLE_PULSES` in one sample or :data:`MAX_BLOCK_PULSES` in one block — with a
+    one-line :class:`~rlgsim.ground.errors.UserInputError` (a device preset whose scale factor,
+    bias or temperature law gives an absurd rate), instead of wrapping around silently."""
+    if inc.size == 0:
+        return
+    total = float(np.abs(inc).sum())
+    if total <= MAX_BLOCK_PULSES and float(np.abs(inc).max()) <= MAX_SAMPLE_PULSES:
+        return
+    from rlgsim.ground.errors import UserInputError
+
+    if not np.isfinite(total):
+        raise UserInputError("pulse counter: a sample's phase increment is not finite (NaN or "
+                             "infinite); check the device preset's scale factors, biases and "
+                             "temperature-law coefficients")
+    peak = float(np.abs(inc).max())
+    raise UserInputError(
+        f"pulse counter: {peak:.3g} pulses in one sample ({total:.3g} in one block) cannot be "
+        f"counted: at most {MAX_SAMPLE_PULSES:.3g} per sample and {MAX_BLOCK_PULSES:.3g} per "
+        f"block are allowed; check the device preset's scale factors, biases and "
+        f"temperature-law coefficients and the turntable rates")
+
+
 def quantise(inc: np.ndarray) -> np.ndarray:
     """Fixed-point phase increments rint(inc·2^30) as int64 (``inc`` float64 [pulses],
-    overwritten)."""
+    overwritten); increments out of the counter's range are refused (:func:`check_range`)."""
+    check_range(inc)
     np.multiply(inc, float(ONE), out=inc)
     np.rint(inc, out=inc)
     return inc.astype(np.int64)
