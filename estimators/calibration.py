@@ -51,9 +51,9 @@ import numpy as np
 from rlgsim.estimators.kalman_calibration import (ACCEL_MIS, BA, BG, GYRO_MIS, MA, MG, SAN, SAP, SG,
                                            UG, DEG_PER_H, CommandedMotion, FilterSettings,
                                            WindowResult, calibrate_window)
-from rlgsim.estimators.strapdown import ARCSEC, SensorModel
+from rlgsim.estimators.strapdown import SensorModel
+from rlgsim.ground.units import ARCSEC, G0
 
-G0 = 9.80665
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).
 DEFAULT_GYRO_SF_PULSE_PER_ARCSEC = 2.14
 DEFAULT_ACCEL_SF_PULSE_PER_S_PER_G = 5000.0

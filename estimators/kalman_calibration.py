@@ -85,9 +85,8 @@ from scipy.linalg import expm
 from rlgsim.estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
                                   earth_rate_enu, navigate, normal_gravity, rotation_matrix,
                                   skew, table_attitude)
+from rlgsim.ground.units import G0                # standard gravity for µg [m/s²]
 
-#: Standard gravity for µg [m/s²].
-G0 = 9.80665
 DEG_PER_H = DEG / 3600.0          # rad/s per °/h
 UG = 1e-6 * G0                    # m/s² per µg
 

@@ -1,9 +1,10 @@
 """Strapdown navigation of an IMU standing on a turntable at a fixed site, from pulse counts.
 
 Everything here works on recorded data (pulses, sample interval, commanded table angles): it
-never imports ``sim``. The site model and the turntable's gimbal convention are therefore
-restated here (they are the conventions of the dataset, docs/dataset.md); they are tiny and
-a library for them would be a heavier dependency than the ten lines.
+never imports ``sim``. The site model (normal gravity, Earth rate), the turntable's gimbal
+convention and the rotation algebra are the conventions of the dataset (docs/dataset.md) and
+come from the ground package both sides share (:mod:`rlgsim.ground.earth`,
+:mod:`rlgsim.ground.frames`).
 
 Frames: navigation frame ENU at the site (x East, y North, z Up); body frame = the IMU
 measurement frame; i0 = the inertial frame that coincides with ENU at the start of the window.
@@ -34,7 +35,8 @@ the navigation and — consistently — out of the error model (:mod:`rlgsim.est
 the navigated velocity is the velocity error itself.
 
 Normal gravity γ: Somigliana's closed formula with WGS-84 constants and the free-air correction
-(NIMA TR8350.2 3rd ed. eqs. 4-1, 4-3), the same model :mod:`rlgsim.sim.earth` uses for the simulation.
+(NIMA TR8350.2 3rd ed. eqs. 4-1, 4-3), :func:`rlgsim.ground.earth.normal_gravity` — the same
+function the simulation's site uses.
 """
 
 from __future__ import annotations
@@ -44,150 +46,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-#: Earth rotation rate [rad/s] (WGS-84).
-EARTH_RATE = 7.292115e-5
-DEG = math.pi / 180.0
-ARCSEC = DEG / 3600.0
-
-_WGS84_A, _WGS84_F = 6378137.0, 1.0 / 298.257223563
-_WGS84_GAMMA_E, _WGS84_K = 9.7803253359, 0.00193185265241
-_WGS84_E2, _WGS84_M = 0.00669437999013, 0.00344978650684
-
-
-def normal_gravity(latitude_deg: float, height_m: float = 0.0) -> float:
-    """Normal gravity γ [m/s²] at geodetic latitude [°] and ellipsoidal height [m]
-    (Somigliana + second-order free-air term, NIMA TR8350.2 eqs. 4-1, 4-3)."""
-    s2 = math.sin(latitude_deg * DEG) ** 2
-    g0 = _WGS84_GAMMA_E * (1 + _WGS84_K * s2) / math.sqrt(1 - _WGS84_E2 * s2)
-    return g0 * (1 - 2 / _WGS84_A * (1 + _WGS84_F + _WGS84_M - 2 * _WGS84_F * s2) * height_m
-                 + 3 * height_m ** 2 / _WGS84_A ** 2)
-
-
-def earth_rate_enu(latitude_deg: float) -> np.ndarray:
-    """ω_ie^n = (0, Ω cos L, Ω sin L) [rad/s]."""
-    lat = latitude_deg * DEG
-    return np.array([0.0, EARTH_RATE * math.cos(lat), EARTH_RATE * math.sin(lat)])
-
-
-def table_attitude(outer_deg, inner_deg) -> np.ndarray:
-    """Body-to-ENU attitude C_b^n = R_x(outer) R_z(inner) of the two-axis table (outer axis
-    horizontal along East, inner axis = body z, body = ENU at zero angles; docs/dataset.md).
-    Broadcasts, (…, 3, 3)."""
-    o = np.asarray(outer_deg, dtype=float) * DEG
-    i = np.asarray(inner_deg, dtype=float) * DEG
-    co, so, ci, si = np.cos(o), np.sin(o), np.cos(i), np.sin(i)
-    z = np.zeros_like(co * ci)
-    return np.stack([np.stack([ci + z, -si + z, z], -1),
-                     np.stack([co * si, co * ci, -so + z], -1),
-                     np.stack([so * si, so * ci, co + z], -1)], -2)
-
-
-# ------------------------------------------------------------------------------ rotations
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """[v×] for v (…, 3) → (…, 3, 3)."""
-    v = np.asarray(v, dtype=float)
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)
-
-
-def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
-    """Rodrigues: exp([r×]) for rotation vectors r (…, 3) → (…, 3, 3)."""
-    r = np.asarray(rotvec, dtype=float)
-    a = np.linalg.norm(r, axis=-1)[..., None, None]
-    k = skew(r)
-    s = np.sinc(a / np.pi)                                  # sin a / a
-    c = 0.5 * np.sinc(a / (2 * np.pi)) ** 2                 # (1 − cos a)/a²
-    return np.eye(3) + s * k + c * (k @ k)
-
-
-def quat_from_rotvec(r: np.ndarray) -> np.ndarray:
-    """exp(r/2) as quaternions [w, x, y, z] (…, 4); exact for small angles (sinc form)."""
-    a = np.linalg.norm(r, axis=-1)
-    return np.concatenate([np.cos(0.5 * a)[..., None],
-                           (0.5 * np.sinc(a / (2 * np.pi)))[..., None] * r], axis=-1)
-
-
-def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product p ⊗ q, broadcasting over leading axes."""
-    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
-
-
-def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of unit quaternions (…, 4) → (…, 3, 3) (v^i = C v^b)."""
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def dcm_to_quat(c: np.ndarray) -> np.ndarray:
-    """Unit quaternion of one rotation matrix (Shepperd's method)."""
-    c = np.asarray(c, dtype=float)
-    tr = np.trace(c)
-    k = int(np.argmax([tr, c[0, 0], c[1, 1], c[2, 2]]))
-    if k == 0:
-        w = 0.5 * math.sqrt(1 + tr)
-        q = [w, (c[2, 1] - c[1, 2]) / (4 * w), (c[0, 2] - c[2, 0]) / (4 * w),
-             (c[1, 0] - c[0, 1]) / (4 * w)]
-    elif k == 1:
-        x = 0.5 * math.sqrt(1 + 2 * c[0, 0] - tr)
-        q = [(c[2, 1] - c[1, 2]) / (4 * x), x, (c[0, 1] + c[1, 0]) / (4 * x),
-             (c[0, 2] + c[2, 0]) / (4 * x)]
-    elif k == 2:
-        y = 0.5 * math.sqrt(1 + 2 * c[1, 1] - tr)
-        q = [(c[0, 2] - c[2, 0]) / (4 * y), (c[0, 1] + c[1, 0]) / (4 * y), y,
-             (c[1, 2] + c[2, 1]) / (4 * y)]
-    else:
-        z = 0.5 * math.sqrt(1 + 2 * c[2, 2] - tr)
-        q = [(c[1, 0] - c[0, 1]) / (4 * z), (c[0, 2] + c[2, 0]) / (4 * z),
-             (c[1, 2] + c[2, 1]) / (4 * z), z]
-    q = np.array(q)
-    return q / np.linalg.norm(q)
-
-
-def quat_cumprod(q: np.ndarray) -> np.ndarray:
-    """Prefix products P_k = q_0 ⊗ q_1 ⊗ … ⊗ q_k of quaternions q (n, 4).
-
-    Blocked scan: the sequence is cut into ~√n blocks, the products inside all blocks advance
-    together (one vectorised multiply per position in a block), the block totals are prefixed
-    recursively, and one vectorised multiply joins them. Same multiplications as the
-    sequential loop up to association, so rounding stays at the eps·√n level.
-    """
-    q = np.asarray(q, dtype=float)
-    n = q.shape[0]
-    if n <= 64:
-        out = np.empty_like(q)
-        acc = q[0]
-        out[0] = acc
-        for k in range(1, n):
-            acc = quat_mul(acc, q[k])
-            out[k] = acc
-        return out
-    b = int(math.ceil(math.sqrt(n)))
-    nb = -(-n // b)
-    pad = np.zeros((nb * b, 4))
-    pad[:, 0] = 1.0
-    pad[:n] = q
-    blocks = pad.reshape(nb, b, 4)
-    local = np.empty_like(blocks)
-    acc = blocks[:, 0]
-    local[:, 0] = acc
-    for j in range(1, b):
-        acc = quat_mul(acc, blocks[:, j])
-        local[:, j] = acc
-    totals = quat_cumprod(local[:, -1])                     # inclusive prefix of block totals
-    prefix = np.concatenate([[[1.0, 0.0, 0.0, 0.0]], totals[:-1]])
-    out = quat_mul(prefix[:, None, :], local).reshape(nb * b, 4)[:n]
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+from rlgsim.ground.earth import earth_rate_enu, normal_gravity
+from rlgsim.ground.frames import (cross_rows, dcm_to_quat, quat_cumprod, quat_from_rotvec,
+                                  quat_mul, quat_rotate, quat_to_dcm, rotate_about,
+                                  rotation_matrix)
+# also imported from here by rlgsim.estimators.kalman_calibration
+from rlgsim.ground.frames import body_to_enu as table_attitude  # noqa: F401
+from rlgsim.ground.frames import skew  # noqa: F401
+from rlgsim.ground.units import ARCSEC, DEG  # noqa: F401
 
 
 # --------------------------------------------------------------------------- sensor model
@@ -255,36 +121,6 @@ class SensorModel:
 
 # ------------------------------------------------------------------------------ navigation
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (faster than np.cross for tall arrays)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
-
-
-def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """q ⊗ v ⊗ q* for unit quaternions (n, 4) and vectors (n, 3)."""
-    u = q[..., 1:]
-    t = 2.0 * _cross(u, v)
-    return v + q[..., :1] * t + _cross(u, t)
-
-
-def rotate_about(axis_angle_rate: np.ndarray, t: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors ``v`` (n, 3) by the rotation vector ``axis_angle_rate`` × t (n,) (a fixed
-    axis, Rodrigues on vectors)."""
-    w = np.asarray(axis_angle_rate, float)
-    rate = float(np.linalg.norm(w))
-    if rate == 0.0:
-        return np.array(v, dtype=float)
-    k = w / rate
-    a = (rate * np.asarray(t, float))[:, None]
-    kv = np.einsum("nj,j->n", v, k)
-    return v * np.cos(a) + _cross(np.broadcast_to(k, v.shape), v) * np.sin(a) \
-        + np.outer(kv, k) * (1.0 - np.cos(a))
-
-
 @dataclass
 class NavSolution:
     """Navigation at the end of each sample: ``t_s`` (n,) time since the start [s],
@@ -349,7 +185,7 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, dt_s: float, c0: np.ndarray,
         b = np.asarray(breaks, dtype=np.intp)
         b = b[(b > 0) & (b < n)]
         prev_th[b] = dtheta[b]
-    phi = dtheta + _cross(prev_th, dtheta) / 12.0
+    phi = dtheta + cross_rows(prev_th, dtheta) / 12.0
     q = quat_from_rotvec(phi)
     q[0] = quat_mul(dcm_to_quat(c0), q[0])
     q_bi = quat_cumprod(q)                                   # body → i0 at sample ends
@@ -357,8 +193,8 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, dt_s: float, c0: np.ndarray,
     # velocity: rotation correction exact for a constant rate over the sample (the inverse
     # SO(3) Jacobian, ΔV = Δv + ½α×Δv + (1/12)α×(α×Δv)), into i0 with the attitude at the
     # sample start, then into ENU at the sample middle
-    a_dv = _cross(dtheta, dv)
-    dV = dv + 0.5 * a_dv + _cross(dtheta, a_dv) / 12.0
+    a_dv = cross_rows(dtheta, dv)
+    dV = dv + 0.5 * a_dv + cross_rows(dtheta, a_dv) / 12.0
     q_start = np.empty_like(q_bi)
     q_start[0] = dcm_to_quat(c0)
     q_start[1:] = q_bi[:-1]

@@ -6,10 +6,12 @@ For sample ``k`` at rate ``f`` (interval [k/f, (k+1)/f), time coordinate (k+1)/f
     Δv_k = ∫ f^b dt,      f^b(t)    = C_n^b(t) f^n,   f^n = (0, 0, γ)          [m/s]
 
 with ω_nb^b the table rate in body axes, ω_ie^n the Earth rate in ENU and γ the normal gravity
-at the site (:mod:`rlgsim.sim.earth`). The navigation frame is ENU at the site and the table does not
-translate, so the transport rate is zero; the IMU's measurement origin is taken to be **at the
-intersection of the table axes (no lever arm)**, so rotations add no centripetal or tangential
-acceleration and the specific force is exactly −gravity in body axes.
+at the site (:mod:`rlgsim.sim.earth`, :mod:`rlgsim.ground.earth`); C_b^n is the table's gimbal
+convention R_x(outer) R_z(inner) (:func:`rlgsim.ground.frames.body_to_enu`). The navigation
+frame is ENU at the site and the table does not translate, so the transport rate is zero; the
+IMU's measurement origin is taken to be **at the intersection of the table axes (no lever
+arm)**, so rotations add no centripetal or tangential acceleration and the specific force is
+exactly −gravity in body axes.
 
 Closed form. During a turntable motion the body turns at the constant rate w about an axis u that
 is fixed in the body (:mod:`rlgsim.sim.turntable`), so with C_0 = C_b^n at the motion's start and τ the
@@ -33,15 +35,15 @@ Vectorised over samples; the only Python loop runs over the motions that touch a
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from rlgsim.ground.frames import body_axis, body_to_enu
+from rlgsim.ground.units import DEG
 from rlgsim.sim.earth import Site
 from rlgsim.sim.turntable import TurntableProgram
-from rlgsim.ground.units import DEG
 
 _TIME_TOL_S = 1e-6
 _ANGLE_TOL_DEG = 1e-6
@@ -71,27 +73,6 @@ def segments_from_program(program: TurntableProgram, duration_s: float
         out.append(TurntableSegment(t, t + m.duration_s, "turntable", m.label, m.attrs()))
         t += m.duration_s
     return out
-
-
-def body_to_enu(outer_deg: np.ndarray, inner_deg: np.ndarray) -> np.ndarray:
-    """C_b^n = R_x(outer) R_z(inner) (the gimbal convention of :mod:`rlgsim.sim.turntable`), (…, 3, 3)."""
-    o = np.asarray(outer_deg, dtype=float) * DEG
-    i = np.asarray(inner_deg, dtype=float) * DEG
-    co, so, ci, si = np.cos(o), np.sin(o), np.cos(i), np.sin(i)
-    zero = np.zeros_like(co * ci)
-    return np.stack([np.stack([ci + zero, -si + zero, zero], -1),
-                     np.stack([co * si, co * ci, -so + zero], -1),
-                     np.stack([so * si, so * ci, co + zero], -1)], -2)
-
-
-def body_axis(axis: str | None, inner_deg: float) -> np.ndarray:
-    """Unit vector of a table axis in body coordinates (outer: (cos i, −sin i, 0); inner: z)."""
-    if axis == "outer":
-        i = inner_deg * DEG
-        return np.array([math.cos(i), -math.sin(i), 0.0])
-    if axis == "inner":
-        return np.array([0.0, 0.0, 1.0])
-    return np.zeros(3)
 
 
 @dataclass

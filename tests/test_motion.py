@@ -13,12 +13,14 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from rlgsim.sim.config import Ctx
-from rlgsim.sim.earth import Site, normal_gravity
+from rlgsim.ground.earth import normal_gravity
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.motion import Motion, TurntableSegment, body_to_enu, segments_from_program
-from rlgsim.sim.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
+from rlgsim.ground.frames import body_to_enu
 from rlgsim.ground.units import DEG, EARTH_RATE
+from rlgsim.sim.config import Ctx
+from rlgsim.sim.earth import Site
+from rlgsim.sim.motion import Motion, TurntableSegment, segments_from_program
+from rlgsim.sim.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
 
 SITE = Site()
 

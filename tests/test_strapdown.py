@@ -1,7 +1,7 @@
 """Strapdown navigation from pulses (estimators/strapdown.py).
 
 References: the exact turntable kinematics of sim/motion.py (closed-form integrals, checked
-against quadrature in test_motion.py), a sequential quaternion loop, scipy's Rotation.
+against quadrature in test_motion.py). The rotation helpers are tested in test_frames.py.
 """
 
 from __future__ import annotations
@@ -9,46 +9,29 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from _turntable_pulses import SITE, nominal, random_truth, window
 from rlgsim.estimators.kalman_calibration import initial_attitude, motion_breaks
-from rlgsim.estimators.strapdown import (ARCSEC, SensorModel, coarse_level, dcm_to_quat, navigate,
-                                  normal_gravity, quat_cumprod, quat_from_rotvec, quat_mul,
-                                  quat_to_dcm, rotation_matrix, table_attitude)
-from rlgsim.sim.earth import normal_gravity as sim_gravity
-from rlgsim.sim.motion import body_to_enu
+from rlgsim.estimators import strapdown
+from rlgsim.estimators.strapdown import SensorModel, coarse_level, navigate
+from rlgsim.ground import earth, frames
+from rlgsim.ground.frames import body_to_enu as table_attitude
+from rlgsim.ground.frames import rotation_matrix
+from rlgsim.ground.units import ARCSEC
+from rlgsim.sim import motion
+from rlgsim.sim.earth import Site
 from rlgsim.sim.turntable import Hold, Rotate, Spin, TurntableProgram
 
 
-def test_site_model_and_table_convention_match_the_simulator():
+def test_site_model_and_table_convention_are_the_simulators():
+    """Written once (rlgsim.ground): the navigation and the simulator share the functions."""
+    assert strapdown.normal_gravity is earth.normal_gravity
+    assert strapdown.earth_rate_enu is earth.earth_rate_enu
+    assert strapdown.table_attitude is frames.body_to_enu is motion.body_to_enu
     for lat, h in ((34.0, 0.0), (-60.0, 1200.0), (90.0, 0.0)):
-        assert normal_gravity(lat, h) == sim_gravity(lat, h)
-    o, i = np.array([0.0, 90.0, 37.5]), np.array([270.0, 12.0, -45.0])
-    np.testing.assert_array_equal(table_attitude(o, i), body_to_enu(o, i))
-
-
-def test_rotation_helpers_against_scipy():
-    rng = np.random.default_rng(0)
-    r = rng.normal(size=(50, 3)) * np.logspace(-9, 0.5, 50)[:, None]
-    ref = Rotation.from_rotvec(r)
-    np.testing.assert_allclose(rotation_matrix(r), ref.as_matrix(), atol=1e-15)
-    q = quat_from_rotvec(r)
-    np.testing.assert_allclose(quat_to_dcm(q), ref.as_matrix(), atol=1e-15)
-    for m in ref.as_matrix()[::7]:
-        np.testing.assert_allclose(quat_to_dcm(dcm_to_quat(m)), m, atol=1e-15)
-
-
-@pytest.mark.parametrize("n", [1, 5, 64, 65, 1000, 4097])
-def test_blocked_quaternion_prefix_product_equals_the_loop(n):
-    rng = np.random.default_rng(n)
-    q = quat_from_rotvec(rng.normal(size=(n, 3)) * 0.1)
-    seq = np.empty_like(q)
-    acc = q[0]
-    for k in range(n):
-        acc = quat_mul(acc, q[k]) if k else q[0]
-        seq[k] = acc
-    np.testing.assert_allclose(quat_cumprod(q), seq, atol=1e-13)
+        s = Site(lat, h)
+        assert s.gravity == strapdown.normal_gravity(lat, h)
+        np.testing.assert_array_equal(s.earth_rate_enu, strapdown.earth_rate_enu(lat))
 
 
 def test_compensation_inverts_the_pulse_model():

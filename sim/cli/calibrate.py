@@ -23,8 +23,7 @@ import time
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
-
-G0 = 9.80665
+from rlgsim.ground.units import ARCSEC, G0
 
 #: UDUNITS spelling of the table's units.
 _UDUNITS = {"deg/h": "degree h-1", "ppm": "1e-6", "arcsec": "arcsecond",
@@ -88,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     failed — the table says why)."""
     from rlgsim.estimators.calibration import (CampaignError, CampaignSettings, DatasetReader,
                                         find_windows, run_campaign)
-    from rlgsim.estimators.strapdown import ARCSEC, SensorModel
+    from rlgsim.estimators.strapdown import SensorModel
     from rlgsim.sim.dataset import check_writable
 
     path = pathlib.Path(args.dataset)

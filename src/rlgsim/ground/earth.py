@@ -1,0 +1,63 @@
+"""The Earth at the turntable's site: WGS-84 normal gravity and the Earth rate in ENU.
+
+Navigation frame ENU (x East, y North, z Up), fixed to the Earth at the site. The turntable does
+not move over the Earth, so the transport rate is zero and the only rotation of the navigation
+frame with respect to inertial space is the Earth's:
+
+    ω_ie^n = (0, Ω cos L, Ω sin L)                                           [rad/s]
+
+with Ω = 7.292115e-5 rad/s (WGS-84, :data:`rlgsim.ground.units.EARTH_RATE`) and L the geodetic
+latitude (Titterton & Weston, *Strapdown Inertial Navigation Technology*, 2nd ed., §3.4.3).
+
+Normal gravity (gravitation plus centrifugal acceleration of the rotating Earth, which is what a
+static accelerometer senses) on the ellipsoid follows the closed Somigliana formula with the
+WGS-84 constants (NIMA TR8350.2, 3rd ed. 2000, eq. 4-1):
+
+    γ_0(L) = γ_e (1 + k sin²L) / sqrt(1 − e² sin²L)
+
+and above the ellipsoid the second-order free-air correction (NIMA TR8350.2 eq. 4-3):
+
+    γ(L, h) = γ_0 [1 − 2/a (1 + f + m − 2 f sin²L) h + 3 h²/a²]
+
+The plumb line is taken along −Up (the deflection of the vertical, a few arcseconds, is ignored),
+so the gravity vector in ENU is g^n = (0, 0, −γ) and the specific force sensed by an IMU at rest
+on the table is f^n = −g^n = (0, 0, γ).
+
+Both sides use these functions: the simulator's site (:class:`rlgsim.sim.earth.Site`) and the
+strapdown navigation of the calibration (:mod:`rlgsim.estimators.strapdown`), so the dataset's
+truth and its estimate share one Earth model.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rlgsim.ground.units import DEG, EARTH_RATE
+
+# WGS-84 defining and derived constants (NIMA TR8350.2, 3rd ed., tables 3.1 and 3.3).
+WGS84_A = 6378137.0                      # semi-major axis [m]
+WGS84_F = 1.0 / 298.257223563            # flattening [-]
+WGS84_GAMMA_E = 9.7803253359             # normal gravity at the equator [m/s²]
+WGS84_K = 0.00193185265241               # Somigliana constant k = bγ_p/(aγ_e) − 1 [-]
+WGS84_E2 = 0.00669437999013              # first eccentricity squared [-]
+WGS84_M = 0.00344978650684               # m = ω²a²b/GM [-]
+
+
+def normal_gravity(latitude_deg: float, height_m: float = 0.0) -> float:
+    """Normal gravity magnitude γ(L, h) [m/s²] (Somigliana + free-air, NIMA TR8350.2 eq. 4-1, 4-3).
+
+    ``latitude_deg`` geodetic latitude [°]; ``height_m`` height above the WGS-84 ellipsoid [m].
+    """
+    s2 = math.sin(latitude_deg * DEG) ** 2
+    gamma0 = WGS84_GAMMA_E * (1.0 + WGS84_K * s2) / math.sqrt(1.0 - WGS84_E2 * s2)
+    a = WGS84_A
+    return gamma0 * (1.0 - 2.0 / a * (1.0 + WGS84_F + WGS84_M - 2.0 * WGS84_F * s2) * height_m
+                     + 3.0 * height_m ** 2 / a ** 2)
+
+
+def earth_rate_enu(latitude_deg: float) -> np.ndarray:
+    """Earth rate in the local ENU frame ω_ie^n = (0, Ω cos L, Ω sin L) [rad/s], (3,)."""
+    lat = latitude_deg * DEG
+    return np.array([0.0, EARTH_RATE * math.cos(lat), EARTH_RATE * math.sin(lat)])
