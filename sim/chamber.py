@@ -35,7 +35,7 @@ from typing import Any, Mapping, Union
 import numpy as np
 
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list,
-                        get_quantity, get_str, unit_keys)
+                        get_quantity, get_str, unit_keys, get_table)
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import MINUTE
 
@@ -250,8 +250,11 @@ class ChamberProgram:
     segments: list[Segment] = field(default_factory=list)
     max_rate_c_per_min: float = DEFAULT_MAX_RATE_C_PER_MIN
     air_tau_s: float = DEFAULT_AIR_TAU_S
+    #: the chamber's own air loop (``[chamber.controller]``, rlgsim.sim.chamber_controller);
+    #: None: the air is the rate-limited setpoint through the ``air_tau_s`` lag
+    controller: Any = None
 
-    KEYS = ("start_c", "segments", "max_rate_c_per_min", "air_tau_s")
+    KEYS = ("start_c", "segments", "max_rate_c_per_min", "air_tau_s", "controller")
 
     @classmethod
     def from_config(cls, table: Mapping[str, Any], ctx: Ctx) -> "ChamberProgram":
@@ -264,8 +267,16 @@ class ChamberProgram:
         max_rate = get_float(table, "max_rate_c_per_min", ctx, DEFAULT_MAX_RATE_C_PER_MIN,
                              min=0.0, min_exclusive=True)
         tau = get_float(table, "air_tau_s", ctx, DEFAULT_AIR_TAU_S, min=0.0, max=86400.0)
+        controller = None
+        if "controller" in table:
+            if "air_tau_s" in table:
+                raise ctx.error("air_tau_s", "not used with [chamber.controller] (the "
+                                             "controller's air loop replaces the air lag)")
+            from rlgsim.sim.chamber_controller import ChamberController
+            controller = ChamberController.from_config(get_table(table, "controller", ctx),
+                                                       ctx.child("controller"))
         program = cls(start_c=start, segments=list(segments), max_rate_c_per_min=max_rate,
-                      air_tau_s=tau)
+                      air_tau_s=tau, controller=controller)
         n = program._count_breakpoints(program.segments)
         if n > MAX_BREAKPOINTS:
             raise ctx.error("segments", f"the programme expands to {n} breakpoints; at most "

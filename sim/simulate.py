@@ -108,7 +108,8 @@ class ThermalPart:
         self.step = timeline.step_s
         self.nominal = scenario.device.thermal.network
         self.network = realised_network(scenario)
-        self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s)
+        self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s,
+                                            controller=scenario.chamber.controller)
 
     @property
     def node_names(self) -> tuple[str, ...]:

@@ -80,37 +80,57 @@ class ThermalState(np.ndarray):
     """
 
     modal: np.ndarray | None
+    chamber: tuple[float, ...] | None
     _check: bytes | None
 
-    def __new__(cls, temperatures: np.ndarray, modal: np.ndarray | None = None):
+    def __new__(cls, temperatures: np.ndarray, modal: np.ndarray | None = None,
+                chamber: tuple[float, ...] | None = None):
         obj = np.array(temperatures, dtype=float).view(cls)
         obj.modal = None if modal is None else np.array(modal, dtype=float)
+        obj.chamber = None if chamber is None else tuple(float(v) for v in chamber)
         obj._check = obj.view(np.ndarray).tobytes() if modal is not None else None
         return obj
 
     def __array_finalize__(self, obj: Any) -> None:
         # views, copies and results of arithmetic do not inherit the modal coordinates
         self.modal = None
+        self.chamber = None
         self._check = None
 
     def __reduce__(self):
-        return (ThermalState, (np.asarray(self), self.modal))
+        return (ThermalState, (np.asarray(self), self.modal, self.chamber))
 
     def modal_if_valid(self) -> np.ndarray | None:
         if self.modal is None or self._check != self.view(np.ndarray).tobytes():
             return None
         return self.modal
 
+    def chamber_if_valid(self) -> tuple[float, ...] | None:
+        """The chamber controller's state (:mod:`rlgsim.sim.chamber_controller`), if any and
+        the temperatures were not edited."""
+        if self.chamber is None or self._check != self.view(np.ndarray).tobytes():
+            return None
+        return self.chamber
+
 
 class ThermalIntegrator:
     """Exact propagation of ``network`` plus chamber air on a grid of ``step_s`` [s].
 
     ``air_tau_s`` [s] is the chamber-air time constant (0: the air is the setpoint).
+    ``controller`` (a :class:`rlgsim.sim.chamber_controller.ChamberController`, optional)
+    replaces the air lag by the chamber's closed air loop: the air is then computed on the grid
+    by :class:`~rlgsim.sim.chamber_controller.ChamberLoop` and drives the network as a
+    first-order-hold input (``air_tau_s`` is not used).
     """
 
-    def __init__(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
+    def __init__(self, network: ThermalNetwork, step_s: float, air_tau_s: float,
+                 controller: Any = None) -> None:
         with _one_blas_thread():
-            self._setup(network, step_s, air_tau_s)
+            self._setup(network, step_s, 0.0 if controller is not None else air_tau_s)
+        self.chamber_loop = None
+        if controller is not None:
+            from rlgsim.sim.chamber_controller import ChamberLoop
+            self.chamber_loop = ChamberLoop(controller, self.step_s)
 
     def _setup(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
         if not (np.isfinite(step_s) and step_s > 0):
@@ -179,12 +199,24 @@ class ThermalIntegrator:
         if T.shape != (self.n_nodes,):
             raise ValueError(f"expected {self.n_nodes} node temperatures, got {T.shape}")
         w = self._to_modal @ T
-        return ThermalState(np.concatenate(([float(air_c)], self._nodes(w[None, :])[0])), w)
+        chamber = None
+        if self.chamber_loop is not None:
+            chamber = (float(air_c),) + self.chamber_loop.initial_state(float(air_c))[1:]
+        return ThermalState(np.concatenate(([float(air_c)], self._nodes(w[None, :])[0])), w,
+                            chamber)
 
     def initial_state(self, ambient_c: float, powered: bool) -> ThermalState:
         """Equilibrium at constant chamber air ``ambient_c`` [°C] with the power on/off:
-        ``[T_air, T_nodes]`` (a :class:`ThermalState`)."""
-        return self.state(ambient_c, self.network.steady_state(ambient_c, powered))
+        ``[T_air, T_nodes]`` (a :class:`ThermalState`). With a chamber controller the loop is
+        settled at the setpoint ``ambient_c`` in its periodic ripple state (the air column holds
+        the air at ``t0``, within the ripple of ``ambient_c``)."""
+        if self.chamber_loop is None:
+            return self.state(ambient_c, self.network.steady_state(ambient_c, powered))
+        chamber = self.chamber_loop.initial_state(float(ambient_c))
+        T = self.network.steady_state(ambient_c, powered)
+        w = self._to_modal @ T
+        return ThermalState(np.concatenate(([chamber[0]], self._nodes(w[None, :])[0])), w,
+                            chamber)
 
     def _nodes(self, W: np.ndarray) -> np.ndarray:
         """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks."""
@@ -227,8 +259,14 @@ class ThermalIntegrator:
         w0 = state.modal_if_valid() if isinstance(state, ThermalState) else None
         if w0 is None:
             w0 = self._to_modal @ x0[1:]
+        chamber = None
+        if self.chamber_loop is not None:
+            chamber = state.chamber_if_valid() if isinstance(state, ThermalState) else None
+            if chamber is None:        # a plain array: the loop settled at its air (phase 0)
+                chamber = self.chamber_loop.initial_state(float(x0[0]))
+                chamber = (float(x0[0]),) + chamber[1:]
         if m == 0:
-            return np.empty((0, 1 + n)), ThermalState(x0, w0)
+            return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
             raise ValueError("setpoint and power must be finite")
         states = np.empty((m, 1 + n))
@@ -236,8 +274,13 @@ class ThermalIntegrator:
         # long calls run in fixed chunks (bounded temporaries; bit-identical by construction)
         for k0 in range(0, m, _CHUNK):
             k1 = min(m, k0 + _CHUNK)
-            air, w = self._advance(air, w, s[k0:k1 + 1], u[k0:k1], states[k0:k1])
-        return states, ThermalState(states[-1], w)
+            sk = s[k0:k1 + 1]
+            if self.chamber_loop is not None:
+                # the closed air loop gives the air on the grid; it drives the nodes (FOH)
+                air_next, chamber = self.chamber_loop.run(chamber, sk)
+                sk = np.concatenate(([air], air_next))
+            air, w = self._advance(air, w, sk, u[k0:k1], states[k0:k1])
+        return states, ThermalState(states[-1], w, chamber)
 
     def _advance(self, air0: float, w0: np.ndarray, s: np.ndarray, u: np.ndarray,
                  out: np.ndarray) -> tuple[float, np.ndarray]:
