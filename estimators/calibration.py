@@ -36,7 +36,6 @@ the compensators does not apply here.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import pathlib
@@ -52,6 +51,9 @@ from rlgsim.estimators.kalman_calibration import (ACCEL_MIS, BA, BG, GYRO_MIS, M
                                            UG, DEG_PER_H, CommandedMotion, FilterSettings,
                                            WindowResult, calibrate_window)
 from rlgsim.estimators.strapdown import SensorModel
+from rlgsim.ground import dataset_format as fmt
+from rlgsim.ground.dataset_format import open_dataset
+from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import ARCSEC, G0
 
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).
@@ -230,44 +232,39 @@ def find_windows(segments: Sequence[dict]) -> list[WindowSpec]:
 # ------------------------------------------------------------------------------ the data
 
 class DatasetReader:
-    """Read what the calibration needs from an rlgsim dataset (HDF5, docs/dataset.md) with
-    h5py: site, sample rate, timeline segments, pulses, probes, nominal values, and — for
-    simulated data only, for scoring — the truth."""
+    """What the calibration needs from an rlgsim dataset (docs/dataset.md), read through the
+    one dataset reader (:func:`rlgsim.ground.dataset_format.open_dataset`): site, sample rate,
+    timeline segments, pulses, probes, nominal values, and — for simulated data only, for
+    scoring — the truth. A file that cannot be calibrated raises :class:`CampaignError`."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        import h5py
         self.path = str(path)
         try:
-            self.f = h5py.File(self.path, "r")
-        except (OSError, ValueError) as exc:
-            raise CampaignError(f"{self.path}: cannot open as an HDF5 dataset ({exc})") from None
-        if self.f.attrs.get("rlgsim_format") != "rlgsim dataset":
-            self.f.close()
-            raise CampaignError(f"{self.path}: not an rlgsim dataset (no rlgsim_format "
-                                f"attribute)")
-        if "imu" not in self.f or "gyro_pulses" not in self.f["imu"]:
+            self.ds = open_dataset(self.path)
+        except UserInputError as exc:
+            raise CampaignError(str(exc)) from None
+        if not self.ds.has(fmt.IMU, "gyro_pulses"):
+            self.ds.close()
             raise CampaignError(f"{self.path}: the dataset has no IMU pulses (group imu); "
                                 f"simulate a device with gyros and accelerometers")
-        if "accel_pulses" not in self.f["imu"]:
+        if not self.ds.has(fmt.IMU, "accel_pulses"):
+            self.ds.close()
             raise CampaignError(f"{self.path}: the dataset has no accelerometer pulses; the "
                                 f"systematic calibration needs them")
-        a = self.f.attrs
+        a = self.ds.attrs
         self.latitude_deg = float(a.get("latitude_deg", 34.0))
         self.height_m = float(a.get("height_m", 0.0))
-        self.rate_hz = float(self.f["imu"].attrs.get("sample_rate_hz",
-                                                     a.get("sample_rate_hz", 100.0)))
-        self.n_samples = int(self.f["imu/gyro_pulses"].shape[0])
+        self.rate_hz = float(self.ds.group_attrs(fmt.IMU).get("sample_rate_hz",
+                                                              a.get("sample_rate_hz", 100.0)))
+        self.n_samples = self.ds.length(fmt.IMU, "gyro_pulses")
         self._device = self._device_tables()
-        self._times: dict[str, np.ndarray] = {}
 
     def close(self) -> None:
-        self.f.close()
+        self.ds.close()
 
     # ---- metadata -------------------------------------------------------------------------
     def _device_tables(self) -> dict:
-        text = self.f.attrs.get("device_text", "")
-        if isinstance(text, bytes):
-            text = text.decode()
+        text = self.ds.attrs.get("device_text", "")
         try:
             return tomllib.loads(text) if text else {}
         except tomllib.TOMLDecodeError:
@@ -292,17 +289,11 @@ class DatasetReader:
                 if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
     def segments(self) -> list[dict]:
-        if "timeline" not in self.f:
+        """Timeline segments (dicts ``t0``, ``t1``, ``track``, ``label``, ``attrs``)."""
+        if not self.ds.has(fmt.TIMELINE):
             raise CampaignError(f"{self.path}: the dataset has no timeline group, so no "
                                 f"calibration windows")
-        g = self.f["timeline"]
-
-        def text(v):
-            return v.decode() if isinstance(v, bytes) else str(v)
-        return [dict(t0=float(t0), t1=float(t1), track=text(tr), label=text(lb),
-                     attrs=json.loads(text(at)))
-                for t0, t1, tr, lb, at in zip(g["t0"][:], g["t1"][:], g["track"][:],
-                                              g["label"][:], g["attrs"][:])]
+        return self.ds.segments()
 
     # ---- data over a window ---------------------------------------------------------------
     def sample_range(self, t0_s: float, t1_s: float) -> tuple[int, int]:
@@ -313,36 +304,30 @@ class DatasetReader:
         if k1 > self.n_samples:
             raise ValueError(f"pulses end at {self.n_samples / self.rate_hz:.1f} s, the window "
                              f"needs {t1_s:.1f} s")
-        return (self.f["imu/gyro_pulses"][k0:k1].astype(float),
-                self.f["imu/accel_pulses"][k0:k1].astype(float))
+        rows = slice(k0, k1)
+        return (self.ds.read(fmt.IMU, "gyro_pulses", rows).astype(float),
+                self.ds.read(fmt.IMU, "accel_pulses", rows).astype(float))
 
     def probe_names(self) -> list[str]:
-        if "probes" not in self.f:
+        if not self.ds.has(fmt.PROBES):
             return []
-        return [v.decode() if isinstance(v, bytes) else str(v) for v in self.f["probes/probe"][:]]
-
-    def _time_rows(self, group: str, t0_s: float, t1_s: float) -> slice:
-        t = self._times.get(group)
-        if t is None:
-            t = self._times[group] = self.f[f"{group}/time"][:]
-        return slice(int(np.searchsorted(t, t0_s, side="right")),
-                     int(np.searchsorted(t, t1_s, side="right")))
+        return self.ds.strings(fmt.PROBES, "probe")
 
     def probes(self, t0_s: float, t1_s: float) -> np.ndarray:
         """Probe readings (m, p) [°C] over the window (rows whose step ends in (t0, t1])."""
-        if "probes" not in self.f:
+        if not self.ds.has(fmt.PROBES):
             return np.zeros((0, 0))
-        return self.f["probes/temperature"][self._time_rows("probes", t0_s, t1_s)]
+        return self.ds.read(fmt.PROBES, "temperature",
+                            self.ds.time_rows(fmt.PROBES, t0_s, t1_s))
 
     def truth(self, t0_s: float, t1_s: float) -> SensorModel | None:
         """The true pulse model averaged over the window (simulated data only)."""
-        if "truth" not in self.f or "gyro_scale_factor" not in self.f["truth"]:
+        if not self.ds.has(fmt.TRUTH, "gyro_scale_factor"):
             return None
-        g = self.f["truth"]
-        rows = self._time_rows("truth", t0_s, t1_s)
+        rows = self.ds.time_rows(fmt.TRUTH, t0_s, t1_s)
 
         def mean(name):
-            return np.asarray(g[name][rows], dtype=float).mean(axis=0)
+            return np.asarray(self.ds.read(fmt.TRUTH, name, rows), dtype=float).mean(axis=0)
         try:
             return SensorModel(k_g=mean("gyro_scale_factor"), d_g=mean("gyro_bias"),
                                e_g=mean("gyro_installation"),
@@ -371,10 +356,21 @@ class CampaignSettings:
 def _filter_settings(reader: DatasetReader, cs: CampaignSettings) -> FilterSettings:
     if cs.filter is not None:
         return cs.filter
-    nz = reader.noise()
-    arw = cs.arw_deg_per_sqrt_h if cs.arw_deg_per_sqrt_h is not None else nz.get(
+    return filter_settings(reader.noise(), arw_deg_per_sqrt_h=cs.arw_deg_per_sqrt_h,
+                           vrw_ug_per_sqrt_hz=cs.vrw_ug_per_sqrt_hz)
+
+
+def filter_settings(noise: dict | None = None, *, arw_deg_per_sqrt_h: float | None = None,
+                    vrw_ug_per_sqrt_hz: float | None = None) -> FilterSettings:
+    """The calibration filter's settings from a device's ``[noise]`` table (the preset keys
+    ``gyro_arw_deg_per_sqrt_h``, ``accel_vrw_ug_per_sqrt_hz``, ``gyro_bias_instability_deg_per_h``,
+    ``gyro_rrw_deg_per_h_per_sqrt_h``, ``accel_bias_instability_ug``, ``accel_rrw_ug_per_sqrt_s``;
+    absent ones: the defaults) — the one derivation used by ``rlgsim calibrate``, the campaign
+    and the Python API, for datasets and recordings alike."""
+    nz = dict(noise or {})
+    arw = arw_deg_per_sqrt_h if arw_deg_per_sqrt_h is not None else nz.get(
         "gyro_arw_deg_per_sqrt_h", DEFAULT_ARW_DEG_PER_SQRT_H)
-    vrw = cs.vrw_ug_per_sqrt_hz if cs.vrw_ug_per_sqrt_hz is not None else nz.get(
+    vrw = vrw_ug_per_sqrt_hz if vrw_ug_per_sqrt_hz is not None else nz.get(
         "accel_vrw_ug_per_sqrt_hz", DEFAULT_VRW_UG_PER_SQRT_HZ)
     return FilterSettings(
         arw_rad_per_sqrt_s=arw * math.pi / 180 / 60, vrw_m_per_s_per_sqrt_s=vrw * UG,
@@ -531,9 +527,9 @@ _WORKER_READER: dict[str, DatasetReader] = {}
 
 def _chunk_job(path: str, specs: list[WindowSpec], settings: FilterSettings,
                nominal: SensorModel) -> list[dict]:
-    reader = _WORKER_READER.get(path)
+    reader = _WORKER_READER.get(str(path))
     if reader is None:
-        reader = _WORKER_READER[path] = DatasetReader(path)
+        reader = _WORKER_READER[str(path)] = open_reader(path)
     rows = []
     start = None
     for spec in specs:
@@ -544,13 +540,28 @@ def _chunk_job(path: str, specs: list[WindowSpec], settings: FilterSettings,
     return rows
 
 
-def run_campaign(path: str | os.PathLike, options: CampaignSettings | None = None,
+def open_reader(source):
+    """The campaign's reader of ``source``: a dataset path (:class:`DatasetReader`) or an
+    object with ``open()`` returning a reader of the same interface (a recording and its
+    programme: :class:`rlgsim.estimators.recording_calibration.RecordingSource`)."""
+    if hasattr(source, "open") and not isinstance(source, (str, os.PathLike)):
+        return source.open()
+    return DatasetReader(source)
+
+
+def _source(path):
+    return path if hasattr(path, "open") and not isinstance(path, (str, os.PathLike)) \
+        else str(path)
+
+
+def run_campaign(path, options: CampaignSettings | None = None,
                  progress: Callable[[int], None] | None = None) -> CampaignResult:
-    """Calibrate every window of the dataset at ``path``; ``progress(n)`` is called with the
-    number of windows finished by each chunk."""
+    """Calibrate every window of the dataset at ``path`` (or of a recording given as a
+    :class:`~rlgsim.estimators.recording_calibration.RecordingSource`); ``progress(n)`` is
+    called with the number of windows finished by each chunk."""
     import time
     options = options or CampaignSettings()
-    reader = DatasetReader(path)
+    reader = open_reader(path)
     try:
         windows = find_windows(reader.segments())
         if not windows:
@@ -569,13 +580,14 @@ def run_campaign(path: str | os.PathLike, options: CampaignSettings | None = Non
     rows: list[dict] = []
     if workers <= 1 or len(chunks) == 1:
         for c in chunks:
-            rows += _chunk_job(str(path), c, settings, nominal)
+            rows += _chunk_job(_source(path), c, settings, nominal)
             if progress:
                 progress(len(c))
         _WORKER_READER.pop(str(path), None)
     else:
         with ProcessPoolExecutor(max_workers=workers) as ex:
-            futures = [ex.submit(_chunk_job, str(path), c, settings, nominal) for c in chunks]
+            futures = [ex.submit(_chunk_job, _source(path), c, settings, nominal)
+                       for c in chunks]
             for fut, c in zip(futures, chunks):
                 rows += fut.result()
                 if progress:

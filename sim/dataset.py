@@ -1,12 +1,14 @@
 """rlgsim datasets: HDF5 files (h5py) laid out the netCDF-4 way, written by streaming.
 
-Layout (docs/dataset.md is the schema): one HDF5 group per part of the simulation
-(``thermal``, ``probes``, ``timeline``, later ``imu`` ...). Inside a group every dimension has a
-coordinate variable that is an HDF5 *dimension scale*, and every variable has its dimensions
-attached, exactly as netCDF-4 does it — so each group opens with
+Layout (docs/dataset.md is the schema; :mod:`rlgsim.sim.dataset_schema` declares every group the
+simulator writes): one HDF5 group per part of the simulation (``timeline``, ``thermal``,
+``probes``, ``imu``, ``turntable``, ``truth``). Inside a group every dimension has a coordinate
+variable that is an HDF5 *dimension scale*, and every variable has its dimensions attached,
+exactly as netCDF-4 does it — so each group opens with
 ``xarray.open_dataset(path, engine="h5netcdf", group="thermal")``. Every variable carries
 ``units`` and ``description`` attributes. The root carries the format marker
-(:data:`FORMAT`, :data:`FORMAT_VERSION`), the scenario text, seed and software version.
+(:data:`rlgsim.ground.dataset_format.FORMAT`, ``FORMAT_VERSION``), the scenario text, seed and
+software version.
 
 Writing: :class:`DatasetWriter` opens a temporary file in the target directory
 (``<out>.tmp-<pid>``); groups declare their coordinates and variables, then rows are appended
@@ -14,27 +16,25 @@ along the growing dimension (``time``) in bounded chunks; :meth:`DatasetWriter.c
 the file and ``os.replace``-s it onto the final path, so a run that fails or is killed never
 leaves a file at the output path. HDF5 chunk shapes depend only on a variable's shape, never on
 how the caller chunks its appends, so the stored arrays do not depend on the chunk size.
+:func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
 
-Reading: :func:`open_dataset` checks the format marker and raises
-``UserInputError("...: not an rlgsim dataset ...")`` for anything else; :func:`summary` is
-what ``rlgsim info`` prints.
+Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
+format marker and version); :func:`summary` is what ``rlgsim info`` prints.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pathlib
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 import h5py
 import numpy as np
 
+from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, TIME,
+                                          VERSION_ATTR, open_dataset)
 from rlgsim.ground.errors import UserInputError
-
-#: Root attribute ``rlgsim_format`` of every rlgsim dataset.
-FORMAT = "rlgsim dataset"
-#: Root attribute ``rlgsim_format_version``; bump it when the layout changes incompatibly.
-FORMAT_VERSION = 1
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -213,8 +213,8 @@ class DatasetWriter:
         self.path = check_writable(path)
         self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
         self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True)
-        self._file.attrs["rlgsim_format"] = FORMAT
-        self._file.attrs["rlgsim_format_version"] = FORMAT_VERSION
+        self._file.attrs[FORMAT_ATTR] = FORMAT
+        self._file.attrs[VERSION_ATTR] = FORMAT_VERSION
         self._file.attrs["software_version"] = software_version()
         for key, value in attrs.items():
             self._file.attrs[key] = _attr_value(value)
@@ -255,37 +255,32 @@ class DatasetWriter:
             self.abort()
 
 
+@contextlib.contextmanager
+def add_group(path: str | os.PathLike, name: str, description: str,
+              attrs: Mapping[str, Any] | None = None) -> Iterator[GroupWriter]:
+    """Add (or replace) the group ``name`` of an existing dataset: yields a
+    :class:`GroupWriter` of a group under a temporary name that is moved onto ``name`` when the
+    block ends normally (and deleted on an error), so an interrupted write never leaves a half
+    group named ``name``."""
+    tmp = f"{name}.tmp-{os.getpid()}"
+    with h5py.File(path, "r+") as f:
+        if tmp in f:
+            del f[tmp]
+        g = f.create_group(tmp, track_order=True)
+        g.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            g.attrs[key] = _attr_value(value)
+        try:
+            yield GroupWriter(g)
+        except BaseException:
+            del f[tmp]
+            raise
+        if name in f:
+            del f[name]
+        f.move(tmp, name)
+
+
 # --------------------------------------------------------------------------- reading
-
-
-def open_dataset(path: str | os.PathLike) -> h5py.File:
-    """Open an rlgsim dataset read-only after checking its format marker.
-
-    Raises UserInputError for a missing file, a non-HDF5 file, an HDF5 file without the
-    marker ("not an rlgsim dataset"), or a newer format version.
-    """
-    p = pathlib.Path(path)
-    if not p.exists():
-        raise UserInputError(f"{p}: no such file")
-    if p.is_dir():
-        raise UserInputError(f"{p}: is a directory, not an rlgsim dataset")
-    try:
-        f = h5py.File(p, "r")
-    except OSError:
-        raise UserInputError(f"{p}: not an rlgsim dataset (not an HDF5 file)") from None
-    fmt = f.attrs.get("rlgsim_format")
-    if isinstance(fmt, bytes):
-        fmt = fmt.decode("utf-8", "replace")
-    if fmt != FORMAT:
-        f.close()
-        raise UserInputError(f"{p}: not an rlgsim dataset (HDF5 file without the "
-                             f"rlgsim_format = '{FORMAT}' marker)")
-    version = int(f.attrs.get("rlgsim_format_version", -1))
-    if version > FORMAT_VERSION:
-        f.close()
-        raise UserInputError(f"{p}: rlgsim dataset format version {version} is newer than this "
-                             f"rlgsim reads ({FORMAT_VERSION}); upgrade rlgsim")
-    return f
 
 
 def _text(value: Any) -> str:
@@ -298,9 +293,9 @@ def _text(value: Any) -> str:
 
 def summary(path: str | os.PathLike) -> str:
     """A human-readable summary of a dataset (what ``rlgsim info`` prints)."""
-    with open_dataset(path) as f:
-        a = f.attrs
-        lines = [f"{path}: {FORMAT} v{_text(a.get('rlgsim_format_version'))}, "
+    with open_dataset(path) as ds:
+        a = ds.attrs
+        lines = [f"{path}: {FORMAT} v{_text(a.get(VERSION_ATTR))}, "
                  f"rlgsim {_text(a.get('software_version', '?'))}"]
         for key, label in (("scenario_name", "scenario"), ("scenario_source", "scenario file"),
                            ("device", "device"), ("seed", "seed"),
@@ -308,19 +303,17 @@ def summary(path: str | os.PathLike) -> str:
                            ("thermal_step_s", "thermal step [s]")):
             if key in a:
                 lines.append(f"  {label}: {_text(a[key])}")
-        for gname, g in f.items():
-            if not isinstance(g, h5py.Group):
-                continue
-            desc = _text(g.attrs.get("description", ""))
+        for gname in ds.groups():
+            desc = _text(ds.group_attrs(gname).get("description", ""))
             lines.append(f"  group {gname}: {desc}")
-            for vname, ds in g.items():
-                dims = [vname if ds.is_scale else
-                        (ds.dims[i][0].name.rsplit("/", 1)[-1] if len(ds.dims[i]) else "?")
-                        for i in range(ds.ndim)]
-                shape = "×".join(f"{d}={n}" for d, n in zip(dims, ds.shape))
-                units = _text(ds.attrs.get("units", "")) if "units" in ds.attrs else ""
+            for v in ds.variables(gname):
+                shape = "×".join(f"{d}={n}" for d, n in zip(v.dims, v.shape))
+                units = _text(v.units) if v.units is not None else ""
                 extra = ""
-                if vname == "time" and ds.shape[0]:
-                    extra = f"  [{ds[0]:g} .. {ds[-1]:g}]"
-                lines.append(f"    {vname:<18} ({shape}) {units}{extra}")
+                if v.name == TIME and v.shape[0]:
+                    n = v.shape[0]
+                    first = ds.read(gname, TIME, slice(0, 1))[0]
+                    last = ds.read(gname, TIME, slice(n - 1, n))[0]
+                    extra = f"  [{first:g} .. {last:g}]"
+                lines.append(f"    {v.name:<18} ({shape}) {units}{extra}")
     return "\n".join(lines)

@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from rlgsim.sim import dataset
+from rlgsim.ground.dataset_format import FORMAT, open_dataset
 from rlgsim.ground.errors import UserInputError
+from rlgsim.sim import dataset
 from rlgsim.sim.scenario import load_scenario, parse_scenario
 import rlgsim.sim.simulate as simulate_module
 from rlgsim.sim.simulate import BLOCK_S, simulate
@@ -79,8 +80,8 @@ def test_thermal_group_contents(quick_file):
 
 
 def test_root_attributes_embed_the_scenario(quick_file):
-    with dataset.open_dataset(quick_file) as f:
-        assert f.attrs["rlgsim_format"] == dataset.FORMAT
+    with open_dataset(quick_file) as f:
+        assert f.attrs["rlgsim_format"] == FORMAT
         assert f.attrs["scenario_text"] == QUICKSTART.read_text()
         assert int(f.attrs["seed"]) == 20260101
         assert f.attrs["software_version"]
@@ -143,9 +144,9 @@ def test_reader_rejects_other_files(tmp_path):
     text.write_text("hello")
     for p in (plain, text):
         with pytest.raises(UserInputError, match="not an rlgsim dataset"):
-            dataset.open_dataset(p)
+            open_dataset(p)
     with pytest.raises(UserInputError, match="no such file"):
-        dataset.open_dataset(tmp_path / "missing.h5")
+        open_dataset(tmp_path / "missing.h5")
 
 
 def test_unwritable_output_is_a_user_error(tmp_path):

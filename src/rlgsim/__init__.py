@@ -29,7 +29,7 @@ _PUBLIC = {
     "parse_scenario": "rlgsim.sim.scenario:parse_scenario",
     "Scenario": "rlgsim.sim.scenario:Scenario",
     "simulate": "rlgsim.sim.simulate:simulate",
-    "open_dataset": "rlgsim.sim.dataset:open_dataset",
+    "open_dataset": "rlgsim.ground.dataset_format:open_dataset",
     "load_study": "rlgsim.sim.study:load_study",
     "run_study": "rlgsim.sim.study:run_study",
     "UserInputError": "rlgsim.ground.errors:UserInputError",

@@ -1,0 +1,283 @@
+"""The rlgsim dataset format: its marker, version, names, and the one reader every module uses.
+
+A dataset is one HDF5 file laid out the netCDF-4 way (docs/dataset.md is the schema): one
+group per part of the run, a coordinate (HDF5 dimension scale) per dimension, ``units`` and
+``description`` on every variable. The root carries the format marker
+``rlgsim_format = "rlgsim dataset"`` and ``rlgsim_format_version``. The simulator declares the
+groups in one place (:mod:`rlgsim.sim.dataset_schema`) and writes them with
+:mod:`rlgsim.sim.dataset`; everything that *reads* a dataset — ``rlgsim info``, the calibration,
+the studies, a user's notebook — goes through :func:`open_dataset` and :class:`Dataset`, so the
+marker is checked once and no module spells raw HDF5 paths.
+
+Units: what the file says (the ``units`` attribute of each variable, UDUNITS spelling): times
+in s since the start of the run, absolute temperatures in °C, rates in rad/s, pulses as counts;
+the reader never converts. A row on the thermal grid (dimension ``time``) describes the step
+``[time − thermal_step_s, time)``; IMU sample ``k`` (dimension ``sample``, no stored coordinate)
+covers ``[k/f, (k+1)/f)`` with ``f = sample_rate_hz``.
+
+Memory: :meth:`Dataset.read` takes a row range (and columns), :meth:`Dataset.read_blocks`
+walks a long variable in blocks of rows, so a reader never needs a whole 100 Hz record in
+memory.
+
+This module imports neither ``rlgsim.sim`` nor ``rlgsim.estimators`` (both sides use it), and
+imports h5py only when a file is opened.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+from dataclasses import dataclass
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+
+from rlgsim.ground.errors import UserInputError
+
+#: Root attribute :data:`FORMAT_ATTR` of every rlgsim dataset holds this marker.
+FORMAT = "rlgsim dataset"
+#: Layout version written today; readers refuse newer versions. Bump it when the layout
+#: changes incompatibly.
+FORMAT_VERSION = 1
+FORMAT_ATTR = "rlgsim_format"
+VERSION_ATTR = "rlgsim_format_version"
+
+# ---- group names (docs/dataset.md)
+TIMELINE = "timeline"      #: labelled segments of the run and the chamber setpoint breakpoints
+THERMAL = "thermal"        #: chamber and true node temperatures on the thermal grid
+PROBES = "probes"          #: thermometer readings on the thermal grid (what hardware logs)
+IMU = "imu"                #: pulses per sample, UHFO on the thermal grid (what hardware logs)
+TURNTABLE = "turntable"    #: table angles on the thermal grid and the table of motions
+TRUTH = "truth"            #: true sensor parameters, true inputs, the drawn unit
+CALIBRATION = "calibration"  #: added by ``rlgsim calibrate`` (one row per calibration window)
+
+# ---- dimension names shared by several groups
+TIME = "time"              #: thermal grid: end of each thermal step [s]
+SAMPLE = "sample"          #: IMU sample axis (no stored coordinate)
+
+#: Every variable (coordinates included) of each group the simulator writes, in the order it
+#: declares them; optional ones (accelerometers, UHFO, per-sample truth) are listed too.
+#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_dataset.py checks it).
+VARIABLES: dict[str, tuple[str, ...]] = {
+    TIMELINE: ("segment", "t0", "t1", "track", "label", "attrs", "breakpoint", "setpoint_time",
+               "setpoint"),
+    THERMAL: ("time", "chamber_setpoint", "chamber_air", "power_on", "node", "node_temperature",
+              "capacitance", "capacitance_factor", "ambient_conductance",
+              "ambient_conductance_factor", "power", "power_factor", "link", "link_conductance",
+              "link_conductance_factor"),
+    PROBES: ("time", "probe", "probe_node", "tau", "noise_sigma", "resolution", "temperature"),
+    IMU: ("sample", "time", "gyro", "gyro_pulses", "accel", "accel_pulses", "uhfo"),
+    TURNTABLE: ("time", "outer_angle", "inner_angle", "motion_index", "motion", "motion_t0",
+                "motion_t1", "motion_label", "motion_kind", "motion_axis", "motion_rate",
+                "motion_position", "motion_window"),
+    TRUTH: ("time", "body", "gyro", "coefficient", "coefficient_value", "coefficient_units",
+            "gyro_bias", "gyro_bias_random", "gyro_scale_factor", "gyro_installation",
+            "gyro_white_sigma", "accel", "accel_bias", "accel_bias_random",
+            "accel_scale_factor_pos", "accel_scale_factor_neg", "accel_installation",
+            "accel_white_sigma", "uhfo_true", "uhfo_u0", "dtheta_step", "dv_step", "sample",
+            "dtheta", "dv"),
+}
+
+
+class MissingVariableError(UserInputError, KeyError):
+    """A group or variable the caller needs is not in the dataset (one line; also a KeyError)."""
+
+
+@dataclass(frozen=True)
+class VariableInfo:
+    """What a variable is, without reading it: ``name``, ``dims`` (dimension names, ``"?"``
+    where none is attached), ``shape``, ``units`` (None when the variable has none),
+    ``description``, ``dtype``, ``is_coordinate`` (a dimension scale)."""
+
+    name: str
+    dims: tuple[str, ...]
+    shape: tuple[int, ...]
+    units: str | None
+    description: str
+    dtype: np.dtype
+    is_coordinate: bool
+
+
+def _plain(value: Any) -> Any:
+    """An attribute value as Python: bytes → str, numpy scalars → int/float/str."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    return value
+
+
+def open_dataset(path: str | os.PathLike) -> "Dataset":
+    """Open an rlgsim dataset read-only after checking its format marker and version.
+
+    Raises :class:`~rlgsim.ground.errors.UserInputError` (one line naming the file) for a
+    missing file, a directory, a file that is not HDF5, an HDF5 file without the marker
+    ("not an rlgsim dataset"), or a format version this rlgsim cannot read. Use it as a
+    context manager (or call :meth:`Dataset.close`).
+    """
+    import h5py
+
+    p = pathlib.Path(path)
+    if not p.exists():
+        raise UserInputError(f"{p}: no such file")
+    if p.is_dir():
+        raise UserInputError(f"{p}: is a directory, not an rlgsim dataset")
+    try:
+        f = h5py.File(p, "r")
+    except OSError:
+        raise UserInputError(f"{p}: not an rlgsim dataset (not an HDF5 file)") from None
+    try:
+        fmt = _plain(f.attrs.get(FORMAT_ATTR))
+        if fmt != FORMAT:
+            raise UserInputError(f"{p}: not an rlgsim dataset (HDF5 file without the "
+                                 f"{FORMAT_ATTR} = '{FORMAT}' marker)")
+        raw = _plain(f.attrs.get(VERSION_ATTR))
+        try:
+            version = int(raw)
+        except (TypeError, ValueError):
+            version = None
+        if version is None or isinstance(raw, float) and raw != version:
+            raise UserInputError(f"{p}: rlgsim dataset without a valid {VERSION_ATTR} "
+                                 f"({raw!r}); this rlgsim reads versions 1 to {FORMAT_VERSION}")
+        if version > FORMAT_VERSION:
+            raise UserInputError(f"{p}: rlgsim dataset format version {version} is newer than "
+                                 f"this rlgsim reads ({FORMAT_VERSION}); upgrade rlgsim")
+        if version < 1:
+            raise UserInputError(f"{p}: rlgsim dataset format version {version} is not valid; "
+                                 f"this rlgsim reads versions 1 to {FORMAT_VERSION}")
+    except BaseException:
+        f.close()
+        raise
+    return Dataset(f, p, version)
+
+
+class Dataset:
+    """An open rlgsim dataset (from :func:`open_dataset`), read-only.
+
+    ``path``; ``version`` the format version; ``attrs`` the root attributes as plain Python
+    values (str, int, float; docs/dataset.md "Root attributes"). Variables are addressed by
+    group and name, e.g. ``read(IMU, "gyro_pulses", rows=slice(k0, k1), columns=0)``.
+    A missing group or variable raises :class:`MissingVariableError`.
+    """
+
+    def __init__(self, h5file: Any, path: pathlib.Path, version: int) -> None:
+        self._f = h5file
+        self.path = path
+        self.version = version
+        self.attrs: dict[str, Any] = {k: _plain(v) for k, v in h5file.attrs.items()}
+        self._times: dict[str, np.ndarray] = {}
+
+    # ---- life cycle ---------------------------------------------------------------------
+    def close(self) -> None:
+        self._f.close()
+
+    def __enter__(self) -> "Dataset":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<rlgsim Dataset {self.path} v{self.version}: {', '.join(self.groups())}>"
+
+    # ---- what is there ------------------------------------------------------------------
+    def groups(self) -> list[str]:
+        """Group names in file order."""
+        import h5py
+        return [name for name, g in self._f.items() if isinstance(g, h5py.Group)]
+
+    def has(self, group: str, name: str | None = None) -> bool:
+        """Whether the group (and its variable ``name``) exists."""
+        if name is None:
+            return group in self._f
+        return group in self._f and name in self._f[group]
+
+    def _var(self, group: str, name: str):
+        if not self.has(group, name):
+            what = f"group {group!r}" if not self.has(group) else f"variable {group}/{name}"
+            raise MissingVariableError(f"{self.path}: the dataset has no {what}")
+        return self._f[group][name]
+
+    def group_attrs(self, group: str) -> dict[str, Any]:
+        """Attributes of a group (plain Python values), e.g. ``imu``'s ``sample_rate_hz``."""
+        if not self.has(group):
+            raise MissingVariableError(f"{self.path}: the dataset has no group {group!r}")
+        return {k: _plain(v) for k, v in self._f[group].attrs.items()}
+
+    def variables(self, group: str) -> list[VariableInfo]:
+        """Every variable of a group, in file order, described without reading its data."""
+        if not self.has(group):
+            raise MissingVariableError(f"{self.path}: the dataset has no group {group!r}")
+        out = []
+        for name, ds in self._f[group].items():
+            if ds.is_scale:
+                dims = (name,) * ds.ndim
+            else:
+                dims = tuple(ds.dims[i][0].name.rsplit("/", 1)[-1] if len(ds.dims[i]) else "?"
+                             for i in range(ds.ndim))
+            units = _plain(ds.attrs["units"]) if "units" in ds.attrs else None
+            out.append(VariableInfo(name, dims, tuple(ds.shape), units,
+                                    _plain(ds.attrs.get("description", "")), ds.dtype,
+                                    bool(ds.is_scale)))
+        return out
+
+    def length(self, group: str, name: str) -> int:
+        """Number of rows (first dimension) of a variable."""
+        return int(self._var(group, name).shape[0])
+
+    # ---- reading ------------------------------------------------------------------------
+    def read(self, group: str, name: str, rows: slice | None = None,
+             columns: int | Sequence[int] | None = None) -> np.ndarray:
+        """A variable's values in its stored dtype and units; ``rows`` a slice of the first
+        dimension, ``columns`` an index or increasing indices of the second. Strings come back
+        as an object array of ``str``."""
+        ds = self._var(group, name)
+        if ds.dtype.kind == "O" or ds.dtype.kind == "S":
+            import h5py
+            if h5py.check_string_dtype(ds.dtype) is not None:
+                ds = ds.asstr()
+        if columns is not None:
+            return ds[slice(None) if rows is None else rows, columns]
+        return ds[...] if rows is None else ds[rows]
+
+    def read_blocks(self, group: str, name: str, block_rows: int, *, start: int = 0,
+                    stop: int | None = None, columns: int | Sequence[int] | None = None
+                    ) -> Iterator[tuple[int, np.ndarray]]:
+        """``(first_row, values)`` for consecutive blocks of at most ``block_rows`` rows of
+        ``[start, stop)`` (default: all rows) — bounded memory over any run length."""
+        if block_rows < 1:
+            raise ValueError(f"block_rows must be >= 1, got {block_rows}")
+        n = self.length(group, name) if stop is None else stop
+        for k0 in range(start, n, block_rows):
+            yield k0, self.read(group, name, slice(k0, min(n, k0 + block_rows)), columns)
+
+    def strings(self, group: str, name: str) -> list[str]:
+        """A string variable or coordinate as a list of ``str`` (e.g. ``probes/probe``)."""
+        return [str(v) for v in self.read(group, name)]
+
+    def time_rows(self, group: str, t0_s: float, t1_s: float) -> slice:
+        """Rows of a group's ``time`` grid whose step ends in ``(t0_s, t1_s]`` [s]."""
+        t = self._times.get(group)
+        if t is None:
+            t = self._times[group] = self.read(group, TIME)
+        return slice(int(np.searchsorted(t, t0_s, side="right")),
+                     int(np.searchsorted(t, t1_s, side="right")))
+
+    # ---- decoded tables -----------------------------------------------------------------
+    def segments(self, track: str | None = None) -> list[dict[str, Any]]:
+        """The timeline's segments as dicts ``t0``, ``t1`` [s], ``track``, ``label``, ``attrs``
+        (the JSON details decoded), in file order; only ``track``'s when given."""
+        t0, t1 = self.read(TIMELINE, "t0"), self.read(TIMELINE, "t1")
+        tracks, labels = self.read(TIMELINE, "track"), self.read(TIMELINE, "label")
+        details = self.read(TIMELINE, "attrs")
+        return [dict(t0=float(a), t1=float(b), track=str(tr), label=str(lb),
+                     attrs=json.loads(str(at)))
+                for a, b, tr, lb, at in zip(t0, t1, tracks, labels, details)
+                if track is None or str(tr) == track]
+
+    def coefficients(self) -> dict[str, float]:
+        """The drawn unit's coefficient table (group ``truth``): ``<law>.<term>[<axis>]`` →
+        value in the unit of ``truth/coefficient_units`` (e.g. ``gyro.k0[x]`` pulses/rad)."""
+        return dict(zip(self.strings(TRUTH, "coefficient"),
+                        map(float, self.read(TRUTH, "coefficient_value"))))
