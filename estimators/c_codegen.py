@@ -11,9 +11,9 @@ dependency beyond ``<math.h>`` (``exp``, ``pow``) and no allocation::
 ``NAME_INPUT_UNITS``); the return value is the predicted target (e.g. the gyro bias in °/h, to
 be subtracted from the gyro output). ``range_flags`` may be ``NULL``; otherwise it receives a bit
 mask with bit ``i`` set when ``x[i]`` lies outside the training range ``[NAME_TRAIN_MIN[i],
-NAME_TRAIN_MAX[i]]`` (or is NaN; inputs from the 64th on share bit 63): the value is still computed, but it is an extrapolation —
-learnt laws did 2.4 times worse off the training range on hold-out runs — and the caller decides
-whether to use it. ``0`` means every input is inside.
+NAME_TRAIN_MAX[i]]`` or is NaN (inputs from the 64th on share bit 63). The value is still
+computed, but it is an extrapolation — learnt laws did 2.4 times worse off the training range on
+hold-out runs — and the caller decides whether to use it. ``0`` means every input is inside.
 
 Which generator:
 

@@ -23,13 +23,14 @@ Every built-in compensator is, once fitted, one of two closed forms in standardi
 :class:`ExportedCompensator`: a predict-only scikit-learn regressor holding that closed form.
 Its ``predict`` follows the operations of the source estimator (same scaling, same
 ``design_matrix``; squared distances formed as ``‖a‖² − 2a·b + ‖b‖²`` by scikit-learn's
-``rbf_kernel`` for LS-SVM and IR-LSSVM, from exact differences for the others), so the polynomial
-kinds, the LS-SVMs and the RBF networks predict bit-identically and the RVRs and PSO-SVR to
-rounding (≤ 1e-12 relative: libsvm, for one, sums its kernel terms in its own order). It warns (:class:`OutOfTrainingRangeWarning`) when an input
-lies outside the range it was trained on: the hold-out runs showed learnt laws 2.4 times worse
-off the training range. :meth:`ExportedCompensator.to_json` / :func:`load_json` write and read
-the file; a damaged file gives one :class:`~rlgsim.ground.errors.UserInputError` line naming
-the file and the key. :mod:`rlgsim.estimators.c_codegen` turns the same object into C.
+``rbf_kernel`` for LS-SVM and IR-LSSVM, from exact differences for the others), so the
+polynomial kinds, the LS-SVMs and the RBF networks predict bit-identically and the RVRs and
+PSO-SVR to rounding (≤ 1e-12 relative: libsvm, for one, sums its kernel terms in its own
+order). It warns (:class:`OutOfTrainingRangeWarning`) when an input lies outside the range it
+was trained on: the hold-out runs showed learnt laws 2.4 times worse off the training range.
+:meth:`ExportedCompensator.to_json` / :func:`load_json` write and read the file; a damaged file
+gives one :class:`~rlgsim.ground.errors.UserInputError` line naming the file and the key.
+:mod:`rlgsim.estimators.c_codegen` turns the same object into C.
 
 Why not pickle/joblib or ONNX: a pickle is neither readable nor portable to the gyro's
 microprocessor and breaks across library versions; skl2onnx converts scikit-learn classes, not
@@ -338,7 +339,8 @@ class ExportedCompensator(RegressorMixin, BaseEstimator):
         return path
 
     def to_c(self, function_name: str | None = None):
-        """C source and header of this compensator (:func:`rlgsim.estimators.c_codegen.generate_c`)."""
+        """C source and header of this compensator
+        (:func:`rlgsim.estimators.c_codegen.generate_c`)."""
         from rlgsim.estimators.c_codegen import generate_c
         return generate_c(self, function_name)
 
