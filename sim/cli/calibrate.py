@@ -158,24 +158,17 @@ def run(args: argparse.Namespace) -> int:
 
 def write_group(path: str | os.PathLike, result) -> None:
     """Add (or replace) the group ``calibration`` of the dataset: written under a temporary
-    name, then moved into place, so an interrupted write never leaves a half group named
-    ``calibration``."""
-    import h5py
-
+    name, then moved into place (:func:`rlgsim.sim.dataset.add_group`), so an interrupted write
+    never leaves a half group named ``calibration``."""
     from rlgsim.estimators.calibration import AXES, PARAMETERS, unit_of
-    from rlgsim.sim.dataset import GroupWriter
+    from rlgsim.ground.dataset_format import CALIBRATION
+    from rlgsim.sim.dataset import add_group
 
     rows = result.rows
-    tmp = f"calibration.tmp-{os.getpid()}"
-    with h5py.File(path, "r+") as f:
-        if tmp in f:
-            del f[tmp]
-        g = f.create_group(tmp, track_order=True)
-        g.attrs["description"] = ("turntable Kalman calibration per calibration window "
-                                  "(rlgsim calibrate; docs/calibration.md)")
-        g.attrs["nominal_gyro_sf_pulse_per_arcsec"] = result.nominal.k_g * np.pi / 180 / 3600
-        g.attrs["nominal_accel_sf_pulse_per_s_per_g"] = result.nominal.k_a_pos * G0
-        w = GroupWriter(g)
+    attrs = {"nominal_gyro_sf_pulse_per_arcsec": result.nominal.k_g * np.pi / 180 / 3600,
+             "nominal_accel_sf_pulse_per_s_per_g": result.nominal.k_a_pos * G0}
+    with add_group(path, CALIBRATION, "turntable Kalman calibration per calibration window "
+                                      "(rlgsim calibrate; docs/calibration.md)", attrs) as w:
         w.coordinate("window", np.array([r["window"] for r in rows], dtype=np.int32),
                      units="1", dtype=np.int32, description="calibration window index")
         w.coordinate("probe", result.probes or [""], description="thermometer probe")
@@ -224,6 +217,3 @@ def write_group(path: str | os.PathLike, result) -> None:
                 w.variable(f"accel_sf_{s}_{a}_pulse_per_s_per_g", ("window",), units="s-1",
                            data=col(f"accel_sf_{s}_{a}_pulse_per_s_per_g"),
                            description=f"accelerometer {a} {s} scale factor [pulses/s at 1 g]")
-        if "calibration" in f:
-            del f["calibration"]
-        f.move(tmp, "calibration")
