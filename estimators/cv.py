@@ -16,7 +16,7 @@ import numpy as np
 from sklearn.model_selection import KFold
 from sklearn.utils import check_random_state
 
-from ._validation import check_folds, check_min_samples
+from rlgsim.estimators._validation import check_folds, check_min_samples
 
 Split = tuple[np.ndarray, np.ndarray]
 

@@ -74,19 +74,18 @@ import numpy as np
 from scipy import linalg
 from scipy.linalg import lapack
 from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.metrics.pairwise import rbf_kernel
 from sklearn.model_selection import KFold
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 from threadpoolctl import threadpool_limits  # a scikit-learn dependency
 
-from rlgsim.estimators._validation import check_folds, check_not_constant
+from rlgsim.estimators._validation import (check_folds, check_positive, standardisation,
+                                           validate_fit_input)
+from rlgsim.estimators.kernels import CHUNK_ROWS, kernel_expansion, rbf
 
 #: ``solver="auto"`` uses the dense solver up to this many samples (an 8e8-byte kernel matrix),
 #: the Nyström (fixed-size) solver above it.
 MAX_DENSE_SAMPLES = 10_000
-#: Rows per chunk when kernel blocks against the training set or the landmarks are formed.
-CHUNK_ROWS = 4096
 SOLVERS = ("auto", "dense", "nystroem")
 #: Below this many samples fits, CV grids and re-weighting loops run on one BLAS thread. Their
 #: factorisations are too small for threads to pay off, and when the cores are shared with other
@@ -103,29 +102,8 @@ def blas_threads_for(n_samples: int) -> AbstractContextManager:
 
 
 # --------------------------------------------------------------------------------------------
-# kernel and linear algebra
+# linear algebra
 # --------------------------------------------------------------------------------------------
-
-def rbf_gamma(sigma2: float) -> float:
-    """scikit-learn's RBF ``gamma`` for paper 001's width: ``exp(-d**2/(2 sigma2))`` (eq. 11)."""
-    return 1.0 / (2.0 * sigma2)
-
-
-def rbf(A: np.ndarray, B: np.ndarray, sigma2: float) -> np.ndarray:
-    """RBF kernel matrix ``exp(-||a_i - b_j||**2 / (2 sigma2))`` (paper 001 eq. 11), float64."""
-    return rbf_kernel(A, B, gamma=rbf_gamma(sigma2))
-
-
-def kernel_expansion(X: np.ndarray, centres: np.ndarray, coef: np.ndarray, intercept: float,
-                     sigma2: float) -> np.ndarray:
-    """``sum_j coef_j K(x, centre_j) + intercept`` for each row of ``X``, chunked in rows."""
-    out = np.empty(X.shape[0])
-    for start in range(0, X.shape[0], CHUNK_ROWS):
-        stop = start + CHUNK_ROWS
-        out[start:stop] = rbf(X[start:stop], centres, sigma2) @ coef
-    out += intercept
-    return out
-
 
 @dataclass
 class BorderedSolution:
@@ -259,48 +237,6 @@ def make_folds(n_samples: int, cv: int | None, random_state) -> list[np.ndarray]
 
 
 # --------------------------------------------------------------------------------------------
-# input checks shared by the LS-SVM estimators
-# --------------------------------------------------------------------------------------------
-
-def check_positive(value, name: str) -> float:
-    """``value`` as a float if it is finite and > 0, else ``ValueError`` naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive number, got {value!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
-
-
-def check_positive_grid(values, name: str) -> np.ndarray:
-    """A non-empty 1-D grid of finite positive numbers, else ``ValueError`` naming ``name``."""
-    arr = np.atleast_1d(np.asarray(values, dtype=object))
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D sequence of numbers > 0, got {values!r}")
-    return np.array([check_positive(v, f"each value of {name}") for v in arr])
-
-
-def validate_fit_input(estimator: BaseEstimator, X, y) -> tuple[np.ndarray, np.ndarray]:
-    """Validate training data: finite float64, matching lengths, >= 2 samples, no constant column.
-
-    Builds on scikit-learn's ``validate_data`` (NaN/inf, shapes, lengths) and
-    ``rlgsim.estimators._validation.check_not_constant``; sets ``n_features_in_``.
-    """
-    X, y = validate_data(estimator, X, y, dtype=np.float64, y_numeric=True, ensure_min_samples=2)
-    y = np.asarray(y, dtype=np.float64)  # integer targets: residuals must not be truncated
-    check_not_constant(X, list(map(str, getattr(estimator, "feature_names_in_", []))) or None)
-    return X, y
-
-
-def standardisation(X: np.ndarray, standardize: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Column means and standard deviations (``ddof=0``) of ``X``, or ``0``/``1`` if disabled."""
-    if not standardize:
-        return np.zeros(X.shape[1]), np.ones(X.shape[1])
-    return X.mean(axis=0), X.std(axis=0)
-
-
-# --------------------------------------------------------------------------------------------
 # the estimator
 # --------------------------------------------------------------------------------------------
 
@@ -369,10 +305,7 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         sigma2 = check_positive(self.sigma2, "sigma2")
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
-        if isinstance(self.n_landmarks, bool) or not isinstance(self.n_landmarks,
-                                                                (int, np.integer)) \
-                or self.n_landmarks < 1:
-            raise ValueError(f"n_landmarks must be an integer >= 1, got {self.n_landmarks!r}")
+        n_landmarks = check_positive(self.n_landmarks, "n_landmarks", integer=True)
         X, y = validate_fit_input(self, X, y)
         self.x_mean_, self.x_scale_ = standardisation(X, self.standardize)
         Xs = (X - self.x_mean_) / self.x_scale_
@@ -382,12 +315,12 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
             solver = "dense" if n <= MAX_DENSE_SAMPLES else "nystroem"
         self.solver_ = solver
         # the Nyström solver's matrices are m x m and chunk x m: their size is the landmarks'
-        size = n if solver == "dense" else min(int(self.n_landmarks), n)
+        size = n if solver == "dense" else min(n_landmarks, n)
         with blas_threads_for(size):
             if solver == "dense":
                 self._fit_dense(Xs, y, gamma, sigma2)
             else:
-                self._fit_nystroem(Xs, y, gamma, sigma2)
+                self._fit_nystroem(Xs, y, gamma, sigma2, n_landmarks)
         return self
 
     def _fit_dense(self, Xs: np.ndarray, y: np.ndarray, gamma: float, sigma2: float) -> None:
@@ -402,9 +335,10 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         if self.compute_loo:
             self.loo_residuals_ = cholesky_cv_residuals(sol, None)
 
-    def _fit_nystroem(self, Xs: np.ndarray, y: np.ndarray, gamma: float, sigma2: float) -> None:
+    def _fit_nystroem(self, Xs: np.ndarray, y: np.ndarray, gamma: float, sigma2: float,
+                      n_landmarks: int) -> None:
         n = Xs.shape[0]
-        m = int(min(self.n_landmarks, n))
+        m = min(n_landmarks, n)
         rng = check_random_state(self.random_state)
         Z = Xs[np.sort(rng.choice(n, size=m, replace=False))]
         F = nystroem_map(rbf(Z, Z, sigma2))
@@ -459,5 +393,6 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self, "dual_coef_")
         X = validate_data(self, X, dtype=np.float64, reset=False)
         Xs = (X - self.x_mean_) / self.x_scale_
+        sigma2 = float(self.sigma2)
         return kernel_expansion(Xs, self.support_, self.dual_coef_, self.intercept_,
-                                float(self.sigma2))
+                                lambda A, B: rbf(A, B, sigma2))

@@ -27,8 +27,10 @@ from scipy import linalg
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from rlgsim.estimators.lssvm import (LSSVMRegressor, blas_threads_for, check_positive_grid,
-                              cv_residuals, make_folds, rbf, standardisation, validate_fit_input)
+from rlgsim.estimators._validation import (check_positive_grid, standardisation,
+                                           validate_fit_input)
+from rlgsim.estimators.kernels import rbf
+from rlgsim.estimators.lssvm import LSSVMRegressor, blas_threads_for, cv_residuals, make_folds
 
 SCORES = {
     "mse": lambda r: float(np.mean(r**2)),
@@ -70,7 +72,8 @@ def lssvm_grid_cv_residuals(Xs: np.ndarray, y: np.ndarray, gammas: np.ndarray,
 
 
 class LSSVMRegressorCV(RegressorMixin, BaseEstimator):
-    """LS-SVM (:class:`rlgsim.estimators.lssvm.LSSVMRegressor`) with grid-searched ``gamma`` and ``sigma2``.
+    """LS-SVM (:class:`rlgsim.estimators.lssvm.LSSVMRegressor`) with grid-searched ``gamma``
+    and ``sigma2``.
 
     Parameters
     ----------

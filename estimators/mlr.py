@@ -86,7 +86,8 @@ class MLRBICRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
     max_exhaustive_terms : int, default 10
         "auto" searches exhaustively up to this many free candidates (2^10 = 1024 fits).
     feature_names : sequence of str, optional
-        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else x0, x1 ...).
+        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else
+        x0, x1 ...).
 
     Attributes
     ----------

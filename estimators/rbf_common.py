@@ -1,4 +1,4 @@
-"""Pieces shared by the two RBF networks: input standardisation, the Gaussian hidden layer and
+"""Pieces shared by the two RBF networks: the Gaussian hidden layer, its forward pass and
 orthogonal-least-squares (OLS) forward selection of centres.
 
 Used by :mod:`rlgsim.estimators.rbf_network` (the traditional, MATLAB ``newrb``-style network) and
@@ -56,69 +56,18 @@ no maintained package ships Chen-Cowan-Grant OLS.
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.linalg.blas import dger
-from scipy.spatial.distance import cdist
-
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from rlgsim.estimators._validation import check_not_constant
+from rlgsim.estimators.kernels import gaussian, kernel_expansion, squared_distances
 
 #: ``-ln 0.5``: a Gaussian neuron outputs 0.5 at distance ``spread`` from its centre (newrb).
 LN2 = math.log(2.0)
 
 _BIAS_MODES = ("fixed", "after", None)
-
-
-def fit_standardiser(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column mean and standard deviation (ddof=0) of the training inputs ``X``.
-
-    Raises ``ValueError`` naming every constant column (it would divide by zero and carries no
-    information).
-    """
-    check_not_constant(X)
-    mean = X.mean(axis=0)
-    scale = X.std(axis=0)
-    # A column can have ptp > 0 and still a std that underflows; treat it as constant too.
-    tiny = scale <= np.finfo(float).tiny * np.maximum(1.0, np.abs(mean))
-    if np.any(tiny):
-        raise ValueError(f"constant input (column {', '.join(map(str, np.flatnonzero(tiny)))}): "
-                         "a constant input carries no information; remove it")
-    return mean, scale
-
-
-def check_spread(spread: float) -> float:
-    """Return ``spread`` as float or raise ``ValueError`` unless it is finite and > 0."""
-    try:
-        value = float(spread)
-    except (TypeError, ValueError):
-        raise ValueError(f"spread must be a positive number, got {spread!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"spread must be a positive finite number, got {spread!r}")
-    return value
-
-
-def check_positive(value, name: str, *, integer: bool = False,
-                   upper: float | None = None) -> None:
-    """Raise ``ValueError`` unless ``value`` is a finite number > 0 (an integer >= 1 if
-    ``integer``), and below ``upper`` when given."""
-    kind = numbers.Integral if integer else numbers.Real
-    ok = isinstance(value, kind) and not isinstance(value, bool) and math.isfinite(value)
-    ok = ok and value > 0 and (upper is None or value < upper)
-    if not ok:
-        what = "an integer >= 1" if integer else "a finite number > 0"
-        if upper is not None:
-            what += f" and < {upper}"
-        raise ValueError(f"{name} must be {what}, got {value!r}")
-
-
-def check_max_centers(max_centers: int | None) -> None:
-    """Raise ``ValueError`` unless ``max_centers`` is None or an integer >= 1."""
-    if max_centers is not None:
-        check_positive(max_centers, "max_centers (or None)", integer=True)
 
 
 def gaussian_design(Z: np.ndarray, centers: np.ndarray, spread: float) -> np.ndarray:
@@ -132,8 +81,7 @@ def gaussian_design(Z: np.ndarray, centers: np.ndarray, spread: float) -> np.nda
     centers = np.asarray(centers, dtype=float)
     if centers.shape[0] == 0:
         return np.empty((Z.shape[0], 0))
-    d2 = cdist(Z, centers, "sqeuclidean")
-    return np.exp(d2 * (-LN2 / spread**2))
+    return gaussian(squared_distances(Z, centers), LN2 / spread**2)
 
 
 class ForwardOLS:
@@ -300,13 +248,12 @@ class GaussianNetworkOutput:
     hidden layer (``centers_``, ``spread``) and the linear output layer (``weights_``,
     ``intercept_``). Mixed into the estimators before ``RegressorMixin``."""
 
-    def _hidden(self, X) -> np.ndarray:
-        Z = (X - self.x_mean_) / self.x_scale_
-        C = (self.centers_ - self.x_mean_) / self.x_scale_
-        return gaussian_design(Z, C, float(self.spread))
-
     def predict(self, X) -> np.ndarray:
         """Network output for inputs ``X`` (n, n_features), in the target's unit."""
         check_is_fitted(self)
-        X = validate_data(self, X, reset=False)
-        return self._hidden(X) @ self.weights_ + self.intercept_
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        Z = (X - self.x_mean_) / self.x_scale_
+        C = (self.centers_ - self.x_mean_) / self.x_scale_
+        spread = float(self.spread)
+        return kernel_expansion(Z, C, self.weights_, self.intercept_,
+                                lambda A, B: gaussian_design(A, B, spread))

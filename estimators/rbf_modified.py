@@ -49,10 +49,9 @@ from scipy.spatial.distance import cdist
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils import check_random_state
-from sklearn.utils.validation import validate_data
 
-from rlgsim.estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_positive, check_spread,
-                                   fit_standardiser, gaussian_design)
+from rlgsim.estimators._validation import check_positive, standardisation, validate_fit_input
+from rlgsim.estimators.rbf_common import ForwardOLS, GaussianNetworkOutput, gaussian_design
 
 
 class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
@@ -130,9 +129,9 @@ class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         self.max_centers = max_centers
         self.random_state = random_state
 
-    def _check_params(self, n_samples: int) -> tuple[float, int, int, int]:
-        spread = check_spread(self.spread)
-        check_positive(self.rho, "rho", upper=1.0)
+    def _check_params(self, n_samples: int) -> tuple[float, float, int, int, int]:
+        spread = check_positive(self.spread, "spread")
+        rho = check_positive(self.rho, "rho", upper=1.0)
         shape = self.som_shape
         if shape is None:
             side = math.ceil(math.sqrt(5.0 * math.sqrt(n_samples)))
@@ -149,8 +148,8 @@ class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
             iterations = 20 * n_nodes
         else:
             check_positive(iterations, "som_iterations", integer=True)
-        check_max_centers(self.max_centers)
-        return spread, int(shape[0]), int(shape[1]), int(iterations)
+        check_positive(self.max_centers, "max_centers", integer=True, allow_none=True)
+        return spread, rho, int(shape[0]), int(shape[1]), int(iterations)
 
     def fit(self, X, y):
         """Fit on inputs ``X`` (n, n_features) and target ``y`` (n,).
@@ -158,10 +157,9 @@ class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         Raises ``ValueError`` for NaN/inf, mismatched lengths, fewer than 2 samples, a
         constant input column, or invalid parameters.
         """
-        X, y = validate_data(self, X, y, ensure_min_samples=2, y_numeric=True)
-        y = np.asarray(y, dtype=float)
-        spread, nx, ny, iterations = self._check_params(X.shape[0])
-        self.x_mean_, self.x_scale_ = fit_standardiser(X)
+        X, y = validate_fit_input(self, X, y)
+        spread, rho, nx, ny, iterations = self._check_params(X.shape[0])
+        self.x_mean_, self.x_scale_ = standardisation(X)
         Z = (X - self.x_mean_) / self.x_scale_
         n_features = Z.shape[1]
 
@@ -185,7 +183,7 @@ class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         ols = ForwardOLS(gaussian_design(Z, candidates, spread), y, bias="fixed")
         limit = self.n_candidates_ if self.max_centers is None else min(
             int(self.max_centers), self.n_candidates_)
-        while ols.unexplained >= self.rho and len(ols.selected) < limit:
+        while ols.unexplained >= rho and len(ols.selected) < limit:
             if ols.step() is None:
                 break
 
@@ -198,9 +196,9 @@ class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         self.unexplained_ = ols.unexplained
         r = ols.residual()
         self.mse_ = float(r @ r) / Z.shape[0]
-        if self.unexplained_ >= self.rho:
+        if self.unexplained_ >= rho:
             warnings.warn(f"ModifiedRBFNetwork: 1 - sum(err) = {self.unexplained_:.3g} did not "
-                          f"fall below rho = {self.rho:.3g} with {self.n_centers_} of "
+                          f"fall below rho = {rho:.3g} with {self.n_centers_} of "
                           f"{self.n_candidates_} candidate centres; enlarge som_shape, change "
                           "spread or raise max_centers", ConvergenceWarning, stacklevel=2)
         return self

@@ -34,10 +34,9 @@ import warnings
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.utils.validation import validate_data
 
-from rlgsim.estimators.rbf_common import (GaussianNetworkOutput, ForwardOLS, check_max_centers, check_spread,
-                                   fit_standardiser, gaussian_design)
+from rlgsim.estimators._validation import check_positive, standardisation, validate_fit_input
+from rlgsim.estimators.rbf_common import ForwardOLS, GaussianNetworkOutput, gaussian_design
 
 
 class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
@@ -60,8 +59,8 @@ class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         False ranks candidates exactly as ``newrb`` does, against the raw target (the bias only
         enters the least-squares output layer). True puts the bias in the model before ranking,
         so candidates are ranked against the target's variation about its mean — the
-        treatment of :class:`rlgsim.estimators.rbf_modified.ModifiedRBFNetwork`; not ``newrb``, it is
-        there to separate the effect of the ranking from that of the candidate set.
+        treatment of :class:`rlgsim.estimators.rbf_modified.ModifiedRBFNetwork`; not ``newrb``,
+        it is there to separate the effect of the ranking from that of the candidate set.
 
     Attributes
     ----------
@@ -103,15 +102,14 @@ class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
         Raises ``ValueError`` for NaN/inf, mismatched lengths, fewer than 2 samples, a
         constant input column, or invalid parameters.
         """
-        X, y = validate_data(self, X, y, ensure_min_samples=2, y_numeric=True)
-        y = np.asarray(y, dtype=float)
-        spread = check_spread(self.spread)
+        X, y = validate_fit_input(self, X, y)
+        spread = check_positive(self.spread, "spread")
         goal = self.goal
         if not (isinstance(goal, numbers.Real) and math.isfinite(goal) and goal >= 0):
             raise ValueError(f"goal must be a finite mean squared error >= 0, got {goal!r}")
-        check_max_centers(self.max_centers)
+        check_positive(self.max_centers, "max_centers", integer=True, allow_none=True)
         n = X.shape[0]
-        self.x_mean_, self.x_scale_ = fit_standardiser(X)
+        self.x_mean_, self.x_scale_ = standardisation(X)
         Z = (X - self.x_mean_) / self.x_scale_
         ols = ForwardOLS(gaussian_design(Z, Z, spread), y,
                          bias="fixed" if self.centred_ranking else "after")

@@ -32,8 +32,8 @@ the out-of-fold residuals is minimised — ``"median"``: ``median |r_i|``; ``"we
 mean of ``|r_i|`` weighted by Hampel weights of ``r_i`` over their own robust scale (the weighted
 L1 robust CV score of De Brabanter et al., "Robust cross-validation score function for LS-SVM
 non-linear function estimation", ICANN 2002). The folds are refitted on purpose: the
-closed-form CV residuals of :mod:`rlgsim.estimators.lssvm` hold the final weights fixed, and since the
-weights are themselves fitted to the noise, that estimate is optimistic for strongly
+closed-form CV residuals of :mod:`rlgsim.estimators.lssvm` hold the final weights fixed, and
+since the weights are themselves fitted to the noise, that estimate is optimistic for strongly
 down-weighting parameters (it picks the smallest Myriad ``delta`` on clean data, whose accuracy
 against the truth is the worst). Hampel and Logistic weights have no tuned parameter.
 
@@ -56,11 +56,12 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from rlgsim.estimators.lssvm import (BorderedSolution, blas_threads_for, check_positive,
-                              check_positive_grid, kernel_expansion, make_folds, rbf,
-                              solve_bordered, standardisation, validate_fit_input)
-from rlgsim.estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights, robust_scale,
-                                       weight_function)
+from rlgsim.estimators._validation import (check_positive, check_positive_grid, standardisation,
+                                           validate_fit_input)
+from rlgsim.estimators.kernels import kernel_expansion, rbf
+from rlgsim.estimators.lssvm import BorderedSolution, blas_threads_for, make_folds, solve_bordered
+from rlgsim.estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights,
+                                              robust_scale, weight_function)
 
 #: Weights are floored here so that ``1/(gamma v)`` stays finite; a point at the floor (e.g. a
 #: Hampel weight of 0) has ``alpha_k`` ~ 1e-8 gamma e_k, i.e. it is excluded to 8 digits.
@@ -254,9 +255,7 @@ class RobustLSSVMRegressor(RegressorMixin, BaseEstimator):
         gamma = check_positive(self.gamma, "gamma")
         sigma2 = check_positive(self.sigma2, "sigma2")
         tol = check_positive(self.tol, "tol")
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, (int, np.integer)) \
-                or self.max_iter < 1:
-            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
+        check_positive(self.max_iter, "max_iter", integer=True)
         if self.scale not in SCALES:
             raise ValueError(f"scale must be one of {', '.join(SCALES)}, got {self.scale!r}")
         if self.cv_criterion not in CV_CRITERIA:
@@ -306,5 +305,6 @@ class RobustLSSVMRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self, "dual_coef_")
         X = validate_data(self, X, dtype=np.float64, reset=False)
         Xs = (X - self.x_mean_) / self.x_scale_
+        sigma2 = float(self.sigma2)
         return kernel_expansion(Xs, self.support_, self.dual_coef_, self.intercept_,
-                                float(self.sigma2))
+                                lambda A, B: rbf(A, B, sigma2))

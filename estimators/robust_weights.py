@@ -101,7 +101,8 @@ def weight_function(name: str, param: float | None = None, c1: float = 2.5,
     ``None`` for the others); ``c1``, ``c2`` are Hampel's breakpoints.
     """
     if name not in WEIGHT_FUNCTIONS:
-        raise ValueError(f"unknown weight function {name!r}; allowed: {', '.join(WEIGHT_FUNCTIONS)}")
+        raise ValueError(f"unknown weight function {name!r}; "
+                         f"allowed: {', '.join(WEIGHT_FUNCTIONS)}")
     if name in ("huber", "myriad"):
         if param is None:
             raise ValueError(f"the {name} weight function needs its parameter")

@@ -44,14 +44,13 @@ with phi(x) = [K(x, x_rv), 1] and Sigma the posterior covariance of (w_rv, b).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from numbers import Integral, Real
 
 import numpy as np
-from scipy.spatial.distance import cdist
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ._validation import check_min_samples, check_not_constant
+from rlgsim.estimators._validation import check_positive, validate_fit_input
+from rlgsim.estimators.kernels import gaussian, kernel_expansion, squared_distances
 
 try:  # the compiled Tipping-Faul core of fastrvm (see module docstring)
     from fastrvm import _sparsebayes_bindings as _sb
@@ -60,14 +59,9 @@ except ImportError as exc:  # pragma: no cover - depends on the installed fastrv
                       "(fastrvm._sparsebayes_bindings); reinstall fastrvm>=0.1.5") from exc
 
 
-def squared_distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Squared Euclidean distances between the rows of ``A`` and ``B`` (units of X squared)."""
-    return cdist(A, B, "sqeuclidean")
-
-
 def rbf_from_sqdist(D2: np.ndarray, width: float) -> np.ndarray:
     """RBF kernel exp(-D2 / width^2) from squared distances ``D2`` (``width`` in units of X)."""
-    return np.exp(D2 * (-1.0 / (width * width)))
+    return gaussian(D2, 1.0 / (width * width))
 
 
 def basis_centres(n_samples: int, max_basis: int | None) -> np.ndarray:
@@ -215,9 +209,7 @@ class RVR(RegressorMixin, BaseEstimator):
     def fit(self, X, y):
         """Fit on ``X`` (n_samples, n_features) and ``y`` (n_samples,); returns self."""
         self._check_params()
-        X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
-        check_min_samples(X.shape[0], 2, "RVR")
-        check_not_constant(X)
+        X, y = validate_fit_input(self, X, y, model="RVR")
         self.width_ = scale_width(X) if self.width == "scale" else float(self.width)
         centres = basis_centres(X.shape[0], self.max_basis)
         K = rbf_from_sqdist(squared_distances(X, X[centres]), self.width_)
@@ -227,16 +219,14 @@ class RVR(RegressorMixin, BaseEstimator):
 
     def _check_params(self) -> None:
         w = self.width
-        if not (isinstance(w, str) and w == "scale") and not (
-                isinstance(w, Real) and not isinstance(w, bool) and np.isfinite(w) and w > 0):
-            raise ValueError(f"width must be a positive number (units of X) or 'scale', "
-                             f"got {w!r}")
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, Integral) \
-                or self.max_iter < 1:
-            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
-        m = self.max_basis
-        if m is not None and (isinstance(m, bool) or not isinstance(m, Integral) or m < 1):
-            raise ValueError(f"max_basis must be None or an integer >= 1, got {m!r}")
+        if not (isinstance(w, str) and w == "scale"):
+            try:
+                check_positive(w, "width")
+            except ValueError:
+                raise ValueError(f"width must be a positive number (units of X) or 'scale', "
+                                 f"got {w!r}") from None
+        check_positive(self.max_iter, "max_iter", integer=True)
+        check_positive(self.max_basis, "max_basis", integer=True, allow_none=True)
 
     def _set_posterior(self, X: np.ndarray, fit: SparseBayesFit, centres: np.ndarray) -> None:
         self.relevance_ = centres[fit.relevant]
@@ -256,8 +246,11 @@ class RVR(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         return int(self.relevance_.size)
 
+    def _kernel(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        return rbf_from_sqdist(squared_distances(A, B), self.width_)
+
     def _design(self, X: np.ndarray) -> np.ndarray:
-        K = rbf_from_sqdist(squared_distances(X, self.relevance_vectors_), self.width_)
+        K = self._kernel(X, self.relevance_vectors_)
         if self.fit_intercept:
             K = np.column_stack([K, np.ones(X.shape[0])])
         return K
@@ -267,11 +260,11 @@ class RVR(RegressorMixin, BaseEstimator):
         deviation sqrt(1/beta + phi^T Sigma phi) (Tipping 2001 eq. 22)."""
         check_is_fitted(self)
         X = validate_data(self, X, reset=False, dtype=np.float64)
-        Phi = self._design(X)
-        coef = np.r_[self.dual_coef_, self.intercept_] if self.fit_intercept else self.dual_coef_
-        mean = Phi @ coef
+        mean = kernel_expansion(X, self.relevance_vectors_, self.dual_coef_, self.intercept_,
+                                self._kernel)
         if not return_std:
             return mean
+        Phi = self._design(X)
         noise_var = 0.0 if not np.isfinite(self.beta_) else 1.0 / self.beta_
         var = noise_var + np.einsum("ij,jk,ik->i", Phi, self.covariance_, Phi)
         return mean, np.sqrt(np.maximum(var, 0.0))

@@ -67,7 +67,8 @@ class StepwiseRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
     max_steps : int, default 100
         Safety cap on moves; reaching it gives a ``ConvergenceWarning``.
     feature_names : sequence of str, optional
-        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else x0, x1 ...).
+        Input names (default: a :class:`~rlgsim.estimators.columns.Columns`' names, else
+        x0, x1 ...).
 
     Attributes
     ----------

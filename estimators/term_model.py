@@ -20,10 +20,10 @@ import numpy as np
 import statsmodels.api as sm
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from rlgsim.estimators._validation import check_not_constant
+from rlgsim.estimators._validation import validate_fit_input
 from rlgsim.estimators.columns import resolve_input_names, select_inputs
-from rlgsim.estimators.terms import Powers, design_matrix, format_equation, raw_coefficients, \
-    term_label, term_pretty
+from rlgsim.estimators.terms import (Powers, design_matrix, format_equation, raw_coefficients,
+                                     term_label, term_pretty)
 
 
 def prepare_fit(estimator: Any, X: Any, y: Any,
@@ -34,12 +34,13 @@ def prepare_fit(estimator: Any, X: Any, y: Any,
     ``ValueError`` for NaN/inf, mismatched lengths, fewer than 2 samples, a constant input
     (named), or bad ``feature_names``.  Sets ``n_features_in_`` (via ``validate_data``).
     """
-    names_source = X
-    X, y = validate_data(estimator, X, y, dtype=np.float64, y_numeric=True,
-                         ensure_min_samples=2)
-    names = resolve_input_names(names_source, feature_names, X.shape[1])
-    check_not_constant(X, list(names))
-    return X, y, names
+    given = X
+
+    def input_names(n_features: int) -> tuple[str, ...]:
+        return resolve_input_names(given, feature_names, n_features)
+
+    X, y = validate_fit_input(estimator, X, y, input_names=input_names)
+    return X, y, input_names(X.shape[1])
 
 
 def ols(y: np.ndarray, terms: np.ndarray):

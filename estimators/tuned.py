@@ -33,33 +33,14 @@ from sklearn.svm import SVR
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ._validation import check_min_samples, check_not_constant
-from .cv import validation_splits
-from .optimize import harris_hawks, particle_swarm
-from .rvr import (RVR, basis_centres, rbf_from_sqdist, scale_width, sparse_bayes_fit,
-                  squared_distances)
+from rlgsim.estimators._validation import check_positive, check_positive_range, validate_fit_input
+from rlgsim.estimators.cv import validation_splits
+from rlgsim.estimators.kernels import squared_distances
+from rlgsim.estimators.optimize import harris_hawks, particle_swarm
+from rlgsim.estimators.rvr import RVR, basis_centres, rbf_from_sqdist, scale_width, sparse_bayes_fit
 
 OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
 _MAX_CACHED_CELLS = 20_000_000      # squared-distance cells PSO-SVR caches (160 MB of float64)
-
-
-def _check_bounds_pair(value, name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a (low, high) pair of positive numbers, "
-                         f"got {value!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
-        raise ValueError(f"{name} must satisfy 0 < low < high (finite), got {value!r}")
-    return lo, hi
-
-
-def _check_int(value, name: str, minimum: int, allow_none: bool = False):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
 
 
 class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
@@ -82,9 +63,9 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer must be one of {sorted(OPTIMIZERS)}, "
                              f"got {self.optimizer!r}")
-        _check_int(self.n_agents, "n_agents", 2)
-        _check_int(self.max_iter, "max_iter", 1, allow_none=True)
-        _check_int(self.max_evals, "max_evals", 1, allow_none=True)
+        check_positive(self.n_agents, "n_agents", integer=True, minimum=2)
+        check_positive(self.max_iter, "max_iter", integer=True, allow_none=True)
+        check_positive(self.max_evals, "max_evals", integer=True, allow_none=True)
         if self.max_iter is None and self.max_evals is None:
             raise ValueError("give max_iter, max_evals or both")
 
@@ -92,9 +73,7 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
         """Tune on (X, y) — rows in time order — then refit on all of it; returns self."""
         self._check_common_params()
         self._check_params()
-        X, y = validate_data(self, X, y, y_numeric=True, dtype=np.float64)
-        check_min_samples(X.shape[0], 2, self._model_name)
-        check_not_constant(X)
+        X, y = validate_fit_input(self, X, y, model=self._model_name)
         rs = check_random_state(self.random_state)
         fold_seed, opt_seed = rs.randint(np.iinfo(np.int32).max, size=2)
         splits = validation_splits(X.shape[0], self.validation, self.shuffle, fold_seed)
@@ -178,9 +157,9 @@ class HHORVR(OptimizerTunedRegressor):
 
     def _check_params(self) -> None:
         if self.width_bounds is not None:
-            _check_bounds_pair(self.width_bounds, "width_bounds")
-        _check_int(self.rvr_max_iter, "rvr_max_iter", 1)
-        _check_int(self.max_basis, "max_basis", 1, allow_none=True)
+            check_positive_range(self.width_bounds, "width_bounds")
+        check_positive(self.rvr_max_iter, "rvr_max_iter", integer=True)
+        check_positive(self.max_basis, "max_basis", integer=True, allow_none=True)
         r = self.width_resolution
         if r is not None and not (isinstance(r, Real) and np.isfinite(r) and r > 0):
             raise ValueError(f"width_resolution must be a positive number of decades or None, "
@@ -191,7 +170,7 @@ class HHORVR(OptimizerTunedRegressor):
             s = scale_width(X)
             lo, hi = 0.05 * s, 10.0 * s
         else:
-            lo, hi = _check_bounds_pair(self.width_bounds, "width_bounds")
+            lo, hi = check_positive_range(self.width_bounds, "width_bounds")
         return ["width"], [np.log10(lo)], [np.log10(hi)]
 
     def _make_fitness(self, X, y, splits):
@@ -313,10 +292,10 @@ class PSOSVR(OptimizerTunedRegressor):
         self.random_state = random_state
 
     def _check_params(self) -> None:
-        _check_bounds_pair(self.C_bounds, "C_bounds")
-        _check_bounds_pair(self.gamma_bounds, "gamma_bounds")
+        check_positive_range(self.C_bounds, "C_bounds")
+        check_positive_range(self.gamma_bounds, "gamma_bounds")
         if self.tune_epsilon:
-            _check_bounds_pair(self.epsilon_bounds, "epsilon_bounds")
+            check_positive_range(self.epsilon_bounds, "epsilon_bounds")
         e = self.epsilon
         if isinstance(e, bool) or not isinstance(e, Real) or not (np.isfinite(e) and e >= 0):
             raise ValueError(f"epsilon must be a finite number >= 0, got {e!r}")
@@ -326,11 +305,11 @@ class PSOSVR(OptimizerTunedRegressor):
 
     def _search_space(self, X, y):
         names = ["C", "gamma"]
-        bounds = [_check_bounds_pair(self.C_bounds, "C_bounds"),
-                  _check_bounds_pair(self.gamma_bounds, "gamma_bounds")]
+        bounds = [check_positive_range(self.C_bounds, "C_bounds"),
+                  check_positive_range(self.gamma_bounds, "gamma_bounds")]
         if self.tune_epsilon:
             names.append("epsilon")
-            bounds.append(_check_bounds_pair(self.epsilon_bounds, "epsilon_bounds"))
+            bounds.append(check_positive_range(self.epsilon_bounds, "epsilon_bounds"))
         b = np.log10(np.array(bounds))
         return names, b[:, 0], b[:, 1]
 

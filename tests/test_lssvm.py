@@ -13,7 +13,8 @@ from sklearn.model_selection import KFold
 from sklearn.preprocessing import StandardScaler
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from rlgsim.estimators.lssvm import LSSVMRegressor, rbf
+from rlgsim.estimators.kernels import rbf
+from rlgsim.estimators.lssvm import LSSVMRegressor
 from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV
 
 

@@ -13,7 +13,8 @@ from scipy import stats
 from sklearn.model_selection import KFold
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from rlgsim.estimators.lssvm import LSSVMRegressor, rbf
+from rlgsim.estimators.kernels import rbf
+from rlgsim.estimators.lssvm import LSSVMRegressor
 from rlgsim.estimators.robust_lssvm import MIN_WEIGHT, RobustLSSVMRegressor, robust_cv_score
 from rlgsim.estimators.robust_weights import (hampel_weights, huber_weights, logistic_weights,
                                        myriad_weights, robust_scale, weight_function)

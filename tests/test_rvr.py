@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from rlgsim.estimators.rvr import RVR, rbf_from_sqdist, squared_distances
+from rlgsim.estimators.kernels import squared_distances
+from rlgsim.estimators.rvr import RVR, rbf_from_sqdist
 
 NOISE = 0.1
 

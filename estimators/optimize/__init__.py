@@ -5,8 +5,8 @@ evaluation budget and report the evaluation count and the best-so-far curve
 (:class:`OptimizeResult`).
 """
 
-from .hho import harris_hawks
-from .pso import particle_swarm
-from .result import OptimizeResult
+from rlgsim.estimators.optimize.hho import harris_hawks
+from rlgsim.estimators.optimize.pso import particle_swarm
+from rlgsim.estimators.optimize.result import OptimizeResult
 
 __all__ = ["OptimizeResult", "harris_hawks", "particle_swarm"]

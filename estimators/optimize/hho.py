@@ -53,7 +53,8 @@ import math
 
 import numpy as np
 
-from .result import Evaluator, Fitness, OptimizeResult, check_bounds, check_positive_int
+from rlgsim.estimators._validation import check_bounds, check_positive
+from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult
 
 LEVY_BETA = 1.5
 
@@ -185,9 +186,9 @@ def harris_hawks(fun: Fitness, bounds, n_hawks: int = 30, max_iter: int | None =
     """
     lower, upper = check_bounds(bounds)
     dim = lower.size
-    n = check_positive_int(n_hawks, "n_hawks", minimum=2)
-    T = check_positive_int(max_iter, "max_iter", allow_none=True)
-    budget = check_positive_int(max_evals, "max_evals", allow_none=True)
+    n = check_positive(n_hawks, "n_hawks", integer=True, minimum=2)
+    T = check_positive(max_iter, "max_iter", integer=True, allow_none=True)
+    budget = check_positive(max_evals, "max_evals", integer=True, allow_none=True)
     if T is None and budget is None:
         raise ValueError("give max_iter, max_evals or both; with neither the run never ends")
     rng = np.random.default_rng(random_state)

@@ -35,7 +35,8 @@ import math
 
 import numpy as np
 
-from .result import Evaluator, Fitness, OptimizeResult, check_bounds, check_positive_int
+from rlgsim.estimators._validation import check_bounds, check_positive
+from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult
 
 BOUNDARY_RULES = ("absorb", "reflect")
 
@@ -94,9 +95,9 @@ def particle_swarm(fun: Fitness, bounds, n_particles: int = 30, max_iter: int | 
     """
     lower, upper = check_bounds(bounds)
     dim = lower.size
-    n = check_positive_int(n_particles, "n_particles", minimum=2)
-    T = check_positive_int(max_iter, "max_iter", allow_none=True)
-    budget = check_positive_int(max_evals, "max_evals", allow_none=True)
+    n = check_positive(n_particles, "n_particles", integer=True, minimum=2)
+    T = check_positive(max_iter, "max_iter", integer=True, allow_none=True)
+    budget = check_positive(max_evals, "max_evals", integer=True, allow_none=True)
     if T is None and budget is None:
         raise ValueError("give max_iter, max_evals or both; with neither the run never ends")
     if boundary not in BOUNDARY_RULES:

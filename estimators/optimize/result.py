@@ -1,4 +1,4 @@
-"""What every optimiser returns, and the bookkeeping they share (bounds, budget, evaluation).
+"""What every optimiser returns, and the bookkeeping they share (budget, evaluation).
 
 The optimisers in this package minimise a *vectorised* fitness: ``fun(P)`` takes a batch of
 positions ``P`` of shape ``(m, d)`` and returns ``m`` fitness values (``vectorized=False`` wraps a
@@ -47,33 +47,6 @@ class OptimizeResult:
     message: str
     method: str
     counts: dict[str, int] = field(default_factory=dict)
-
-
-def check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
-    """Validate box bounds given as a sequence of ``(low, high)`` pairs, one per dimension.
-
-    Returns ``(lower, upper)`` float arrays of shape ``(d,)``; raises ``ValueError`` naming the
-    offending dimension for non-finite values or ``low >= high``.
-    """
-    b = np.asarray(bounds, dtype=float)
-    if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
-        raise ValueError(f"bounds must be a sequence of (low, high) pairs, one per dimension; "
-                         f"got an array of shape {b.shape}")
-    for i, (lo, hi) in enumerate(b):
-        if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise ValueError(f"bounds of dimension {i} must be finite, got ({lo}, {hi})")
-        if not lo < hi:
-            raise ValueError(f"bounds of dimension {i} need low < high, got ({lo}, {hi})")
-    return b[:, 0].copy(), b[:, 1].copy()
-
-
-def check_positive_int(value, name: str, minimum: int = 1, allow_none: bool = False) -> int | None:
-    """Return ``value`` as an int, raising ``ValueError`` if it is not an integer >= ``minimum``."""
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
 
 
 class Evaluator:
