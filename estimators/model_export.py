@@ -58,7 +58,7 @@ from rlgsim.estimators.terms import design_matrix, format_equation, term_label, 
 from rlgsim.ground.errors import UserInputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "KINDS", "ExportedCompensator",
-           "OutOfTrainingRangeWarning", "export_compensator", "load_json"]
+           "OutOfTrainingRangeWarning", "export_compensator", "load_json", "save_compensator"]
 
 FORMAT = "rlgsim-compensator"
 FORMAT_VERSION = 1
@@ -248,6 +248,22 @@ def export_compensator(model: Any, X_train: Any, *, name: str = "",
     return out
 
 
+def save_compensator(model: Any, X_train: Any, directory: str | pathlib.Path, *,
+                     name: str, stem: str | None = None, **metadata: Any
+                     ) -> dict[str, pathlib.Path]:
+    """Export a fitted compensator into ``directory`` as ``<stem>.json``, ``<stem>.c`` and
+    ``<stem>.h`` (``stem`` default: a C identifier made from ``name``, also the C function's
+    name); returns ``{"json": ..., "c": ..., "h": ...}``. ``metadata``: the keyword arguments
+    of :func:`export_compensator` (``input_units``, ``target``, ``target_unit`` ...)."""
+    from rlgsim.estimators.c_codegen import c_identifier, write_c
+    exported = export_compensator(model, X_train, name=name, **metadata)
+    stem = c_identifier(stem or name)
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    c_path, h_path = write_c(exported, directory, stem)
+    return {"json": exported.to_json(directory / f"{stem}.json"), "c": c_path, "h": h_path}
+
+
 # ------------------------------------------------------------------------------ the estimator
 class ExportedCompensator(RegressorMixin, BaseEstimator):
     """A compensator read back from its export: predicts, warns off the training range, writes
@@ -308,8 +324,9 @@ class ExportedCompensator(RegressorMixin, BaseEstimator):
         Z = (X - self.center_) / self.scale_
         if self.form_ == "polynomial":
             return self.intercept_ + design_matrix(Z, self.powers_) @ self.coef_
-        out = np.empty(Z.shape[0])
-        for start in range(0, Z.shape[0], CHUNK_ROWS):
+        out = np.zeros(Z.shape[0])
+        n_rows = Z.shape[0] if self.coef_.size else 0     # no centre: the constant model
+        for start in range(0, n_rows, CHUNK_ROWS):
             block = Z[start:start + CHUNK_ROWS]
             if self.kind_ in EXPANDED_DISTANCE_KINDS:       # as the LS-SVM estimators do
                 K = rbf_kernel(block, self.centres_, gamma=self.kernel_factor_)
@@ -447,8 +464,11 @@ def _parse(doc: Any, source: str) -> ExportedCompensator:
                             f"a list of {len(parsed)} numbers (one per term)")
     else:
         est.coef_ = d.array(m, "coefficients", "model", (None,), "a list of numbers")
-        est.centres_ = d.array(m, "centres", "model", (est.coef_.size, n),
-                               f"a list of {est.coef_.size} centres of {n} numbers")
+        if est.coef_.size == 0 and isinstance(m, Mapping) and m.get("centres") == []:
+            est.centres_ = np.empty((0, n))             # no centre kept: the constant model
+        else:
+            est.centres_ = d.array(m, "centres", "model", (est.coef_.size, n),
+                                   f"a list of {est.coef_.size} centres of {n} numbers")
         est.kernel_factor_ = d.get(m, "kernel_factor", "model", float, "a number")
         if est.kernel_factor_ <= 0:
             raise d.error("model.kernel_factor", f"must be > 0, got {est.kernel_factor_!r}")

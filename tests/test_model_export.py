@@ -268,3 +268,36 @@ def test_c_identifier():
     assert c_identifier("IR-LSSVM (Huber) T, U") == "ir_lssvm_huber_t_u"
     assert c_identifier("3-point PSO-SVM") == "c_3_point_pso_svm"
     assert c_identifier("---") == "compensator"
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["stepwise", "rvr"])
+def test_models_that_kept_no_term_export_as_constants(kind, tmp_path):
+    """Stepwise with nothing significant, RVR with no relevance vector: a constant model."""
+    from rlgsim.estimators.rvr import RVR
+    from rlgsim.estimators.stepwise import StepwiseRegressor
+    X, _ = _data(60)
+    y = np.full(60, 0.25) if kind == "rvr" else \
+        np.random.default_rng(3).normal(0.25, 1e-3, 60)
+    model = (RVR(width=20.0) if kind == "rvr" else StepwiseRegressor(degree=1, p_enter=1e-9))
+    model.fit(X, y)
+    exported = _export(model, X)
+    assert exported.coef_.size == 0
+    loaded = load_json(exported.to_json(tmp_path / "m.json"))
+    Xq = _inside(X, 50)
+    np.testing.assert_array_equal(loaded.predict(Xq), model.predict(Xq))
+    c, _ = _compile(loaded, tmp_path)(Xq)
+    np.testing.assert_allclose(c, model.predict(Xq), rtol=1e-12)
+
+
+def test_save_compensator_writes_json_c_and_h(fitted, tmp_path):
+    from rlgsim.estimators.model_export import save_compensator
+    X, _, models = fitted
+    paths = save_compensator(models["rbf_modified"], X, tmp_path / "models",
+                             name="Modified RBFNN (T, dT/dt, U)", input_units=UNITS,
+                             target="B", target_unit="°/h")
+    assert {p.name for p in paths.values()} == {"modified_rbfnn_t_dt_dt_u.json",
+                                                "modified_rbfnn_t_dt_dt_u.c",
+                                                "modified_rbfnn_t_dt_dt_u.h"}
+    assert load_json(paths["json"]).name_ == "Modified RBFNN (T, dT/dt, U)"
+    assert "double modified_rbfnn_t_dt_dt_u(" in paths["h"].read_text()
