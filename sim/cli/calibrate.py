@@ -57,7 +57,11 @@ def add_subparser(sub) -> None:
     """Add the ``calibrate`` subcommand to the ``rlgsim`` subparsers."""
     c = sub.add_parser("calibrate", help="turntable Kalman calibration of every calibration "
                                          "window of a dataset → parameter-vs-temperature table")
-    c.add_argument("dataset", metavar="DATASET", help="an rlgsim dataset (.h5)")
+    c.add_argument("dataset", metavar="DATASET", help="an rlgsim dataset (.h5) or a recording "
+                                                      "(docs/recordings.md)")
+    c.add_argument("--programme", metavar="PROGRAMME",
+                   help="a recording's commanded turntable programme: a programme CSV or the "
+                        "scenario it ran (name or .toml)")
     c.add_argument("-o", "--output", metavar="TABLE.csv",
                    help="output table (default: <dataset stem>_calibration.csv next to it)")
     c.add_argument("--plot", action="store_true",
@@ -85,8 +89,9 @@ def add_subparser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the campaign for parsed ``args``; returns the exit code (0, also when some windows
     failed — the table says why)."""
-    from rlgsim.estimators.calibration import (CampaignError, CampaignSettings, DatasetReader,
-                                        find_windows, run_campaign)
+    from rlgsim.estimators.calibration import (CampaignError, CampaignSettings, find_windows,
+                                               open_reader, run_campaign)
+    from rlgsim.ground.recording import is_recording as _is_recording
     from rlgsim.estimators.strapdown import SensorModel
     from rlgsim.sim.dataset import check_writable
 
@@ -94,8 +99,12 @@ def run(args: argparse.Namespace) -> int:
     if not path.is_file():
         raise UserInputError(f"{path}: no such dataset file")
     out = check_writable(args.output or path.with_name(f"{path.stem}_calibration.csv"))
+    source = path
+    if args.programme is not None or _is_recording(path):
+        from rlgsim.sim.recordings import calibration_source
+        source = calibration_source(path, args.programme)     # recording + programme
     try:
-        reader = DatasetReader(path)
+        reader = open_reader(source)
         nominal = reader.nominal()
         probes = reader.probe_names()
         n_windows = len(find_windows(reader.segments()))
@@ -121,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
                    delay=1.0, file=sys.stderr)
     t0 = time.perf_counter()
     try:
-        result = run_campaign(path, options, progress=bar.update if bar is not None else None)
+        result = run_campaign(source, options,
+                              progress=bar.update if bar is not None else None)
     except CampaignError as exc:
         raise UserInputError(str(exc)) from None
     finally:
@@ -130,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     table = result.write_csv(out)
     wrote_group = False
-    if not args.no_dataset:
+    if not args.no_dataset and source is path:        # recordings are never modified
         try:
             write_group(path, result)
             wrote_group = True

@@ -63,7 +63,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="simulated seconds buffered per write (default: the scenario's "
                         "acquisition.chunk_s); never changes the data")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
-    i = sub.add_parser("info", help="summarise an rlgsim dataset")
+    i = sub.add_parser("info", help="summarise an rlgsim dataset or a recording")
     i.add_argument("file", metavar="FILE")
     d = sub.add_parser("demo", help=f"run the demo study into ./{DEMO_DIR}/ (report.md, "
                                     f"report.html)")
@@ -75,6 +75,8 @@ def _parser() -> argparse.ArgumentParser:
     add_montecarlo(sub)                    # rlgsim montecarlo (sim/cli/montecarlo.py)
     from rlgsim.sim.cli.study import add_subparser as add_study
     add_study(sub)                         # rlgsim study (sim/cli/study.py)
+    from rlgsim.sim.cli.export import add_subparser as add_export
+    add_export(sub)                        # rlgsim export (sim/cli/export.py)
     return p
 
 
@@ -147,8 +149,8 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.command == "run":
             _run(args.scenario, args.output, args.chunk_s, args.quiet)
         elif args.command == "info":
-            from rlgsim.sim.dataset import summary
-            print(summary(args.file))
+            from rlgsim.sim.recordings import info
+            print(info(args.file))
         elif args.command == "demo":
             from rlgsim.sim.cli.study import demo
             demo(args.quiet)
@@ -156,7 +158,7 @@ def _main(argv: Sequence[str] | None) -> int:
             return args.handler(args)
         elif args.command == "list":
             _list()
-        elif args.command in ("calibrate", "study"):
+        elif args.command in ("calibrate", "study", "export"):
             return args.handler(args)
         return 0
     except UserInputError as exc:

@@ -1,0 +1,260 @@
+"""Export a simulated dataset (or a recording) to the recording format (docs/recordings.md), so
+the two paths meet: what a user's logger writes and what the simulator writes read the same way.
+
+A dataset becomes one table at the IMU sample rate — ``time_s`` (end of each sample interval,
+``(k+1)/f``), ``gyro_<axis>_pulses``, ``accel_<axis>_pulses`` — with the thermal-grid channels
+(``probe_<name>_c``, ``chamber_air_c``, ``chamber_setpoint_c``, ``power_on``,
+``uhfo_<axis>_v``, ``outer_angle_deg``, ``inner_angle_deg``) on the rows that end a thermal
+step and empty in between (sidecar ``temperature_rate_hz = 1 / thermal_step_s``), plus the
+sidecar (sample rate, site, axes, nominal scale factors and noise levels of the device preset)
+and, when the run has calibration windows, the commanded programme ``<stem>_programme.csv``.
+Every value is written exactly (pulses as integers, floats with full precision), so importing
+the export gives the dataset's arrays bit for bit. The truth is not exported: a recording has
+none.
+
+Written block by block (:data:`BLOCK_ROWS` samples), so memory does not grow with the run.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import tomllib
+from dataclasses import dataclass
+
+import numpy as np
+
+from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, _is_sidecar,
+                                     is_recording, load_recording, sidecar_path, write_sidecar,
+                                     write_table)
+
+__all__ = ["FORMATS", "BLOCK_ROWS", "Exported", "export"]
+
+FORMATS = {"csv": ".csv", "parquet": ".parquet"}
+#: Samples per written block.
+BLOCK_ROWS = 1 << 18
+
+
+@dataclass(frozen=True)
+class Exported:
+    """What :func:`export` wrote: the table, its sidecar, the programme CSV (or None), rows."""
+
+    table: pathlib.Path
+    sidecar: pathlib.Path
+    programme: pathlib.Path | None
+    rows: int
+
+
+def _text(v) -> str:
+    if isinstance(v, bytes):
+        return v.decode("utf-8", "replace")
+    if isinstance(v, np.generic):
+        return str(v.item())
+    return str(v)
+
+
+def _out_path(src: pathlib.Path, fmt: str, out: str | os.PathLike | None) -> pathlib.Path:
+    if fmt not in FORMATS:
+        raise UserInputError(f"--format: value {fmt!r} not allowed; must be one of "
+                             f"{', '.join(FORMATS)}")
+    if out is not None:
+        p = pathlib.Path(out)
+    elif is_recording(src):
+        p = src.with_suffix(FORMATS[fmt])
+    else:                                # not <stem>.toml: the scenario often has that name
+        p = src.with_name(f"{src.stem}_recording{FORMATS[fmt]}")
+    if p.suffix.lower() != FORMATS[fmt]:
+        raise UserInputError(f"{p}: a {fmt} table must end in {FORMATS[fmt]} (its sidecar is "
+                             f"{p.with_suffix('.toml').name})")
+    if p.is_dir():
+        raise UserInputError(f"{p}: output path is a directory; give a file name")
+    if not p.parent.is_dir():
+        raise UserInputError(f"{p}: cannot write output: directory {p.parent} does not exist")
+    if p.resolve() == src.resolve() or sidecar_path(p).resolve() == src.resolve():
+        raise UserInputError(f"{p}: would overwrite the input {src}; choose another name with -o")
+    side = sidecar_path(p)
+    if side.exists() and not _is_sidecar(side):
+        raise UserInputError(f"{p}: its sidecar {side} would overwrite a file that is not a "
+                             f"recording sidecar; choose another name with -o")
+    return p
+
+
+def export(source: str | os.PathLike, fmt: str = "csv",
+           out: str | os.PathLike | None = None) -> Exported:
+    """Export a dataset or a recording at ``source`` as a ``fmt`` (``csv``/``parquet``) table
+    at ``out`` (default: beside the source, same stem) with its sidecar (and programme)."""
+    src = pathlib.Path(source)
+    if not src.exists():
+        raise UserInputError(f"{src}: no such file")
+    p = _out_path(src, fmt, out)
+    if is_recording(src):
+        return _export_recording(src, fmt, p)
+    return _export_dataset(src, fmt, p)
+
+
+# ---------------------------------------------------------------------------- recordings
+
+def _sidecar_tables(sc: Sidecar, data_name: str, rec) -> dict:
+    rec_t = {"format": RECORDING_FORMAT, "version": RECORDING_VERSION}
+    if sc.description:
+        rec_t["description"] = sc.description
+    rec_t["data"] = data_name
+    rec_t["sample_rate_hz"] = sc.sample_rate_hz
+    if sc.temperature_rate_hz is not None:
+        rec_t["temperature_rate_hz"] = sc.temperature_rate_hz
+    rec_t["source"] = sc.source or str(rec.path)
+    tables = {"recording": rec_t,
+              "site": {"latitude_deg": sc.latitude_deg, "height_m": sc.height_m}}
+    g = {}
+    if rec.gyro_axes:
+        g["axes"] = rec.gyro_axes
+    if sc.gyro_sf_pulse_per_arcsec is not None:
+        g["scale_factor_pulses_per_arcsec"] = sc.gyro_sf_pulse_per_arcsec
+    a = {}
+    if rec.accel_axes:
+        a["axes"] = rec.accel_axes
+    if sc.accel_sf_pulse_per_s_per_g is not None:
+        a["scale_factor_pulses_per_s_per_g"] = sc.accel_sf_pulse_per_s_per_g
+    tables.update(gyro=g, accelerometer=a,
+                  orientation={k: list(map(float, v)) for k, v in sc.orientation.items()},
+                  noise=dict(sc.noise))
+    return tables
+
+
+def _export_recording(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
+    rec = load_recording(src)
+    df = rec.to_dataframe()
+    write_table(p, [df], fmt)
+    side = write_sidecar(sidecar_path(p), _sidecar_tables(rec.sidecar, p.name, rec),
+                         comment=f"rlgsim recording sidecar (docs/recordings.md), exported from "
+                                 f"{rec.path.name}")
+    return Exported(p, side, None, len(df))
+
+
+# ---------------------------------------------------------------------------- datasets
+
+def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
+    import h5py
+    import pandas as pd
+    try:
+        f = h5py.File(src, "r")
+    except OSError:
+        raise UserInputError(f"{src}: neither an rlgsim dataset nor a recording (a .csv, "
+                             f".parquet or .h5 table with a .toml sidecar)") from None
+    with f:
+        if _text(f.attrs.get("rlgsim_format", "")) != "rlgsim dataset":
+            raise UserInputError(f"{src}: not an rlgsim dataset (HDF5 file without the "
+                                 f"rlgsim_format marker) and no sidecar {sidecar_path(src).name} "
+                                 f"beside it")
+        a = f.attrs
+        step = float(a.get("thermal_step_s", 1.0))
+        has_imu = "imu" in f and "gyro_pulses" in f["imu"]
+        rate = float(f["imu"].attrs.get("sample_rate_hz", a.get("sample_rate_hz"))) if has_imu \
+            else 1.0 / step
+        ratio = step * rate
+        r = int(round(ratio))
+        if abs(ratio - r) > 1e-9 or r < 1:
+            raise UserInputError(f"{src}: thermal step {step:g} s is not a whole number of "
+                                 f"samples at {rate:g} Hz; cannot put both on one table")
+
+        def strings(path):
+            return [_text(v) for v in f[path][()]]
+        gyro_axes = (strings("imu/gyro") if "gyro" in f["imu"] else
+                     list("xyz")[:f["imu/gyro_pulses"].shape[1]]) if has_imu else []
+        accel_axes = ((strings("imu/accel") if "accel" in f["imu"] else
+                       list("xyz")[:f["imu/accel_pulses"].shape[1]])
+                      if has_imu and "accel_pulses" in f["imu"] else [])
+        slow: dict[str, np.ndarray] = {}          # column -> values on the thermal grid
+        if "probes" in f:
+            temps = f["probes/temperature"][()]
+            for i, name in enumerate(strings("probes/probe")):
+                slow[f"probe_{name}_c"] = temps[:, i].astype(np.float64)
+        if "thermal" in f:
+            for var, col in (("chamber_air", "chamber_air_c"),
+                             ("chamber_setpoint", "chamber_setpoint_c"),
+                             ("power_on", "power_on")):
+                if var in f["thermal"]:
+                    slow[col] = f["thermal"][var][()].astype(np.float64)
+        if has_imu and "uhfo" in f["imu"]:
+            u = f["imu/uhfo"][()]
+            for i, ax in enumerate(gyro_axes):
+                slow[f"uhfo_{ax}_v"] = u[:, i].astype(np.float64)
+        if "turntable" in f:
+            for var, col in (("outer_angle", "outer_angle_deg"), ("inner_angle", "inner_angle_deg")):
+                if var in f["turntable"]:
+                    slow[col] = f["turntable"][var][()].astype(np.float64)
+        n_thermal = max((len(v) for v in slow.values()), default=0)
+        n = int(f["imu/gyro_pulses"].shape[0]) if has_imu else n_thermal
+        if n == 0:
+            raise UserInputError(f"{src}: the dataset has no samples to export")
+        # thermal row j ends at (j+1)·step: sample index (j+1)·r − 1
+        slow_idx = (np.arange(n_thermal) + 1) * r - 1
+        keep = slow_idx < n
+        device = {}
+        try:
+            device = tomllib.loads(_text(a.get("device_text", ""))) if "device_text" in a else {}
+        except tomllib.TOMLDecodeError:
+            device = {}
+
+        def blocks():
+            for k0 in range(0, n, BLOCK_ROWS):
+                k1 = min(n, k0 + BLOCK_ROWS)
+                data = {"time_s": (np.arange(k0, k1, dtype=np.float64) + 1.0) / rate}
+                if has_imu:
+                    g = f["imu/gyro_pulses"][k0:k1]
+                    for i, ax in enumerate(gyro_axes):
+                        data[f"gyro_{ax}_pulses"] = g[:, i].astype(np.int64)
+                    if accel_axes:
+                        acc = f["imu/accel_pulses"][k0:k1]
+                        for i, ax in enumerate(accel_axes):
+                            data[f"accel_{ax}_pulses"] = acc[:, i].astype(np.int64)
+                sel = keep & (slow_idx >= k0) & (slow_idx < k1)
+                for col, values in slow.items():
+                    v = np.full(k1 - k0, np.nan)
+                    v[slow_idx[sel] - k0] = values[sel]
+                    data[col] = v
+                yield pd.DataFrame(data)
+
+        write_table(p, blocks(), fmt)
+        rec_t = {"format": RECORDING_FORMAT, "version": RECORDING_VERSION,
+                 "description": f"exported from the rlgsim dataset {src.name} (scenario "
+                                f"{_text(a.get('scenario_name', '?'))}, seed "
+                                f"{_text(a.get('seed', '?'))})",
+                 "data": p.name, "sample_rate_hz": rate}
+        if slow and has_imu:
+            rec_t["temperature_rate_hz"] = 1.0 / step
+        rec_t["source"] = str(src)
+        tables = {"recording": rec_t,
+                  "site": {"latitude_deg": float(a.get("latitude_deg", 34.0)),
+                           "height_m": float(a.get("height_m", 0.0))}}
+        if gyro_axes:
+            g = {"axes": gyro_axes}
+            sf = device.get("gyro", {}).get("scale_factor_pulses_per_arcsec")
+            if isinstance(sf, (int, float)):
+                g["scale_factor_pulses_per_arcsec"] = float(sf)
+            tables["gyro"] = g
+        if accel_axes:
+            acc_t = {"axes": accel_axes}
+            sf = device.get("accelerometer", {}).get("scale_factor_pulses_per_s_per_g")
+            if isinstance(sf, (int, float)):
+                acc_t["scale_factor_pulses_per_s_per_g"] = float(sf)
+            tables["accelerometer"] = acc_t
+        noise = {k: float(v) for k, v in device.get("noise", {}).items()
+                 if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        tables["noise"] = noise
+        side = write_sidecar(sidecar_path(p), tables,
+                             comment="rlgsim recording sidecar (docs/recordings.md)")
+        programme = None
+        if "timeline" in f:
+            tl = f["timeline"]
+            details = "details" if "details" in tl else "attrs"
+            segs = [dict(t0=float(t0), t1=float(t1), track=_text(tr), label=_text(lb),
+                         attrs=json.loads(_text(at)))
+                    for t0, t1, tr, lb, at in zip(tl["t0"][()], tl["t1"][()], tl["track"][()],
+                                                  tl["label"][()], tl[details][()])]
+            if any(s["track"] == "calibration" for s in segs):
+                from rlgsim.ground.programme import write_programme
+                programme = write_programme(p.with_name(f"{p.stem}_programme.csv"), segs)
+    return Exported(p, side, programme, n)

@@ -1,0 +1,280 @@
+"""Recordings (docs/recordings.md): a CSV recording built by hand with numpy/pandas (never
+through rlgsim's exporter) through ``rlgsim info`` and ``rlgsim calibrate``, checked against
+independent computations; export → import round trips; bad recordings give one line, exit 2."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from _turntable_pulses import random_truth, write_dataset
+from rlgsim.ground.recording import load_recording
+from rlgsim.sim.cli.main import main
+from rlgsim.sim.turntable import TurntableProgram
+
+PROG = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
+RATE = 100.0
+SIDECAR = """\
+[recording]
+sample_rate_hz = 100
+temperature_rate_hz = 1
+
+[site]
+latitude_deg = 34.0
+
+[gyro]
+axes = ["x", "y", "z"]
+scale_factor_pulses_per_arcsec = 2.14
+
+[accelerometer]
+axes = ["x", "y", "z"]
+scale_factor_pulses_per_s_per_g = 5000.0
+
+[noise]
+gyro_arw_deg_per_sqrt_h = 0.002
+accel_vrw_ug_per_sqrt_hz = 10.0
+"""
+
+
+@pytest.fixture(scope="module")
+def hand(tmp_path_factory):
+    """A turntable run of a device with known errors (the test helper's measurement
+    equations), as an rlgsim-layout HDF5 file and as a CSV recording + sidecar + programme
+    written by hand from the same pulses."""
+    d = tmp_path_factory.mktemp("rec")
+    truth = random_truth(np.random.default_rng(21))
+    h5 = d / "run.h5"
+    write_dataset(h5, truth, PROG, 2 * PROG.duration_s, arw_deg_sqrt_h=0.002,
+                  vrw_ug_sqrt_hz=10.0, seed=4)
+    with h5py.File(h5, "r") as f:
+        ng, na = f["imu/gyro_pulses"][()], f["imu/accel_pulses"][()]
+        temps = f["probes/temperature"][()]
+        tl = f["timeline"]
+        segs = [(float(a), float(b), t.decode(), lab.decode(), json.loads(x))
+                for a, b, t, lab, x in zip(tl["t0"][()], tl["t1"][()], tl["track"][()],
+                                           tl["label"][()], tl["attrs"][()])]
+    n = len(ng)
+    df = pd.DataFrame({"time_s": np.arange(1, n + 1) / RATE})
+    for i, a in enumerate("xyz"):
+        df[f"gyro_{a}_pulses"] = ng[:, i]
+    for i, a in enumerate("xyz"):
+        df[f"accel_{a}_pulses"] = na[:, i]
+    for j, name in enumerate(("gx", "ax")):           # 1 Hz probes: empty cells in between
+        v = np.full(n, np.nan)
+        v[int(RATE) - 1::int(RATE)] = temps[:, j]
+        df[f"probe_{name}_c"] = v
+    df.to_csv(d / "rec.csv", index=False)
+    (d / "rec.toml").write_text(SIDECAR)
+    with open(d / "prog.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t0_s", "t1_s", "kind", "axis", "rate_deg_per_s", "outer_deg", "inner_deg",
+                    "position", "window", "label"])
+        for a, b, track, label, x in segs:
+            if track == "turntable":
+                w.writerow([a, b, x["kind"], x["axis"] or "", x["rate_deg_s"], x["outer_deg"],
+                            x["inner_deg"], -1 if x["position"] is None else x["position"],
+                            x["window"], label])
+    windows = [(a, b) for a, b, track, _, _ in segs if track == "calibration"]
+    return dict(dir=d, h5=h5, csv=d / "rec.csv", prog=d / "prog.csv", truth=truth, ng=ng,
+                na=na, temps=temps, windows=windows, df=df)
+
+
+def test_info_of_a_hand_made_recording(hand, capsys):
+    assert main(["info", str(hand["csv"])]) == 0
+    out = capsys.readouterr().out
+    assert f"samples: {len(hand['ng'])} at 100 Hz" in out
+    assert "temperature rate: 1 Hz (942 readings)" in out
+    # independent: mean rate = pulses / (K · Δt), K = 2.14 pulses/arcsec, in °/h
+    rate = hand["ng"][:, 1] / (2.14 * (1 / RATE)) * 1.0          # arcsec/s
+    line = next(s for s in out.splitlines() if s.strip().startswith("gyro_y_pulses"))
+    mean = float(line.split("mean rate ")[1].split(" deg/h")[0])
+    assert mean == pytest.approx(np.mean(rate) * 3600 / 3600, rel=1e-5)   # arcsec/s == °/h
+    line = next(s for s in out.splitlines() if s.strip().startswith("probe_ax_c"))
+    assert float(line.split("mean ")[1].split(",")[0]) == pytest.approx(hand["temps"][:, 1].mean(),
+                                                                       rel=1e-5)
+
+
+def test_calibrate_a_recording_with_its_programme(hand, tmp_path, capsys):
+    out = tmp_path / "rec_cal.csv"
+    assert main(["calibrate", str(hand["csv"]), "--programme", str(hand["prog"]), "-o",
+                 str(out), "-q", "--workers", "1"]) == 0
+    rec = pd.read_csv(out)
+    assert list(rec["status"]) == ["ok", "ok"]
+    # independent: the device's true parameters (drawn by the test), inside 5σ of the filter
+    truth = hand["truth"]
+    for i, a in enumerate("xyz"):
+        est, sig = rec[f"gyro_bias_{a}"].to_numpy(), rec[f"gyro_bias_{a}_sigma"].to_numpy()
+        true = truth.d_g[i] / (math.pi / 180 / 3600)
+        assert np.all(np.abs(est - true) < 5 * sig + 1e-3), (a, est, true, sig)
+        est_sf = rec[f"gyro_sf_{a}_pulse_per_arcsec"].to_numpy()
+        assert np.all(np.abs(est_sf / (truth.k_g[i] * math.pi / 180 / 3600) - 1) < 2e-5)
+    # the window's mean probe reading: rows whose 1-s step ends in (t0, t1]
+    t = np.arange(1, len(hand["temps"]) + 1, dtype=float)
+    for w, (t0, t1) in enumerate(hand["windows"]):
+        sel = (t > t0) & (t <= t1)
+        assert rec["temp_gx_c"][w] == pytest.approx(hand["temps"][sel, 0].mean(), rel=1e-12)
+    # the same pulses as a dataset: the same filter settings, so the very same numbers
+    ds_out = tmp_path / "ds_cal.csv"
+    assert main(["calibrate", str(hand["h5"]), "-o", str(ds_out), "-q", "--workers", "1",
+                 "--no-dataset"]) == 0
+    ds = pd.read_csv(ds_out)
+    for c in ("gyro_bias_x", "gyro_bias_y", "gyro_sf_z", "accel_bias_z", "accel_sf_neg_x",
+              "gyro_mis_xy", "gyro_bias_y_sigma", "temp_ax_c"):
+        np.testing.assert_array_equal(rec[c].to_numpy(), ds[c].to_numpy(), err_msg=c)
+    assert rec["gyro_bias_x_true"].isna().all()          # a recording has no truth
+
+
+def test_calibrate_recording_needs_a_programme(hand, capsys):
+    assert main(["calibrate", str(hand["csv"]), "-q"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--programme" in err
+
+
+def test_export_recording_round_trip(hand, tmp_path, capsys):
+    """CSV → Parquet → CSV gives identical arrays; exporting the dataset gives the pulses and
+    probes of the hand-made table bit for bit, and calibrates to the same table."""
+    pq = tmp_path / "again.parquet"
+    assert main(["export", str(hand["csv"]), "--format", "parquet", "-o", str(pq), "-q"]) == 0
+    a, b = load_recording(hand["csv"]), load_recording(pq)
+    np.testing.assert_array_equal(a.time_s, b.time_s)
+    assert a.columns.keys() == b.columns.keys()
+    for k in a.columns:
+        np.testing.assert_array_equal(a.columns[k], b.columns[k], err_msg=k)
+    back = tmp_path / "back.csv"
+    assert main(["export", str(pq), "--format", "csv", "-o", str(back), "-q"]) == 0
+    c = load_recording(back)
+    for k in a.columns:
+        np.testing.assert_array_equal(a.columns[k], c.columns[k], err_msg=k)
+    # the dataset exported: same table as the hand-made one
+    ex = tmp_path / "ds.csv"
+    assert main(["export", str(hand["h5"]), "-o", str(ex)]) == 0
+    assert "programme:" in capsys.readouterr().out
+    e = load_recording(ex)
+    np.testing.assert_array_equal(e.time_s, a.time_s)
+    np.testing.assert_array_equal(e.gyro_pulses(), hand["ng"])
+    np.testing.assert_array_equal(e.accel_pulses(), hand["na"])
+    np.testing.assert_array_equal(e.probes()[1], hand["temps"])
+
+
+def test_export_simulated_dataset_round_trip(tmp_path, capsys):
+    """A simulated run (single gyro with UHFO) → CSV and Parquet → the dataset's arrays."""
+    scen = tmp_path / "short.toml"
+    scen.write_text('name = "short"\ndevice = "trplg_001"\nseed = 5\nduration_min = 10\n'
+                    '[acquisition]\nsample_rate_hz = 10\n[chamber]\nstart_c = 20.0\n'
+                    '[[chamber.segments]]\ntype = "ramp"\nto_c = 30.0\nrate_c_per_min = 1.0\n')
+    h5 = tmp_path / "short.h5"
+    assert main(["run", str(scen), "-o", str(h5), "-q"]) == 0
+    for fmt in ("csv", "parquet"):
+        assert main(["export", str(h5), "--format", fmt, "-q"]) == 0
+        rec = load_recording(tmp_path / f"short_recording.{fmt}")
+        assert scen.read_text().startswith('name = "short"')      # the scenario is untouched
+        with h5py.File(h5, "r") as f:
+            n = f["imu/gyro_pulses"].shape[0]
+            np.testing.assert_array_equal(rec.time_s, np.arange(1, n + 1) / 10.0)
+            np.testing.assert_array_equal(rec.gyro_pulses(), f["imu/gyro_pulses"][()])
+            t, temps = rec.probes()
+            np.testing.assert_array_equal(t, f["probes/time"][()])
+            np.testing.assert_array_equal(temps, f["probes/temperature"][()])
+            ax = f["imu/gyro"][0].decode()
+            np.testing.assert_array_equal(rec.slow(f"uhfo_{ax}_v")[1], f["imu/uhfo"][:, 0])
+            np.testing.assert_array_equal(rec.slow("chamber_air_c")[1],
+                                          f["thermal/chamber_air"][()])
+        assert rec.sidecar.gyro_sf_pulse_per_arcsec == 2.14
+
+
+# ----------------------------------------------------------------------------- bad input
+
+def _bad(tmp_path, capsys, mutate, sidecar=SIDECAR.replace("temperature_rate_hz = 1\n", "")):
+    rows = 50
+    df = pd.DataFrame({"time_s": np.arange(1, rows + 1) / RATE,
+                       "gyro_x_pulses": np.arange(rows), "gyro_y_pulses": np.zeros(rows),
+                       "gyro_z_pulses": np.ones(rows), "accel_x_pulses": np.zeros(rows),
+                       "accel_y_pulses": np.zeros(rows), "accel_z_pulses": np.full(rows, 500),
+                       "probe_A_c": np.linspace(20, 21, rows)})
+    df, sidecar = mutate(df, sidecar)
+    path = tmp_path / "bad.csv"
+    df.to_csv(path, index=False)
+    (tmp_path / "bad.toml").write_text(sidecar)
+    code = main(["info", str(path)])
+    cap = capsys.readouterr()
+    return code, cap.err, cap.out
+
+
+def _set(col, row, value):
+    def mutate(df, sc):
+        df[col] = df[col].astype(object)
+        df.loc[row, col] = value
+        return df, sc
+    return mutate
+
+
+BAD = {
+    "wrong unit": (lambda df, sc: (df.rename(columns={"probe_A_c": "probe_A_k"}), sc),
+                   "column 'probe_A_k': unit or name not allowed; probe temperatures are in °C"),
+    "rate unit": (lambda df, sc: (df.rename(columns={"gyro_x_pulses": "gyro_x_rate_mrad"}), sc),
+                  "column 'gyro_x_rate_mrad': unit or name not allowed"),
+    "missing time": (lambda df, sc: (df.drop(columns="time_s"), sc),
+                     "column 'time_s' missing"),
+    "missing axis": (lambda df, sc: (df.drop(columns="gyro_z_pulses"), sc),
+                     "column 'gyro_z_pulses' (or a rate column) missing"),
+    "not monotonic": (_set("time_s", 10, 0.05),
+                      "column 'time_s', row 11: time 0.05 s after 0.1 s; time must increase"),
+    "gap": (lambda df, sc: (df.drop(index=[20, 21]), sc),
+            "column 'time_s', row 21: a gap of 0.03 s"),
+    "NaN": (_set("probe_A_c", 7, float("nan")),
+            "column 'probe_A_c', row 8: empty or NaN value not allowed; mark a missing reading "
+            "with dropout = 1"),
+    "text": (_set("gyro_y_pulses", 3, "abc"),
+             "column 'gyro_y_pulses', row 4: value 'abc' not allowed; must be a number"),
+    "Kelvin": (_set("probe_A_c", 5, 293.15),
+               "column 'probe_A_c', row 6: value 293.15 not allowed; temperatures are in °C"),
+    "fractional pulses": (_set("gyro_x_pulses", 2, 0.5),
+                          "column 'gyro_x_pulses', row 3: value 0.5 not allowed; pulses are "
+                          "whole counts"),
+    "sidecar unknown key": (lambda df, sc: (df, sc.replace("latitude_deg", "latitude")),
+                            "bad.toml: site.latitude: unknown key; allowed: height_m, "
+                            "latitude_deg"),
+    "sidecar no rate": (lambda df, sc: (df, sc.replace("sample_rate_hz = 100",
+                                                       "description = 'x'")),
+                        "bad.toml: recording.sample_rate_hz: missing"),
+    "sidecar wrong rate": (lambda df, sc: (df, sc.replace("sample_rate_hz = 100",
+                                                          "sample_rate_hz = 50")),
+                           "a step of 0.01 s; the sidecar's sample_rate_hz = 50 needs 0.02 s"),
+    "sidecar axes": (lambda df, sc: (df, sc.replace('axes = ["x", "y", "z"]\nscale_factor_pulses'
+                                                    '_per_arcsec', 'axes = ["x", "y"]\nscale_'
+                                                    'factor_pulses_per_arcsec')),
+                     "column 'gyro_z_pulses': axis 'z' not allowed; the sidecar's [gyro] axes "
+                     "are ['x', 'y']"),
+    "sidecar syntax": (lambda df, sc: (df, sc + "\n[site\n"), "not a valid TOML sidecar"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_recordings_give_one_line_and_exit_2(tmp_path, capsys, case):
+    mutate, expected = BAD[case]
+    code, err, _ = _bad(tmp_path, capsys, mutate)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("rlgsim: error: ") and "Traceback" not in err
+    assert expected in lines[0], lines[0]
+
+
+def test_dropouts_are_recorded_as_such(tmp_path, capsys):
+    def mutate(df, sc):
+        df["dropout"] = 0
+        df.loc[[10, 11, 12], "dropout"] = 1
+        df["gyro_x_pulses"] = df["gyro_x_pulses"].astype(float)
+        df.loc[[10, 11, 12], ["gyro_x_pulses", "probe_A_c"]] = np.nan
+        return df, sc
+    code, err, out = _bad(tmp_path, capsys, mutate)
+    assert code == 0, err
+    assert "dropouts: 3 sample(s) (0.03 s)" in out
+    rec = load_recording(tmp_path / "bad.csv")
+    assert rec.dropout.sum() == 3 and np.isnan(rec.gyro_pulses()[10, 0])
