@@ -69,7 +69,8 @@ def _ascii(text: str) -> str:
     """Comment-safe ASCII: °C → degC, no ``*/``, no control characters."""
     for k, v in _ASCII.items():
         text = text.replace(k, v)
-    text = text.encode("ascii", "replace").decode("ascii").replace("*/", "* /")
+    text = text.encode("ascii", "replace").decode("ascii")
+    text = text.replace("*/", "* /").replace("/*", "/ *")
     return re.sub(r"[\x00-\x1f]", " ", text)
 
 
@@ -106,6 +107,18 @@ def _rows(matrix, indent: str = "    ") -> str:
 def _string_table(items) -> str:
     return ", ".join('"' + _ascii(s).replace("\\", "\\\\").replace('"', '\\"') + '"'
                      for s in items)
+
+
+def _wrap(text: str, width: int = 90) -> list[str]:
+    """``text`` split at spaces into lines of at most ``width`` characters."""
+    lines, line = [], ""
+    for word in _ascii(text).split(" "):
+        if line and len(line) + 1 + len(word) > width:
+            lines.append(line)
+            line = "    " + word
+        else:
+            line = f"{line} {word}" if line else word
+    return lines + [line]
 
 
 def _monomial(powers) -> str:
@@ -146,7 +159,10 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
              " * Inputs x[i] (unit; training range):"]
     for i, (nm, u) in enumerate(zip(model.input_names_, model.input_units_)):
         lines.append(f" *   x[{i}] = {_ascii(nm)} ({_ascii(u) or 'no unit given'}; "
-                     f"{model.train_min_[i]!r} .. {model.train_max_[i]!r})")
+                     f"{float(model.train_min_[i])!r} .. {float(model.train_max_[i])!r})")
+    if model.form_ == "polynomial":
+        lines += [" * In input units (for reading; the code evaluates the standardised form):",
+                  *(" *   " + line for line in _wrap(model.raw_equation(ascii=True)))]
     lines += [" * range_flags (may be NULL): bit i set when x[i] is outside its training range",
               " * or NaN; the value is then an extrapolation. 0: every input inside."]
     banner = "/*\n" + "\n".join(lines) + "\n */\n"
@@ -168,7 +184,7 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
             f"{{{_string_table(model.input_units_)}}};",
             f"const double {up}_TRAIN_MIN[{up}_N_INPUTS] = {{\n    {_table(model.train_min_)}}};",
             f"const double {up}_TRAIN_MAX[{up}_N_INPUTS] = {{\n    {_table(model.train_max_)}}};",
-            "/* standardised inputs z[i] = (x[i] - CENTER[i]) / SCALE[i] */",
+            "/* standardised inputs z[i] = (x[i] - CENTER[i]) / SCALE[i] */\n"
             f"static const double {up}_CENTER[{up}_N_INPUTS] = {{\n    {_table(model.center_)}}};",
             f"static const double {up}_SCALE[{up}_N_INPUTS] = {{\n    {_table(model.scale_)}}};"]
     use_m2cgen = model._svr is not None

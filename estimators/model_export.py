@@ -54,7 +54,8 @@ from sklearn.metrics.pairwise import rbf_kernel
 from sklearn.utils.validation import check_array, check_is_fitted
 
 from rlgsim.estimators.columns import Columns
-from rlgsim.estimators.terms import design_matrix, format_equation, term_label, term_pretty
+from rlgsim.estimators.terms import (design_matrix, format_equation, raw_coefficients,
+                                     term_label, term_pretty)
 from rlgsim.ground.errors import UserInputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "KINDS", "ExportedCompensator",
@@ -338,14 +339,21 @@ class ExportedCompensator(RegressorMixin, BaseEstimator):
             out = out * self.output_scale_ + self.output_offset_
         return out
 
-    def equation(self, precision: int = 4, ascii: bool = False) -> str:
-        """The polynomial in the standardised inputs ``z`` (polynomial form only)."""
+    def raw_equation(self, precision: int = 6, ascii: bool = False) -> str:
+        """The polynomial in the inputs' own units, as the estimators print it
+        (``B = 1.427×10⁻³ + 4.906×10⁻⁴·T − ...``; polynomial form only). For reading: its
+        raw-unit coefficients can be large and cancelling, prediction uses the scaled form."""
         if self.form_ != "polynomial":
             raise ValueError(f"a {self.form_} model has no polynomial equation")
-        zn = [f"z_{n}" for n in self.input_names_]
-        labels = [term_label(p, zn) if ascii else term_pretty(p, zn) for p in self.powers_]
-        return format_equation(self.target_, self.intercept_, self.coef_, labels, precision,
-                               ascii)
+        raw = raw_coefficients(self.powers_, self.coef_, self.intercept_, self.center_,
+                               self.scale_)
+        zero = (0,) * len(self.input_names_)
+        powers = [p for p in raw if p != zero]
+        powers.sort(key=lambda p: (sum(p), [-e for e in p]))
+        names = self.input_names_
+        labels = [term_label(p, names) if ascii else term_pretty(p, names) for p in powers]
+        return format_equation(self.target_, raw[zero], [raw[p] for p in powers], labels,
+                               precision, ascii)
 
     # -- files -----------------------------------------------------------------------------
     def to_json(self, path: str | pathlib.Path) -> pathlib.Path:
