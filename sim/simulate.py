@@ -322,6 +322,8 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     chunk = float(chunk_s if chunk_s is not None else scenario.acquisition.chunk_s)
     if not chunk > 0:
         raise ValueError("chunk_s must be > 0")
+    from rlgsim.sim.run_budget import check_budget, check_motions
+    check_motions(scenario)                 # before the timeline holds them all
     timeline = build_timeline(scenario)
     step = timeline.step_s
     n_steps = timeline.n_steps
@@ -369,6 +371,9 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
             else:
                 writers[s.group] = w.group(s.group, s.description)
                 s.declare(writers[s.group])
+        check_budget(w._file, scenario, out, n_steps=n_steps, steps_per_block=per_block,
+                     buffered_blocks=blocks_per_write, block_s=BLOCK_S,
+                     progress=progress)    # refuse what cannot fit (run_budget)
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]
         buffers: dict[str, dict[str, dict[str, list]]] = {}

@@ -420,14 +420,21 @@ def _sequence_kwargs(table: Mapping, ctx: Ctx) -> dict:
     return dict(rate_deg_s=get_float(table, "rate_deg_s", ctx, DEFAULT_RATE_DEG_S,
                                      min=0.0, min_exclusive=True, max=1000.0),
                 dwell_s=get_float(table, "dwell_s", ctx, CALIBRATION19_DWELL_S,
-                                  min=0.0, min_exclusive=True),
+                                  min=MIN_MOTION_S),
                 first_dwell_s=get_float(table, "first_dwell_s", ctx, CALIBRATION19_FIRST_DWELL_S,
-                                        min=0.0, min_exclusive=True))
+                                        min=MIN_MOTION_S))
+
+
+#: Shortest motion [s]: a hold, a continuous rotation or a turn (its angle over its rate) may
+#: not be shorter, so that a repeated programme keeps a block's motion segments bounded (the
+#: whole run is also limited to rlgsim.sim.run_budget.MAX_MOTIONS segments).
+MIN_MOTION_S = 1e-3
 
 
 def _duration(item: Mapping, ctx: Ctx) -> float:
-    """``duration_s`` [s] > 0; omitted = to the end of the run (``math.inf``)."""
-    value = get_float(item, "duration_s", ctx, None, min=0.0, min_exclusive=True)
+    """``duration_s`` [s] >= :data:`MIN_MOTION_S`; omitted = to the end of the run
+    (``math.inf``)."""
+    value = get_float(item, "duration_s", ctx, None, min=MIN_MOTION_S)
     return math.inf if value is None else value
 
 
@@ -446,10 +453,15 @@ def _parse_steps(items: list, ctx: Ctx) -> tuple[Step, ...]:
             steps.append(Hold(_duration(item, c), label))
         elif kind == "rotate":
             check_known_keys(item, ("type", "axis", "angle_deg", "rate_deg_s", "label"), c)
-            steps.append(Rotate(get_str(item, "axis", c, choices=AXES),
-                                get_float(item, "angle_deg", c, min=-36000.0, max=36000.0),
-                                get_float(item, "rate_deg_s", c, DEFAULT_RATE_DEG_S, min=0.0,
-                                          min_exclusive=True, max=1000.0), label))
+            turn = Rotate(get_str(item, "axis", c, choices=AXES),
+                          get_float(item, "angle_deg", c, min=-36000.0, max=36000.0),
+                          get_float(item, "rate_deg_s", c, DEFAULT_RATE_DEG_S, min=0.0,
+                                    min_exclusive=True, max=1000.0), label)
+            if turn.angle_deg and abs(turn.angle_deg) / turn.rate_deg_s < MIN_MOTION_S:
+                raise c.error("angle_deg", f"value {turn.angle_deg:g} not allowed at "
+                                           f"rate_deg_s = {turn.rate_deg_s:g}: the turn would "
+                                           f"last less than {MIN_MOTION_S:g} s")
+            steps.append(turn)
         elif kind == "continuous":
             check_known_keys(item, ("type", "axis", "rate_deg_s", "duration_s", "label"), c)
             rate = get_float(item, "rate_deg_s", c, min=-1000.0, max=1000.0)
