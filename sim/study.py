@@ -9,18 +9,25 @@ A study file (TOML, shipped in ``scenarios/studies/`` or given by path) has a ``
     recipe = "bias_compensation"      # how it runs: a module sim/studies/<recipe>.py
     device_seed = 1001                # optional: the unit simulated (default: each scenario's)
 
-and further tables that belong to its *recipe*. A recipe is a module in ``sim/studies/`` with
+and further tables that belong to its *recipe*. A recipe is a module ``sim/studies/<recipe>.py``
+named in :data:`RECIPES`, with one shape:
 
     check(study: Study) -> config
         validate the recipe's tables (raise :class:`~rlgsim.ground.errors.UserInputError` naming
         file/key/value) and return whatever the recipe needs;
-    run(study: Study, config, workdir: pathlib.Path, *, unit: int, progress: bool,
-        make_report: bool) -> StudyResult
-        simulate, fit, score; ``workdir`` holds datasets and (with ``make_report``) the report.
+    run(study: Study, config, workdir: pathlib.Path, *, unit: int, progress: bool) -> StudyResult
+        simulate, fit, score; ``workdir`` holds the datasets (``workdir/data/``) and any files
+        the recipe writes; ``StudyResult.details`` carries what its report needs;
+    report(study: Study, config, result: StudyResult) -> Report        (optional)
+        the report of a run; the runner calls it for ``rlgsim study`` (never for a Monte Carlo
+        unit) and ends it with the study file and the scenario and preset files. A recipe
+        without it gets a report of its score rows.
 
-The study runner (this module) and the CLI are the only places that join ``sim`` and
-``estimators``. :func:`study_unit` is the Monte Carlo unit function: the same study for unit
-``i`` (another drawn device, other noise), without the report.
+The runner (this module) knows its recipes by name only: it imports ``sim/studies/<recipe>.py``
+when a study names it, and nothing in ``sim/studies/`` is imported here, so the recipes and
+their building blocks may import this module. The study runner and the CLI are the only places
+that join ``sim`` and ``estimators``. :func:`study_unit` is the Monte Carlo unit function: the
+same study for unit ``i`` (another drawn device, other noise), without the report.
 """
 
 from __future__ import annotations
@@ -32,14 +39,14 @@ import tempfile
 from dataclasses import dataclass, field
 from typing import Any
 
+from rlgsim.ground.errors import UserInputError
 from rlgsim.sim import presets
 from rlgsim.sim.config import Ctx, check_known_keys, get_int, get_str, get_table
-from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.report import Report, output_folder
-from rlgsim.sim.studies import recipe_names
+from rlgsim.sim.report import Report, Table, output_folder
 
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
-RECIPES = recipe_names()      # the modules in sim/studies/
+#: The recipes, each a module ``rlgsim.sim.studies.<name>`` (a new recipe adds its name here).
+RECIPES = ("bias_compensation", "environments", "gradient_selection", "paper000_system")
 
 
 @dataclass(frozen=True)
@@ -63,14 +70,15 @@ class Study:
 
 @dataclass
 class StudyResult:
-    """What a study run gives back: its report (or None) and the scores of every compensator.
+    """What a study run gives back: the scores of every compensator, and what its report needs.
 
-    ``rows`` are (compensator, metric, value) — the Monte Carlo results table — and ``params``
-    the drawn device parameters worth showing next to a unit's scores (name → value)."""
+    ``rows`` are (compensator, metric, value) — the Monte Carlo results table —, ``params``
+    the drawn device parameters worth showing next to a unit's scores (name → value) and
+    ``details`` whatever the recipe's ``report`` hook reads (the recipe's own type)."""
 
     rows: list[tuple[str, str, float]]
     params: dict[str, float] = field(default_factory=dict)
-    report: Report | None = None
+    details: Any = None
 
 
 def parse_study(text: str, source: str = "<string>", *, base_dir: pathlib.Path | None = None,
@@ -110,6 +118,7 @@ def list_studies() -> list[tuple[str, str]]:
 
 
 def recipe_module(study: Study):
+    """The recipe module of ``study`` (found by name: ``rlgsim.sim.studies.<recipe>``)."""
     return importlib.import_module(f"rlgsim.sim.studies.{study.recipe}")
 
 
@@ -163,13 +172,23 @@ def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = Tru
     out_dir = output_folder(out_dir)
     recipe = recipe_module(study)
     config = recipe.check(study)
-    result = recipe.run(study, config, out_dir, unit=0, progress=progress, make_report=True)
-    if result.report is None:
-        raise RuntimeError(f"recipe {study.recipe} returned no report")
-    result.report.heading("Study file", 2)
-    result.report.verbatim(study.text, title=study.source, language="toml")
-    _input_files(study, result.report)
-    return result.report.write(out_dir)
+    result = recipe.run(study, config, out_dir, unit=0, progress=progress)
+    hook = getattr(recipe, "report", None)
+    report = hook(study, config, result) if hook is not None else _rows_report(study, result)
+    report.heading("Study file", 2)
+    report.verbatim(study.text, title=study.source, language="toml")
+    _input_files(study, report)
+    return report.write(out_dir)
+
+
+def _rows_report(study: Study, result: StudyResult) -> Report:
+    """The report of a recipe without a ``report`` hook: its score rows as one table."""
+    rep = Report(f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else ""))
+    if study.description:
+        rep.paragraph(study.description)
+    rep.table(Table("Scores", ["compensator", "metric", "value"],
+                    [list(row) for row in result.rows], csv_name="scores.csv"))
+    return rep
 
 
 def _input_files(study: Study, report: Report) -> None:
@@ -200,6 +219,5 @@ def study_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
     recipe = recipe_module(study)
     config = recipe.check(study)
     with tempfile.TemporaryDirectory(prefix=f"rlgsim-unit{unit}-") as tmp:
-        result = recipe.run(study, config, pathlib.Path(tmp), unit=unit, progress=False,
-                            make_report=False)
+        result = recipe.run(study, config, pathlib.Path(tmp), unit=unit, progress=False)
     return {"rows": result.rows, "params": result.params}

@@ -235,3 +235,51 @@ def test_several_test_runs_get_their_own_scores_and_figures(tmp_path):
             assert (tmp_path / f"{fig}_{label}.png").stat().st_size > 10_000
     md = (tmp_path / "report.md").read_text()
     assert "Test run demo_cycle-seed7003. Top:" in md
+
+
+def test_an_edited_device_or_thermal_preset_is_simulated_again(tmp_path):
+    """The one dataset fingerprint (every recipe, paper 000's included): a dataset is reused
+    only while the scenario, device preset and thermal preset texts are those it was made from."""
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.studies.runs import simulated_dataset
+
+    shipped = ROOT / "scenarios"
+    device = (shipped / "devices" / "trplg_001.toml").read_text()
+    assert 'thermal_preset = "rlg_single"' in device
+    (tmp_path / "dev.toml").write_text(device.replace('thermal_preset = "rlg_single"',
+                                                      'thermal_preset = "therm.toml"'))
+    (tmp_path / "therm.toml").write_text((shipped / "thermal" / "rlg_single.toml").read_text())
+    (tmp_path / "run.toml").write_text(
+        'name = "run"\ndevice = "dev.toml"\nseed = 5\n[acquisition]\nsample_rate_hz = 10\n'
+        '[power]\non_at_s = 0\n[chamber]\nstart_c = 25.0\n[[chamber.segments]]\n'
+        'type = "hold"\nduration_h = 0.1\n')
+    path = tmp_path / "data" / "run.h5"
+
+    def reused() -> bool:
+        return simulated_dataset(load_scenario(str(tmp_path / "run.toml")), path,
+                                 progress=False)[1]
+
+    assert not reused() and reused()
+    for preset in ("dev.toml", "therm.toml", "run.toml"):
+        f = tmp_path / preset
+        f.write_text(f.read_text() + "\n# edited: same numbers, another text\n")
+        assert not reused(), preset
+        assert reused(), preset
+
+
+def test_a_recipe_without_a_report_hook_gets_its_score_rows(tmp_path, monkeypatch):
+    import types
+
+    from rlgsim.sim import study as runner
+    from rlgsim.sim.study import Study, StudyResult
+
+    def run(study, config, workdir, *, unit, progress):
+        return StudyResult(rows=[("model", "rmse_true", 0.25)])
+
+    recipe = types.SimpleNamespace(check=lambda study: None, run=run)
+    monkeypatch.setattr(runner, "recipe_module", lambda study: recipe)
+    study = Study(name="bare", description="no hook", paper="", recipe="bare",
+                  source="bare.toml", text="[study]\n", base_dir=None)
+    md = run_study(study, tmp_path, progress=False).read_text()
+    assert "Study bare" in md and "Study file" in md
+    assert (tmp_path / "scores.csv").read_text().splitlines()[1:] == ["model,rmse_true,0.25"]

@@ -52,8 +52,8 @@ def run(tmp_path_factory):
     study = parse_study(SHORT, "paper000_test.toml")
     recipe = recipe_module(study)
     cfg = recipe.check(study)
-    result = recipe.run(study, cfg, out, unit=0, progress=False, make_report=True)
-    result.report.write(out)
+    result = recipe.run(study, cfg, out, unit=0, progress=False)
+    recipe.report(study, cfg, result).write(out)
     scores = {(c, m): v for c, m, v in result.rows}
     return out, result, scores, study, cfg
 
@@ -171,15 +171,22 @@ def test_compensated_gyro_pulses_follow_eq_26_with_cumulative_rounding(run):
 def test_existing_dataset_is_reused_and_a_changed_one_is_not(run):
     import dataclasses
 
-    from rlgsim.sim.studies.paper000_system import _dataset_matches
+    from rlgsim.sim.studies.runs import dataset_matches
     from rlgsim.sim.study import scenario_for
     out, _, _, study, _ = run
     path = out / "data" / "paper000_short_u0.h5"
     scenario = scenario_for(study, "paper000_short")
-    assert _dataset_matches(path, scenario)
-    assert not _dataset_matches(path, dataclasses.replace(scenario, seed=scenario.seed + 1))
-    assert not _dataset_matches(path, dataclasses.replace(scenario, unit=1))
-    assert not _dataset_matches(path, dataclasses.replace(scenario, device_seed=7))
+    assert dataset_matches(path, scenario)
+    assert not dataset_matches(path, dataclasses.replace(scenario, seed=scenario.seed + 1))
+    assert not dataset_matches(path, dataclasses.replace(scenario, unit=1))
+    assert not dataset_matches(path, dataclasses.replace(scenario, device_seed=7))
+    # the one fingerprint of every recipe: an edited device or thermal preset is not reused
+    device = scenario.device
+    edited = dataclasses.replace(device, text=device.text + "\n# edited\n")
+    assert not dataset_matches(path, dataclasses.replace(scenario, device=edited))
+    thermal = dataclasses.replace(device.thermal, text=device.thermal.text + "\n# edited\n")
+    assert not dataset_matches(
+        path, dataclasses.replace(scenario, device=dataclasses.replace(device, thermal=thermal)))
 
 
 BAD = [

@@ -339,8 +339,8 @@ def test_truth_scores_match_an_independent_recomputation(ran):
 def test_rows_depend_on_study_and_unit_only(study, folder, tmp_path):
     recipe = recipe_module(study)
     cfg = recipe.check(study)
-    res = recipe.run(study, cfg, tmp_path / "a", unit=0, progress=False, make_report=False)
-    assert res.report is None and not list((tmp_path / "a").glob("*.md"))
+    res = recipe.run(study, cfg, tmp_path / "a", unit=0, progress=False)   # run: no report
+    assert not list((tmp_path / "a").glob("*.md"))
     metrics = {(c, m) for c, m, _ in res.rows}
     for env in ("20 °C", "5 °C/min"):
         for name in METHODS + ("raw", "truth: temperature law"):
@@ -364,8 +364,7 @@ def test_several_test_runs_give_per_run_rows_and_their_mean(folder, tmp_path):
                          '{ scenario = "cycle.toml", seed = 23, skip_h = 0.5 }]')
     study = parse_study(text, str(folder / "two.toml"), base_dir=folder)
     recipe = recipe_module(study)
-    res = recipe.run(study, recipe.check(study), tmp_path, unit=0, progress=False,
-                     make_report=False)
+    res = recipe.run(study, recipe.check(study), tmp_path, unit=0, progress=False)
     rows = {(c, m): v for c, m, v in res.rows}
     a = rows[("MLR", "stability_after@5 °C/min:cycle-seed22")]
     b = rows[("MLR", "stability_after@5 °C/min:cycle-seed23")]

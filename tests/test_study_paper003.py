@@ -112,8 +112,8 @@ title = "Table 4: verification"
 test = "train-seed3100"
 traditional = "3-point"
 proposed = "multi-point"
-before = 0.0258
-after = { "3-point" = 0.0089, "multi-point" = 0.0021 }
+before_deg_per_h = 0.0258
+after_deg_per_h = { "3-point" = 0.0089, "multi-point" = 0.0021 }
 improvement_pct = { "3-point" = 65.5, "multi-point" = 91.9 }
 improvement_over_traditional_pct = 40.3
 
@@ -122,7 +122,7 @@ title = "Table 5: random"
 test = "test"
 traditional = "3-point"
 proposed = "multi-point"
-before = 0.0283
+before_deg_per_h = 0.0283
 """
 
 
@@ -257,11 +257,14 @@ def test_shipped_paper003_study_validates_and_is_listed():
     ('among = ["g.A", "g.B"', 'among = ["g.A", "g.Z"', "probe 'g.Z' is not in features.gradients"),
     ("min_abs_r = 0.5", "min_abs_r = 1.5", "min_abs_r"),
     ('test = "test"', 'test = "tset"', "value 'tset' not allowed"),
-    ('proposed = "multi-point"\nbefore = 0.0283', 'proposed = "3-point"\nbefore = 0.0283',
+    ('proposed = "multi-point"\nbefore', 'proposed = "3-point"\nbefore',
      "must differ from traditional"),
+    ("before_deg_per_h = 0.0283", "before = 0.0283", "paper_table[1].before: unknown key"),
+    ("before_deg_per_h = 0.0283", "before_deg_per_h = -0.0283", "before_deg_per_h"),
     ("[0.942, 0.739, 0.647, 0.932, 0.0],", "[0.942, 0.739, 0.647, 0.932],",
      "5×5 array"),
-    ('after = { "3-point" = 0.0089', 'after = { "4-point" = 0.0089', "4-point"),
+    ('after_deg_per_h = { "3-point" = 0.0089', 'after_deg_per_h = { "4-point" = 0.0089',
+     "paper_table[0].after_deg_per_h.4-point"),
     ("select = {", "choose = {", "choose: unknown key"),
 ])
 def test_bad_study_files_are_user_errors(old, new, expected, tmp_path):
@@ -308,13 +311,14 @@ def test_window_series_do_not_depend_on_the_read_block(short, monkeypatch):
     """read_run reads a block of windows at a time (bounded memory); the series are the same
     bytes whatever the block size."""
     from rlgsim.sim.config import Ctx
-    from rlgsim.sim.studies import single_gyro
-    spec = single_gyro.FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
+    from rlgsim.sim.studies import runs
+    from rlgsim.sim.studies.study_tables import FeatureSpec
+    spec = FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
     path = short / "data" / "test.h5"
-    ref = single_gyro.read_run(path, spec, "test", Ctx("s.toml"))
+    ref = runs.read_run(path, spec, "test", Ctx("s.toml"))
     for block in (1000, 7777, 123_457):
-        monkeypatch.setattr(single_gyro, "READ_BLOCK_SAMPLES", block)
-        got = single_gyro.read_run(path, spec, "test", Ctx("s.toml"))
+        monkeypatch.setattr(runs, "READ_BLOCK_SAMPLES", block)
+        got = runs.read_run(path, spec, "test", Ctx("s.toml"))
         for a, b in ((ref.y, got.y), (ref.true_bias, got.true_bias), (ref.time_s, got.time_s)):
             assert a.tobytes() == b.tobytes()
         assert ref.X.names == got.X.names

@@ -1,16 +1,6 @@
-"""Study recipes: one module per way of running a study (see :mod:`rlgsim.sim.study`).
+"""Study recipes and their building blocks (see :mod:`rlgsim.sim.study`).
 
-Every module here is a recipe (it has ``check`` and ``run``) except the building blocks
-listed in :data:`SHARED`.
+A recipe is a module named in :data:`rlgsim.sim.study.RECIPES` with ``check``, ``run`` and an
+optional ``report`` hook; the other modules here are the building blocks the recipes share
+(docs/architecture.md lists them).
 """
-
-import pkgutil
-
-#: Modules of this package that recipes share and that are not recipes themselves.
-SHARED = ("single_gyro", "environments_report")
-
-
-def recipe_names() -> tuple[str, ...]:
-    """The recipe modules of this package, sorted."""
-    return tuple(sorted(m.name for m in pkgutil.iter_modules(__path__)
-                        if not m.name.startswith("_") and m.name not in SHARED))

@@ -2,8 +2,9 @@
 every compensator of a paper's tables with the published numbers beside ours (paper 001; also
 the demo study).
 
-A study with ``recipe = "bias_compensation"`` (see :mod:`rlgsim.sim.study`) has these tables (runs,
-features and compensators: :mod:`rlgsim.sim.studies.single_gyro`)::
+A study with ``recipe = "bias_compensation"`` (see :mod:`rlgsim.sim.study`) has these tables (runs
+and features: :mod:`rlgsim.sim.studies.study_tables`; compensators:
+:mod:`rlgsim.sim.studies.compensators`)::
 
     [data]
     train = ["paper001_train"]
@@ -33,7 +34,7 @@ features and compensators: :mod:`rlgsim.sim.studies.single_gyro`)::
     correlation = { T = 0.71, "dT/dt" = -0.43, U = -0.82 }
 
 Each compensator is fitted on the train runs (windows stacked) and applied to each test run;
-the scores (:func:`rlgsim.sim.studies.single_gyro.scores`) are the rows of
+the scores (:func:`rlgsim.sim.studies.scoring.scores`) are the rows of
 :class:`~rlgsim.sim.study.StudyResult`. The row ``truth: temperature law`` is the oracle
 ``ŷ = b − r``: the best any input-driven model can do.
 """
@@ -50,11 +51,13 @@ import numpy as np
 from rlgsim.sim.config import check_known_keys, get_float, get_section, get_str, get_table
 from rlgsim.sim.report import Report, Table
 from rlgsim.sim.study import Study, StudyResult
-from rlgsim.sim.studies.single_gyro import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec, FeatureSpec,
-                                     Fitted, RunSeries, RunSpec, definitions, fit_all, fmt,
-                                     load_experiment, parse_compensators, parse_experiment,
-                                     parse_metrics, score_run, worth_showing, before_check,
-                                     truth_score_tables)
+from rlgsim.sim.studies.compensators import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec,
+                                              parse_compensators)
+from rlgsim.sim.studies.fitting import Fitted, fit_all
+from rlgsim.sim.studies.report_text import before_check, definitions, fmt, truth_score_tables
+from rlgsim.sim.studies.runs import LoadedRun, RunSeries, load_experiment, worth_showing
+from rlgsim.sim.studies.scoring import score_run, series_stability
+from rlgsim.sim.studies.study_tables import FeatureSpec, RunSpec, parse_experiment, parse_metrics
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
@@ -101,8 +104,24 @@ def check(study: Study) -> Config:
 
 
 # ------------------------------------------------------------------------------ the run
+@dataclass
+class Outcome:
+    """What :func:`run` hands to :func:`report` (in ``StudyResult.details``)."""
+
+    runs: dict[tuple[str, float], LoadedRun]
+    train: list[RunSeries]
+    fitted: list[Fitted]
+    per_test: dict[str, dict[str, dict[str, float]]]   # test label → compensator → scores
+    predictions: dict[str, dict[str, np.ndarray]]      # test label → compensator → ŷ [°/h]
+    Xtr: Any                    # the train windows' inputs (Columns)
+    ytr: np.ndarray             # their measured bias [°/h]
+    unit: int
+    t_data: float               # wall time of simulating/reading the runs [s]
+    t_total: float              # wall time of the run [s]
+
+
 def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
-        progress: bool = True, make_report: bool = True) -> StudyResult:
+        progress: bool = True) -> StudyResult:
     """Simulate, fit every compensator on the train runs, score on the test runs."""
     t_start = time.perf_counter()
     ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
@@ -127,17 +146,20 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 
     test0 = runs[config.test[0].key].series
     params = {k: v for k, v in test0.coefficients.items() if worth_showing(k)}
-    report = None
-    if make_report:
-        report = _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr,
-                         unit, t_data, time.perf_counter() - t_start)
-    return StudyResult(rows=rows, params=params, report=report)
+    return StudyResult(rows=rows, params=params, details=Outcome(
+        runs=runs, train=train, fitted=fitted, per_test=per_test, predictions=predictions,
+        Xtr=Xtr, ytr=ytr, unit=unit, t_data=t_data, t_total=time.perf_counter() - t_start))
 
 
 # ------------------------------------------------------------------------------ the report
-def _report(study, config, runs, train, fitted, per_test, predictions, Xtr, ytr, unit,
-            t_data, t_total) -> Report:
+def report(study: Study, config: Config, result: StudyResult) -> Report:
+    """The report of a run (the paper's tables beside ours, truth-based scores, rankings,
+    figures)."""
     from rlgsim.sim.dataset import software_version
+
+    out: Outcome = result.details
+    runs, fitted, per_test, predictions = out.runs, out.fitted, out.per_test, out.predictions
+    Xtr, ytr, unit, t_data, t_total = out.Xtr, out.ytr, out.unit, out.t_data, out.t_total
 
     title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
     rep = Report(title)
@@ -333,8 +355,7 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
 
 
 def _raw_stability(rs: RunSeries, config: Config) -> float:
-    from rlgsim.estimators.metrics import bias_stability
-    return bias_stability(rs.y, 1.0 / config.window_s, config.cluster_s, config.ddof)
+    return series_stability(rs.y, config.window_s, config.cluster_s, config.ddof)
 
 
 def _slug(text: str) -> str:

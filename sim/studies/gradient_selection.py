@@ -7,8 +7,8 @@ bias with every pairwise temperature gradient (§4.2, Table 3), keeps the gradie
 training/verification cycles (Table 4) and on a random-rate test (Table 5).
 
 A study with ``recipe = "gradient_selection"`` has, besides ``[study]``, the tables of
-:mod:`rlgsim.sim.studies.single_gyro` (``[data]`` train/test/window_s/gyro, ``[features]``,
-``[[compensator]]``) and::
+:mod:`rlgsim.sim.studies.study_tables` (``[data]`` train/test/window_s/gyro, ``[features]``),
+``[[compensator]]`` (:mod:`rlgsim.sim.studies.compensators`) and::
 
     [[compensator]]                   # a compensator may choose inputs from the train data:
     name = "multi-point PSO-SVM"
@@ -27,8 +27,8 @@ A study with ``recipe = "gradient_selection"`` has, besides ``[study]``, the tab
     test = "paper003_random"          # a test run's label (scenario name[-seed<seed>])
     traditional = "3-point PSO-SVM"   # compensator names
     proposed = "multi-point PSO-SVM"
-    before = 0.0283                   # the paper's figures [°/h, %]
-    after = { "3-point PSO-SVM" = 0.0091, "multi-point PSO-SVM" = 0.0023 }
+    before_deg_per_h = 0.0283         # the paper's figures: bias STD before [°/h],
+    after_deg_per_h = { "3-point PSO-SVM" = 0.0091, "multi-point PSO-SVM" = 0.0023 }   # after
     improvement_pct = { "3-point PSO-SVM" = 67.8, "multi-point PSO-SVM" = 91.9 }
     improvement_over_traditional_pct = 35.5
 
@@ -38,8 +38,8 @@ A study with ``recipe = "gradient_selection"`` has, besides ``[study]``, the tab
 
 "Improvement from the traditional method" in paper 003 Tables 4-5 is the relative gain of the
 improvement percentage: (91.9 − 65.5)/65.5 = 40.3 %, (91.9 − 67.8)/67.8 = 35.5 %; we compute it
-the same way and also give the ratio of the compensated STDs. Series and scores:
-:mod:`rlgsim.sim.studies.single_gyro`.
+the same way and also give the ratio of the compensated STDs. Series:
+:mod:`rlgsim.sim.studies.runs`; scores: :mod:`rlgsim.sim.studies.scoring`.
 """
 
 from __future__ import annotations
@@ -56,18 +56,20 @@ import numpy as np
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
 from rlgsim.sim.report import Report, Table
 from rlgsim.sim.study import Study, StudyResult
-from rlgsim.sim.studies.single_gyro import (ORACLE, RAW, CompensatorSpec, FeatureSpec, Fitted, RunSpec,
-                                     definitions, fit_all, fmt, load_experiment,
-                                     parse_compensators, parse_experiment, parse_metrics,
-                                     score_run, str_list, worth_showing, before_check,
-                                     truth_score_tables)
+from rlgsim.sim.studies.compensators import ORACLE, RAW, CompensatorSpec, parse_compensators
+from rlgsim.sim.studies.fitting import Fitted, fit_all
+from rlgsim.sim.studies.report_text import before_check, definitions, fmt, truth_score_tables
+from rlgsim.sim.studies.runs import LoadedRun, load_experiment, worth_showing
+from rlgsim.sim.studies.scoring import score_run
+from rlgsim.sim.studies.study_tables import (FeatureSpec, RunSpec, parse_experiment, parse_metrics,
+                                             str_list)
 
 TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
 SELECT_KEYS = ("among", "min_abs_r")
 CORRELATION_KEYS = ("points", "published")
-TABLE_KEYS = ("title", "test", "traditional", "proposed", "before", "after", "improvement_pct",
-              "improvement_over_traditional_pct")
+TABLE_KEYS = ("title", "test", "traditional", "proposed", "before_deg_per_h", "after_deg_per_h",
+              "improvement_pct", "improvement_over_traditional_pct")
 METRIC_KEYS = ("cluster_s", "ddof")
 
 
@@ -89,8 +91,8 @@ class PaperTable:
     test: str
     traditional: str
     proposed: str
-    before: float | None
-    after: dict[str, float]
+    before: float | None            # the paper's bias STD before compensation [°/h]
+    after: dict[str, float]         # after, per compensator name [°/h]
     improvement_pct: dict[str, float]
     improvement_over_traditional_pct: float | None
 
@@ -123,7 +125,8 @@ def _gradient_probe_list(table: dict, key: str, ctx: Ctx, gradients: tuple[str, 
 
 def _selections(data: dict, ctx: Ctx, gradients: tuple[str, ...]
                 ) -> tuple[dict, dict[str, Selection]]:
-    """Take the ``select`` tables out of the compensators (single_gyro parses the rest)."""
+    """Take the ``select`` tables out of the compensators (:mod:`.compensators` parses the
+    rest)."""
     items = data.get("compensator")
     if not isinstance(items, list):
         return data, {}
@@ -178,8 +181,9 @@ def _paper_table(item: Any, i: int, ctx: Ctx, labels: list[str], names: list[str
 
     return PaperTable(title=get_str(item, "title", tctx, f"Test run {test}"), test=test,
                       traditional=trad, proposed=prop,
-                      before=get_float(item, "before", tctx, None, min=0.0),
-                      after=per_model("after"), improvement_pct=per_model("improvement_pct"),
+                      before=get_float(item, "before_deg_per_h", tctx, None, min=0.0),
+                      after=per_model("after_deg_per_h"),
+                      improvement_pct=per_model("improvement_pct"),
                       improvement_over_traditional_pct=get_float(
                           item, "improvement_over_traditional_pct", tctx, None))
 
@@ -254,8 +258,24 @@ def select_inputs(spec: CompensatorSpec, sel: Selection, X, y: np.ndarray
 
 
 # ------------------------------------------------------------------------------ the run
+@dataclass
+class Outcome:
+    """What :func:`run` hands to :func:`report` (in ``StudyResult.details``)."""
+
+    runs: dict[tuple[str, float], LoadedRun]
+    fitted: list[Fitted]
+    listings: dict[str, list[tuple[str, float, bool]]]  # selection: (gradient, r, kept)
+    per_test: dict[str, dict[str, dict[str, float]]]    # test label → compensator → scores
+    predictions: dict[str, dict[str, np.ndarray]]       # test label → compensator → ŷ [°/h]
+    corr: np.ndarray | None                             # Table 3 of the train windows
+    Xtr: Any                    # the train windows' inputs (Columns)
+    unit: int
+    t_data: float               # wall time of simulating/reading the runs [s]
+    t_total: float              # wall time of the run [s]
+
+
 def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
-        progress: bool = True, make_report: bool = True) -> StudyResult:
+        progress: bool = True) -> StudyResult:
     """Simulate, correlate, select inputs, fit every compensator on the train runs, score on
     every test run."""
     t_start = time.perf_counter()
@@ -293,11 +313,9 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
 
     first_test = runs[config.test[0].key].series
     params = {k: v for k, v in first_test.coefficients.items() if worth_showing(k)}
-    report = None
-    if make_report:
-        report = _report(study, config, runs, fitted, listings, per_test, predictions, corr,
-                         Xtr, unit, t_data, time.perf_counter() - t_start)
-    return StudyResult(rows=rows, params=params, report=report)
+    return StudyResult(rows=rows, params=params, details=Outcome(
+        runs=runs, fitted=fitted, listings=listings, per_test=per_test, predictions=predictions,
+        corr=corr, Xtr=Xtr, unit=unit, t_data=t_data, t_total=time.perf_counter() - t_start))
 
 
 # ------------------------------------------------------------------------------ the report
@@ -307,9 +325,15 @@ def improvement_over_traditional(trad_pct: float, prop_pct: float) -> float:
     return 100.0 * (prop_pct - trad_pct) / trad_pct if trad_pct else float("nan")
 
 
-def _report(study: Study, config: Config, runs, fitted: list[Fitted], listings, per_test,
-            predictions, corr, Xtr, unit: int, t_data: float, t_total: float) -> Report:
+def report(study: Study, config: Config, result: StudyResult) -> Report:
+    """The report of a run (Table 3, the selection, Tables 4-5 beside the paper, truth-based
+    scores, the ranking, figures)."""
     from rlgsim.sim.dataset import software_version
+
+    out: Outcome = result.details
+    runs, fitted, listings, per_test = out.runs, out.fitted, out.listings, out.per_test
+    predictions, corr, Xtr, unit = out.predictions, out.corr, out.Xtr, out.unit
+    t_data, t_total = out.t_data, out.t_total
 
     rep = Report(f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else ""))
     if study.description:

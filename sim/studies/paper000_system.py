@@ -65,9 +65,12 @@ from typing import Any
 
 import numpy as np
 
-from rlgsim.sim.config import Ctx, check_known_keys, get_bool, get_float, get_int, get_section, get_str
 from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_section,
+                               get_str)
 from rlgsim.sim.report import Report, Table
+from rlgsim.sim.study import StudyResult, scenario_for
+from rlgsim.sim.studies.runs import device_coefficients, simulated_dataset
 
 #: Paper 000 abstract and §4.2-4.3 (average and maximum improvement of HHO-RVR over LSM, %).
 PAPER_AVG_IMPROVEMENT = {"rmse": 35.27, "mae": 39.29, "r2": 2.29, "residual_variance": 30.34}
@@ -146,33 +149,6 @@ def probe_for(param: str, temperature: str) -> str:
 
 def _workers(cfg: Config) -> int:
     return cfg.workers or min(2, os.cpu_count() or 1)
-
-
-def _dataset_matches(path: pathlib.Path, scenario) -> bool:
-    import h5py
-    try:
-        with h5py.File(path, "r") as f:
-            a = f.attrs
-            text = a.get("scenario_text", "")
-            text = text.decode() if isinstance(text, bytes) else str(text)
-            return (text == scenario.text and int(a.get("seed", -1)) == scenario.seed
-                    and int(a.get("unit", -1)) == scenario.unit
-                    and int(a.get("device_seed", -1)) == scenario.realisation_seed
-                    and "imu" in f and "probes" in f)
-    except (OSError, ValueError, KeyError):
-        return False
-
-
-def simulate_or_reuse(scenario, data_dir: pathlib.Path, progress: bool) -> tuple[pathlib.Path, bool]:
-    """The scenario's dataset in ``data_dir``: reused when its embedded scenario text, seed,
-    unit and device seed match, else simulated. Returns (path, reused)."""
-    from rlgsim.sim.simulate import simulate
-    data_dir.mkdir(parents=True, exist_ok=True)
-    path = data_dir / f"{scenario.name}_u{scenario.unit}.h5"
-    if path.is_file() and _dataset_matches(path, scenario):
-        return path, True
-    simulate(scenario, path, progress=progress)
-    return path, False
 
 
 def _fit_models(x: np.ndarray, y: np.ndarray, cfg: Config, seed: int):
@@ -324,12 +300,37 @@ def _campaign(path: pathlib.Path, cfg: Config, progress: bool, what: str):
             bar.close()
 
 
-def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0, progress: bool = True,
-        make_report: bool = True):
+@dataclass
+class Outcome:
+    """What :func:`run` hands to :func:`report` (in ``StudyResult.details``); parameters are
+    keyed by name, models by "hho_rvr" / "lsm"."""
+
+    scenario: Any
+    data_path: pathlib.Path
+    reused: bool                            # the dataset was reused, not simulated
+    raw: Any                                # the calibration table of the raw dataset
+    xs: dict[str, np.ndarray]               # model input: window-mean probe temperature [°C]
+    ys: dict[str, np.ndarray]               # calibrated parameter per window
+    pred: dict[str, dict[str, np.ndarray]]  # the models' fits
+    fitted: dict[str, tuple]                # (HHO-RVR, LSM, CPU s) per parameter
+    fit_scores: dict[str, dict[str, dict[str, float]]]     # vs the calibration estimates
+    truth_scores: dict[str, dict[str, dict[str, float]]]   # vs the true window-mean parameter
+    avg: dict[str, float]                   # average improvement of HHO-RVR over LSM [%]
+    avg_truth: dict[str, float]
+    resvar: dict[str, dict[str, float]]     # Table 3 residual variances
+    resid: dict[str, dict[str, np.ndarray]]
+    desired: dict[str, dict[str, float]]    # the models' values at the desired temperature
+    comp_tables: dict                       # re-calibration table per model
+    units: dict[str, str]
+    clock: dict[str, float]                 # wall time per step [s]
+    ok: np.ndarray                          # calibration windows that succeeded
+
+
+def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0,
+        progress: bool = True) -> StudyResult:
     """Simulate, calibrate, model, compensate, re-calibrate and score (module docstring)."""
     from rlgsim.estimators.calibration import PAPER_PARAMETERS, PARAMETERS
     from rlgsim.estimators.metrics import residual_variance
-    from rlgsim.sim.study import StudyResult, scenario_for
 
     workdir = pathlib.Path(workdir)
     clock: dict[str, float] = {}
@@ -337,7 +338,8 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0, progress: b
     scenario = scenario_for(study, cfg.scenario, unit=unit,
                             ctx=Ctx(study.source, "campaign.scenario"))
     t = time.perf_counter()
-    data_path, reused = simulate_or_reuse(scenario, workdir / "data", progress)
+    data_path, reused = simulated_dataset(
+        scenario, workdir / "data" / f"{scenario.name}_u{scenario.unit}.h5", progress=progress)
     clock["simulation"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -445,12 +447,11 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0, progress: b
     clock["total"] = time.perf_counter() - t_all
 
     params = _device_params(data_path)
-    report = None
-    if make_report:
-        report = _report(study, cfg, scenario, data_path, reused, raw, xs, ys, pred, fitted,
-                         fit_scores, truth_scores, avg, avg_truth, resvar, resid, desired,
-                         comp_tables, units, clock, ok)
-    return StudyResult(rows=rows, params=params, report=report)
+    return StudyResult(rows=rows, params=params, details=Outcome(
+        scenario=scenario, data_path=data_path, reused=reused, raw=raw, xs=xs, ys=ys, pred=pred,
+        fitted=fitted, fit_scores=fit_scores, truth_scores=truth_scores, avg=avg,
+        avg_truth=avg_truth, resvar=resvar, resid=resid, desired=desired,
+        comp_tables=comp_tables, units=units, clock=clock, ok=ok))
 
 
 def _write_predictions(path: pathlib.Path, records: list[dict]) -> None:
@@ -464,16 +465,8 @@ def _write_predictions(path: pathlib.Path, records: list[dict]) -> None:
 def _device_params(path: pathlib.Path) -> dict[str, float]:
     """The drawn temperature coefficients worth showing beside a unit's scores (linear term and
     knee of every bias and scale factor)."""
-    import h5py
     out: dict[str, float] = {}
-    try:
-        with h5py.File(path, "r") as f:
-            names = [n.decode() if isinstance(n, bytes) else str(n)
-                     for n in f["truth/coefficient"][:]]
-            vals = f["truth/coefficient_value"][:]
-    except (OSError, KeyError):
-        return out
-    for n, v in zip(names, vals):
+    for n, v in device_coefficients(path).items():
         head = n.split("[")[0]
         if (head.startswith(("gyro.bias.", "gyro.scale_factor.", "accel.bias.",
                              "accel.scale_factor"))
@@ -484,9 +477,15 @@ def _device_params(path: pathlib.Path) -> dict[str, float]:
 
 # -------------------------------------------------------------------------------- report
 
-def _report(study, cfg, scenario, data_path, reused, raw, xs, ys, pred, fitted, fit_scores,
-            truth_scores, avg, avg_truth, resvar, resid, desired, comp_tables, units, clock, ok):
+def report(study, cfg: Config, result: StudyResult) -> Report:
+    """The report of a run: Tables 2-3 beside the paper, scores against the truth, figures."""
     from rlgsim.estimators.calibration import PAPER_PARAMETERS
+
+    o: Outcome = result.details
+    scenario, data_path, reused, raw, xs, ys = o.scenario, o.data_path, o.reused, o.raw, o.xs, o.ys
+    pred, fitted, fit_scores, truth_scores = o.pred, o.fitted, o.fit_scores, o.truth_scores
+    avg, avg_truth, resvar, resid, desired = o.avg, o.avg_truth, o.resvar, o.resid, o.desired
+    comp_tables, units, clock, ok = o.comp_tables, o.units, o.clock, o.ok
 
     rep = Report(f"Study {study.name}: paper 000 system-level temperature compensation")
     rep.paragraph(

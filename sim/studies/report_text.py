@@ -1,0 +1,57 @@
+"""Report text the single-gyro recipes share: the definitions of the series and scores, the
+"before compensation" check against a paper, the truth-based score tables, and table cells."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rlgsim.sim.studies.compensators import ORACLE, RAW
+
+
+def fmt(x: float | None) -> float | None:
+    """A table cell: ``None`` (shown as —) for a missing or non-finite number."""
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def definitions() -> list[str]:
+    """The report's definitions of the series and scores (module docstring), as bullets."""
+    return [
+        "y: measured bias per window = pulses / (nominal scale factor × window) − Earth-rate "
+        "projection, °/h; ŷ: a compensator's prediction; y − ŷ: the compensated series.",
+        "b: true bias = window mean of truth/gyro_bias (temperature law + flicker + random "
+        "walk), °/h; r: its flicker + random-walk part (truth/gyro_bias_random).",
+        "stability_before / stability_after: bias stability of y / of y − ŷ (papers 001, "
+        "003); improvement_pct = 100·(before − after)/before; improvement_factor = before / "
+        "after (paper 002).",
+        "rmse_true, mae_true, r2_true: ŷ against b. b leaves out the constant that the "
+        "scale-factor error and misalignment add to a static gyro's output (Earth rate × a few "
+        "ppm/arcsec), which the compensators fold into their constant.",
+        "resid_std_true = std(ŷ − b): true bias left after compensation, offset-free (the "
+        "stability a noise-free gyro would show); law_resid_std = std(ŷ − (b − r)): error of "
+        "the learnt temperature law alone.",
+        f"'{ORACLE}': the oracle ŷ = b − r (the true temperature law); its stability_after is "
+        f"the floor for any input-driven model. '{RAW}': no compensation (ŷ = train mean).",
+    ]
+
+
+def before_check(ours: float, paper: float, factor: float = 1.5) -> str:
+    """One sentence comparing our raw bias stability with the paper's "before compensation"
+    (issue 7: within a factor 1.5)."""
+    ratio = ours / paper
+    within = 1 / factor <= ratio <= factor
+    return (f"Before compensation: ours {ours:.5f} °/h vs paper {paper:.5f} °/h (ratio "
+            f"{ratio:.2f}; {'within' if within else 'NOT within'} a factor {factor:g}).")
+
+
+def truth_score_tables(rep, per_test: dict[str, dict[str, dict[str, float]]]) -> None:
+    """The report's section of every score of every compensator, one table (and CSV
+    ``scores_<test run>.csv``) per test run."""
+    from rlgsim.sim.report import Table, slug
+    rep.heading("Truth-based scores (what no paper could measure)", 2)
+    for label, table in per_test.items():
+        recs = [{"compensator": name, **{k: fmt(v) for k, v in s.items()}}
+                for name, s in table.items()]
+        rep.table(Table.from_records(f"All scores, test run {label}", recs,
+                                     csv_name=f"scores_{slug(label)}.csv",
+                                     note="°/h except r2_true (1), improvement_pct (%) and "
+                                          "improvement_factor (1)."))
