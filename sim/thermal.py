@@ -47,7 +47,8 @@ from typing import Any, Mapping
 import numpy as np
 import scipy.linalg
 
-from rlgsim.sim.config import (Ctx, check_known_keys, get_float, get_list, get_str, get_table)
+from rlgsim.sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
+                               get_table)
 from rlgsim.ground.errors import UserInputError
 
 #: Stefan–Boltzmann constant [W/(m²·K⁴)] (CODATA 2018, exact).
@@ -66,13 +67,38 @@ _NODE_KEYS = ("description", "capacitance_j_per_k", "material", "volume_cm3", "m
 _LINK_KEYS = ("between", "description", "conductance_w_per_k", "conduction", "convection",
               "radiation", "source")
 _CONDUCTION_KEYS = ("material", "conductivity_w_per_m_k", "area_cm2", "length_mm")
-_CONVECTION_KEYS = ("h_w_per_m2_k", "area_cm2")
+_CONVECTION_KEYS = ("h_w_per_m2_k", "area_cm2", "face")
 _RADIATION_KEYS = ("emissivity", "area_cm2")
 _TOLERANCE_KEYS = ("capacitance_rel", "conductance_rel", "ambient_conductance_rel", "power_rel")
 _TEMPLATE_KEYS = ("description", "ports", "nodes", "links")
-_INSTANCE_KEYS = ("template", "ports", "description")
+_INSTANCE_KEYS = ("template", "ports", "description", "power_factors",
+                  "capacitance_factors", "link_factors", "source")
+_BOUNDARY_KEYS = ("description", "source", "temperature_c", "amplitude_c", "period_h",
+                  "phase_deg")
+_AIRFLOW_KEYS = ("description", "source", "face_factors")
 _THERMAL_KEYS = ("description", "source", "radiation_reference_c", "materials", "tolerance",
-                 "templates", "instances", "nodes", "links")
+                 "templates", "instances", "nodes", "links", "boundaries", "airflow")
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """A second boundary of the network (beside the chamber air) with a prescribed
+    temperature ``temperature_c + amplitude_c·sin(2π t/period + phase)`` [°C] — e.g. the
+    laboratory seen through the turntable shaft, with its air-conditioning or daily cycle.
+    Sampled on the thermal grid and linear in between (the integrator's first-order hold)."""
+
+    name: str
+    temperature_c: float
+    amplitude_c: float = 0.0
+    period_s: float = 86400.0
+    phase_rad: float = 0.0
+
+    def __call__(self, t_s: Any) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        if self.amplitude_c == 0.0:
+            return np.full(t.shape, self.temperature_c)
+        return self.temperature_c + self.amplitude_c * np.sin(
+            2.0 * np.pi * t / self.period_s + self.phase_rad)
 
 
 @dataclass(frozen=True)
@@ -119,6 +145,9 @@ class ThermalNetwork:
     instances: Mapping[str, str] = field(default_factory=dict)
     node_descriptions: tuple[str, ...] = ()
     description: str = ""
+    #: further boundaries (prescribed temperatures) and the conductances (nb, n) to them
+    boundaries: tuple[Boundary, ...] = ()
+    boundary_conductance_w_per_k: Any = None
 
     def __post_init__(self) -> None:
         names = tuple(self.node_names)
@@ -152,7 +181,19 @@ class ThermalNetwork:
         object.__setattr__(self, "power_w", P)
         if not self.node_descriptions:
             object.__setattr__(self, "node_descriptions", ("",) * n)
-        _check_grounded(names, G, g)
+        nb = len(self.boundaries)
+        Gb = (np.zeros((0, n)) if self.boundary_conductance_w_per_k is None
+              else np.array(self.boundary_conductance_w_per_k, dtype=float).reshape(-1, n))
+        if Gb.shape != (nb, n) or not np.all(np.isfinite(Gb)) or np.any(Gb < 0):
+            raise ValueError("boundary conductances must be finite, >= 0, one row per "
+                             "boundary")
+        names_b = [b.name for b in self.boundaries]
+        if len(set(names_b)) != nb or set(names_b) & set(names):
+            raise ValueError("boundary names must be unique and differ from node names")
+        Gb.setflags(write=False)
+        object.__setattr__(self, "boundaries", tuple(self.boundaries))
+        object.__setattr__(self, "boundary_conductance_w_per_k", Gb)
+        _check_grounded(names, G, g + Gb.sum(axis=0) if nb else g)
 
     # ----------------------------------------------------------------- basics
 
@@ -176,27 +217,64 @@ class ThermalNetwork:
         return tuple(f"{instance}.{node}" for node in local)
 
     def stiffness_w_per_k(self) -> np.ndarray:
-        """``K = diag(Σ_j G_ij) − G + diag(g)`` [W/K] (symmetric positive definite)."""
+        """``K = diag(Σ_j G_ij) − G + diag(g) + diag(Σ_b G_b)`` [W/K] (symmetric positive
+        definite)."""
         G = self.conductance_w_per_k
+        if self.boundaries:
+            return np.diag(G.sum(axis=1) + self.ambient_conductance_w_per_k
+                           + self.boundary_conductance_w_per_k.sum(axis=0)) - G
         return np.diag(G.sum(axis=1) + self.ambient_conductance_w_per_k) - G
+
+    @property
+    def boundary_names(self) -> tuple[str, ...]:
+        return tuple(b.name for b in self.boundaries)
+
+    def boundary_temperatures_c(self, t_s: Any) -> np.ndarray:
+        """Temperatures of the further boundaries at times ``t_s`` [s]: (…, nb) [°C]."""
+        t = np.asarray(t_s, dtype=float)
+        if not self.boundaries:
+            return np.zeros(t.shape + (0,))
+        return np.stack([b(t) for b in self.boundaries], axis=-1)
+
+    def heat_to_boundaries_w(self, T: Any, boundary_c: Any) -> np.ndarray:
+        """Heat flowing from the nodes into the further boundaries [W], summed (…)."""
+        T = np.asarray(T, dtype=float)
+        if not self.boundaries:
+            return np.zeros(T.shape[:-1])
+        Tb = np.asarray(boundary_c, dtype=float)
+        Gb = self.boundary_conductance_w_per_k
+        return np.sum(T * Gb.sum(axis=0), axis=-1) - np.sum(Tb * (Gb.sum(axis=1)), axis=-1)
 
     # ----------------------------------------------------------------- physics
 
-    def derivative(self, T: Any, ambient_c: Any, powered: Any) -> np.ndarray:
+    def derivative(self, T: Any, ambient_c: Any, powered: Any, boundary_c: Any = None
+                   ) -> np.ndarray:
         """dT/dt [K/s] for node temperatures ``T`` (…, n) [°C], chamber air ``ambient_c``
-        (scalar or (…,)) [°C] and power state ``powered`` (bool/0..1, scalar or (…,))."""
+        (scalar or (…,)) [°C], power state ``powered`` (bool/0..1, scalar or (…,)) and the
+        further boundaries' temperatures ``boundary_c`` (…, nb) [°C] (default: at t = 0)."""
         T = np.asarray(T, dtype=float)
         Ta = np.asarray(ambient_c, dtype=float)[..., None]
         u = np.asarray(powered, dtype=float)[..., None]
         G = self.conductance_w_per_k
         flow = T @ G - T * G.sum(axis=1)            # Σ_j G_ij (T_j − T_i), G symmetric
         flow = flow + self.ambient_conductance_w_per_k * (Ta - T) + u * self.power_w
+        if self.boundaries:
+            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
+                  else np.asarray(boundary_c, dtype=float))
+            Gb = self.boundary_conductance_w_per_k
+            flow = flow + Tb @ Gb - T * Gb.sum(axis=0)
         return flow / self.capacitance_j_per_k
 
-    def steady_state(self, ambient_c: float, powered: bool | float) -> np.ndarray:
-        """Node temperatures [°C] at equilibrium with constant chamber air ``ambient_c`` [°C]:
-        the solution of ``K T = g·T_air + u·P``."""
+    def steady_state(self, ambient_c: float, powered: bool | float,
+                     boundary_c: Any = None) -> np.ndarray:
+        """Node temperatures [°C] at equilibrium with constant chamber air ``ambient_c`` [°C]
+        (and the further boundaries at ``boundary_c``, default their value at t = 0): the
+        solution of ``K T = g·T_air + Σ_b G_b T_b + u·P``."""
         rhs = self.ambient_conductance_w_per_k * float(ambient_c) + float(powered) * self.power_w
+        if self.boundaries:
+            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
+                  else np.asarray(boundary_c, dtype=float).reshape(-1))
+            rhs = rhs + Tb @ self.boundary_conductance_w_per_k
         return scipy.linalg.solve(self.stiffness_w_per_k(), rhs, assume_a="pos")
 
     def heat_to_ambient_w(self, T: Any, ambient_c: Any) -> np.ndarray:
@@ -246,8 +324,14 @@ class ThermalNetwork:
         g[amb] *= np.exp(tol.ambient_conductance_rel * za)
         P = self.power_w.copy()
         P[src] *= np.exp(tol.power_rel * zp)
+        extra = {}
+        if self.boundaries:
+            Gb = self.boundary_conductance_w_per_k.copy()
+            nz = np.nonzero(Gb > 0)
+            Gb[nz] *= np.exp(tol.ambient_conductance_rel * rng.standard_normal(nz[0].size))
+            extra["boundary_conductance_w_per_k"] = Gb
         return replace(self, capacitance_j_per_k=C, conductance_w_per_k=G,
-                       ambient_conductance_w_per_k=g, power_w=P)
+                       ambient_conductance_w_per_k=g, power_w=P, **extra)
 
     # ----------------------------------------------------------------- configuration
 
@@ -260,7 +344,8 @@ class ThermalNetwork:
 
 
 def _check_grounded(names: tuple[str, ...], G: np.ndarray, g: np.ndarray) -> None:
-    """Every connected part of the network must reach the chamber air (else no steady state)."""
+    """Every connected part of the network must reach the chamber air or another boundary
+    (``g`` holds the sum of both; else no steady state)."""
     n = len(names)
     seen = np.zeros(n, dtype=bool)
     for start in range(n):
@@ -303,8 +388,11 @@ class _Builder:
         self.ctx = ctx
         self.nodes: list[_Node] = []
         self.index: dict[str, int] = {}
-        # (i, j) -> conductance; j == -1 for the chamber air
+        # (i, j) -> conductance; j == -1 for the chamber air, j == -2 - b for boundary b
         self.links: dict[tuple[int, int], float] = {}
+        self.boundaries: list[Boundary] = []
+        self.boundary_index: dict[str, int] = {}
+        self.face_factors: dict[str, float] | None = None
 
     # ----------------------------------------------------------------- top level
 
@@ -321,6 +409,15 @@ class _Builder:
         instances = get_table(t, "instances", ctx, {})
         top_nodes = get_table(t, "nodes", ctx, {})
         top_links = get_list(t, "links", ctx, [])
+        self._boundaries(get_table(t, "boundaries", ctx, {}), ctx.child("boundaries"))
+        if "airflow" in t:
+            air, actx = get_section(t, "airflow", ctx, _AIRFLOW_KEYS)
+            get_str(air, "description", actx, "")
+            get_str(air, "source", actx, "")
+            faces = get_table(air, "face_factors", actx)
+            fctx = actx.child("face_factors")
+            self.face_factors = {f: get_float(faces, f, fctx, min=0.0, min_exclusive=True,
+                                              max=100.0) for f in faces}
 
         templates: dict[str, dict] = {}
         tctx = ctx.child("templates")
@@ -361,17 +458,23 @@ class _Builder:
             check_known_keys(bound, tmpl["ports"], c.child("ports"))
             for p in tmpl["ports"]:
                 get_str(bound, p, c.child("ports"))
+            get_str(spec, "source", c, "")
+            pf = self._factors(spec, "power_factors", c, tmpl["nodes"])
+            cf = self._factors(spec, "capacitance_factors", c, tmpl["nodes"])
+            lf = self._link_factors(spec, c, tmpl)
             for local, nspec in tmpl["nodes"].items():
                 self._check_name(local, tmpl["ctx"].child("nodes"), "node")
-                self._add_node(f"{inst}.{local}", nspec, tmpl["ctx"].child("nodes").child(local))
-            inst_info.append((inst, tmpl, bound, c))
+                self._add_node(f"{inst}.{local}", nspec, tmpl["ctx"].child("nodes").child(local),
+                               power_factor=pf.get(local, 1.0),
+                               capacitance_factor=cf.get(local, 1.0))
+            inst_info.append((inst, tmpl, bound, c, lf))
         nctx = ctx.child("nodes")
         for name, nspec in top_nodes.items():
             self._check_name(name, nctx, "node")
             self._add_node(name, nspec, nctx.child(name))
 
         # links
-        for inst, tmpl, bound, c in inst_info:
+        for inst, tmpl, bound, c, lf in inst_info:
             local_nodes = set(tmpl["nodes"])
 
             def resolve(ref: str, lctx: Ctx, inst=inst, bound=bound, local_nodes=local_nodes,
@@ -380,7 +483,7 @@ class _Builder:
                     return f"{inst}.{ref}"
                 if ref in tmpl["ports"]:
                     return bound[ref]
-                if ref == CHAMBER_AIR:
+                if ref == CHAMBER_AIR or ref in self.boundary_index:
                     return ref
                 allowed = sorted(local_nodes) + list(tmpl["ports"]) + [CHAMBER_AIR]
                 close = difflib.get_close_matches(ref, allowed, n=1)
@@ -392,7 +495,7 @@ class _Builder:
 
             for k, lspec in enumerate(tmpl["links"]):
                 self._add_link(lspec, tmpl["ctx"].child("links").item(k), resolve,
-                               bound_ctx=c.child("ports"))
+                               bound_ctx=c.child("ports"), factor=lf.get(k, 1.0))
         for k, lspec in enumerate(top_links):
             self._add_link(lspec, ctx.child("links").item(k), lambda ref, lctx: ref)
 
@@ -401,8 +504,11 @@ class _Builder:
         n = len(self.nodes)
         G = np.zeros((n, n))
         g = np.zeros(n)
+        Gb = np.zeros((len(self.boundaries), n))
         for (i, j), value in self.links.items():
-            if j < 0:
+            if j <= -2:
+                Gb[-2 - j, i] += value
+            elif j < 0:
                 g[i] += value
             else:
                 G[i, j] += value
@@ -417,7 +523,8 @@ class _Builder:
                 instances={inst: get_str(instances[inst], "template", ictx.child(inst))
                            for inst in instances},
                 node_descriptions=tuple(nd.description for nd in self.nodes),
-                description=description)
+                description=description, boundaries=tuple(self.boundaries),
+                boundary_conductance_w_per_k=Gb)
         except ValueError as exc:
             where = f"{ctx.source}: " if ctx.source else ""
             raise UserInputError(f"{where}{ctx.path or 'thermal'}: {exc}") from None
@@ -462,7 +569,59 @@ class _Builder:
                                  f"[thermal.materials.{name}]")
         return self.materials[name]
 
-    def _add_node(self, full: str, spec: Any, ctx: Ctx) -> None:
+    def _boundaries(self, table: Mapping[str, Any], ctx: Ctx) -> None:
+        for name, spec in table.items():
+            self._check_name(name, ctx, "boundary")
+            c = ctx.child(name)
+            if not isinstance(spec, Mapping):
+                raise ctx.error(name, "expected a table")
+            check_known_keys(spec, _BOUNDARY_KEYS, c)
+            get_str(spec, "description", c, "")
+            get_str(spec, "source", c, "")
+            b = Boundary(name=name,
+                         temperature_c=get_float(spec, "temperature_c", c, min=-100.0,
+                                                 max=200.0),
+                         amplitude_c=get_float(spec, "amplitude_c", c, 0.0, min=0.0, max=50.0),
+                         period_s=3600.0 * get_float(spec, "period_h", c, 24.0, min=0.01,
+                                                     max=1e4, min_exclusive=True),
+                         phase_rad=math.radians(get_float(spec, "phase_deg", c, 0.0,
+                                                          min=-360.0, max=360.0)))
+            self.boundary_index[name] = len(self.boundaries)
+            self.boundaries.append(b)
+
+    @staticmethod
+    def _factors(spec: Mapping[str, Any], key: str, ctx: Ctx, nodes: Mapping[str, Any]
+                 ) -> dict[str, float]:
+        """Fixed factors of the nominal unit on template node values (``{node: factor}``)."""
+        table = get_table(spec, key, ctx, {})
+        c = ctx.child(key)
+        check_known_keys(table, list(nodes), c)
+        return {k: get_float(table, k, c, min=0.0, min_exclusive=True, max=100.0)
+                for k in table}
+
+    @staticmethod
+    def _link_factors(spec: Mapping[str, Any], ctx: Ctx, tmpl: Mapping[str, Any]
+                      ) -> dict[int, float]:
+        """``{"a--b": factor}`` on the template's links, by the names they are written with
+        (either order); returns {link index: factor}."""
+        table = get_table(spec, "link_factors", ctx, {})
+        c = ctx.child("link_factors")
+        names: dict[str, int] = {}
+        for k, lspec in enumerate(tmpl["links"]):
+            between = lspec.get("between") if isinstance(lspec, Mapping) else None
+            if isinstance(between, list) and len(between) == 2:
+                a, b = (str(x) for x in between)
+                names[f"{a}--{b}"] = k
+                names[f"{b}--{a}"] = k
+        check_known_keys(table, sorted(names), c)
+        out: dict[int, float] = {}
+        for key in table:
+            out[names[key]] = out.get(names[key], 1.0) * get_float(
+                table, key, c, min=0.0, min_exclusive=True, max=100.0)
+        return out
+
+    def _add_node(self, full: str, spec: Any, ctx: Ctx, power_factor: float = 1.0,
+                  capacitance_factor: float = 1.0) -> None:
         if not isinstance(spec, Mapping):
             raise UserInputError(f"{ctx.source + ': ' if ctx.source else ''}{ctx.path}: "
                                  f"expected a table")
@@ -498,10 +657,15 @@ class _Builder:
                 cap = mass * get_float(spec, "specific_heat_j_per_kg_k", ctx, min=0.0,
                                        min_exclusive=True)
         power = get_float(spec, "power_w", ctx, 0.0, min=0.0, max=1e4)
+        if power_factor != 1.0:
+            power = power * power_factor
+        if capacitance_factor != 1.0:
+            cap = cap * capacitance_factor
         self.index[full] = len(self.nodes)
         self.nodes.append(_Node(full, cap, power, description))
 
-    def _add_link(self, spec: Any, ctx: Ctx, resolve, bound_ctx: Ctx | None = None) -> None:
+    def _add_link(self, spec: Any, ctx: Ctx, resolve, bound_ctx: Ctx | None = None,
+                  factor: float = 1.0) -> None:
         if not isinstance(spec, Mapping):
             raise UserInputError(f"{ctx.source + ': ' if ctx.source else ''}{ctx.path}: "
                                  f"expected a table")
@@ -516,20 +680,29 @@ class _Builder:
         for ref in (a, b):
             if ref == CHAMBER_AIR:
                 ends.append(-1)
+            elif ref in self.boundary_index:
+                ends.append(-2 - self.boundary_index[ref])
             elif ref in self.index:
                 ends.append(self.index[ref])
             else:
-                close = difflib.get_close_matches(ref, list(self.index) + [CHAMBER_AIR], n=1)
+                close = difflib.get_close_matches(
+                    ref, list(self.index) + [CHAMBER_AIR] + list(self.boundary_index), n=1)
                 hint = f" (did you mean '{close[0]}'?)" if close else ""
                 c = bound_ctx if bound_ctx is not None and ref not in between else ctx
                 raise c.error("between" if c is ctx else "ports",
                               f"unknown node {ref!r}{hint}")
         if ends[0] == ends[1]:
             raise ctx.error("between", f"a link needs two different nodes, got {between!r}")
+        if ends[0] < 0 and ends[1] < 0:
+            raise ctx.error("between", f"a link joins at least one node, got {between!r} "
+                                       f"(boundaries only)")
         i, j = (ends[1], ends[0]) if ends[0] < 0 else (ends[0], ends[1])
         key = (i, j) if j < 0 else (min(i, j), max(i, j))
         # parallel paths between one pair (e.g. two ports bound to the same node) add up
-        self.links[key] = self.links.get(key, 0.0) + self._conductance(spec, ctx)
+        value = self._conductance(spec, ctx)
+        if factor != 1.0:
+            value = value * factor
+        self.links[key] = self.links.get(key, 0.0) + value
 
     def _conductance(self, spec: Mapping[str, Any], ctx: Ctx) -> float:
         kinds = [k for k in ("conductance_w_per_k", "conduction", "convection", "radiation")
@@ -563,6 +736,14 @@ class _Builder:
             t = get_table(spec, "convection", ctx)
             check_known_keys(t, _CONVECTION_KEYS, c)
             h = get_float(t, "h_w_per_m2_k", c, min=0.0, min_exclusive=True)
+            if "face" in t:
+                face = get_str(t, "face", c)
+                if self.face_factors is not None:
+                    if face not in self.face_factors:
+                        raise c.error("face", f"value {face!r} not allowed; one of "
+                                              f"{', '.join(sorted(self.face_factors))} "
+                                              f"([thermal.airflow] face_factors)")
+                    h = h * self.face_factors[face]
             total += h * get_float(t, "area_cm2", c, min=0.0, min_exclusive=True) * 1e-4
         if "radiation" in spec:
             c = ctx.child("radiation")

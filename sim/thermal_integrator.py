@@ -81,13 +81,15 @@ class ThermalState(np.ndarray):
 
     modal: np.ndarray | None
     chamber: tuple[float, ...] | None
+    time_s: float | None
     _check: bytes | None
 
     def __new__(cls, temperatures: np.ndarray, modal: np.ndarray | None = None,
-                chamber: tuple[float, ...] | None = None):
+                chamber: tuple[float, ...] | None = None, time_s: float | None = None):
         obj = np.array(temperatures, dtype=float).view(cls)
         obj.modal = None if modal is None else np.array(modal, dtype=float)
         obj.chamber = None if chamber is None else tuple(float(v) for v in chamber)
+        obj.time_s = None if time_s is None else float(time_s)
         obj._check = obj.view(np.ndarray).tobytes() if modal is not None else None
         return obj
 
@@ -95,10 +97,11 @@ class ThermalState(np.ndarray):
         # views, copies and results of arithmetic do not inherit the modal coordinates
         self.modal = None
         self.chamber = None
+        self.time_s = None
         self._check = None
 
     def __reduce__(self):
-        return (ThermalState, (np.asarray(self), self.modal, self.chamber))
+        return (ThermalState, (np.asarray(self), self.modal, self.chamber, self.time_s))
 
     def modal_if_valid(self) -> np.ndarray | None:
         if self.modal is None or self._check != self.view(np.ndarray).tobytes():
@@ -154,6 +157,9 @@ class ThermalIntegrator:
         self._to_nodes_T = np.ascontiguousarray((d[:, None] * V).T)   # T = w @ (C^-½ V)ᵀ
         beta = V.T @ (d * network.ambient_conductance_w_per_k)   # Vᵀ C^-½ g
         pi = V.T @ (d * network.power_w)                         # Vᵀ C^-½ P
+        # further boundaries (prescribed temperatures, first-order hold): Vᵀ C^-½ G_b
+        self.boundaries = tuple(network.boundaries)
+        beta_b = (network.boundary_conductance_w_per_k * d[None, :]) @ V   # (nb, n)
         h = self.step_s
         tau = self.air_tau_s
         # one augmented system per mode: state [w, T_air, s, r, u], r = ds/dt
@@ -176,6 +182,19 @@ class ThermalIntegrator:
         self._c_s = beta * E[:, 0, 2]                            # × s[k]
         self._c_ds = beta * E[:, 0, 3] / h                       # × (s[k+1] − s[k])
         self._c_u = pi * E[:, 0, 4]                              # × u[k]
+        if beta_b.shape[0]:
+            if tau > 0:                  # the FOH coefficients of an input without lag
+                M0 = np.zeros((n, 5, 5))
+                M0[:, 0, 0] = -lam
+                M0[:, 0, 2] = 1.0
+                M0[:, 2, 3] = 1.0
+                E0 = scipy.linalg.expm(M0 * h)
+            else:
+                E0 = E
+            self._c_b = beta_b * E0[None, :, 0, 2]               # × T_b[k]
+            self._c_db = beta_b * E0[None, :, 0, 3] / h          # × (T_b[k+1] − T_b[k])
+        else:
+            self._c_b = self._c_db = np.zeros((0, n))
         if tau > 0:
             self._air_mu = float(E[0, 1, 1])
             self._air_s = float(E[0, 1, 2])
@@ -193,8 +212,9 @@ class ThermalIntegrator:
         """Node-mode time constants ``1/λ`` [s], longest first."""
         return np.sort(1.0 / self.rates_per_s)[::-1]
 
-    def state(self, air_c: float, node_temps_c: Any) -> ThermalState:
-        """A state from chamber-air and node temperatures [°C]."""
+    def state(self, air_c: float, node_temps_c: Any, time_s: float = 0.0) -> ThermalState:
+        """A state from chamber-air and node temperatures [°C] at run time ``time_s`` [s]
+        (the time matters only for further boundaries with a periodic temperature)."""
         T = np.asarray(node_temps_c, dtype=float).reshape(-1)
         if T.shape != (self.n_nodes,):
             raise ValueError(f"expected {self.n_nodes} node temperatures, got {T.shape}")
@@ -203,7 +223,7 @@ class ThermalIntegrator:
         if self.chamber_loop is not None:
             chamber = (float(air_c),) + self.chamber_loop.initial_state(float(air_c))[1:]
         return ThermalState(np.concatenate(([float(air_c)], self._nodes(w[None, :])[0])), w,
-                            chamber)
+                            chamber, time_s)
 
     def initial_state(self, ambient_c: float, powered: bool) -> ThermalState:
         """Equilibrium at constant chamber air ``ambient_c`` [°C] with the power on/off:
@@ -211,12 +231,12 @@ class ThermalIntegrator:
         settled at the setpoint ``ambient_c`` in its periodic ripple state (the air column holds
         the air at ``t0``, within the ripple of ``ambient_c``)."""
         if self.chamber_loop is None:
-            return self.state(ambient_c, self.network.steady_state(ambient_c, powered))
+            return self.state(ambient_c, self.network.steady_state(ambient_c, powered), 0.0)
         chamber = self.chamber_loop.initial_state(float(ambient_c))
         T = self.network.steady_state(ambient_c, powered)
         w = self._to_modal @ T
         return ThermalState(np.concatenate(([chamber[0]], self._nodes(w[None, :])[0])), w,
-                            chamber)
+                            chamber, 0.0)
 
     def _nodes(self, W: np.ndarray) -> np.ndarray:
         """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks."""
@@ -236,7 +256,7 @@ class ThermalIntegrator:
 
     # ----------------------------------------------------------------- propagation
 
-    def propagate(self, state: Any, setpoint_c: Any, power_on: Any
+    def propagate(self, state: Any, setpoint_c: Any, power_on: Any, t0_s: float | None = None
                   ) -> tuple[np.ndarray, ThermalState]:
         """Advance ``m`` steps exactly.
 
@@ -244,7 +264,9 @@ class ThermalIntegrator:
         call); ``setpoint_c`` (m+1,): rate-limited setpoint at ``t0 … t0 + m·h`` [°C], linear in
         between (FOH); ``power_on`` (m,): power state held over each step (ZOH; 0/1 or a
         fraction). Returns ``states`` (m, 1+n) at ``t0 + h … t0 + m·h`` (column 0 chamber air)
-        and the last state (a :class:`ThermalState`).
+        and the last state (a :class:`ThermalState`). ``t0_s``: run time at the state [s],
+        needed only by further boundaries with a periodic temperature (default: the time the
+        state carries, 0 for a plain array).
         """
         s = np.asarray(setpoint_c, dtype=float).reshape(-1)
         u = np.asarray(power_on, dtype=float).reshape(-1)
@@ -265,8 +287,13 @@ class ThermalIntegrator:
             if chamber is None:        # a plain array: the loop settled at its air (phase 0)
                 chamber = self.chamber_loop.initial_state(float(x0[0]))
                 chamber = (float(x0[0]),) + chamber[1:]
+        # the run time as a whole number of steps (bit-identical split calls)
+        if t0_s is None:
+            t0_s = state.time_s if isinstance(state, ThermalState) else None
+            t0_s = 0.0 if t0_s is None else t0_s
+        k_start = int(round(float(t0_s) / self.step_s))
         if m == 0:
-            return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber)
+            return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber, k_start * self.step_s)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
             raise ValueError("setpoint and power must be finite")
         states = np.empty((m, 1 + n))
@@ -279,11 +306,15 @@ class ThermalIntegrator:
                 # the closed air loop gives the air on the grid; it drives the nodes (FOH)
                 air_next, chamber = self.chamber_loop.run(chamber, sk)
                 sk = np.concatenate(([air], air_next))
-            air, w = self._advance(air, w, sk, u[k0:k1], states[k0:k1])
-        return states, ThermalState(states[-1], w, chamber)
+            bk = None
+            if self.boundaries:
+                tk = self.step_s * np.arange(k_start + k0, k_start + k1 + 1, dtype=float)
+                bk = self.network.boundary_temperatures_c(tk)          # (len, nb)
+            air, w = self._advance(air, w, sk, u[k0:k1], states[k0:k1], bk)
+        return states, ThermalState(states[-1], w, chamber, (k_start + m) * self.step_s)
 
     def _advance(self, air0: float, w0: np.ndarray, s: np.ndarray, u: np.ndarray,
-                 out: np.ndarray) -> tuple[float, np.ndarray]:
+                 out: np.ndarray, b: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """Propagate ``len(u)`` steps from chamber air ``air0`` and modal state ``w0`` into
         ``out`` (m, 1+n); return the final air temperature and modal state."""
         n = self.n_nodes
@@ -304,6 +335,11 @@ class ThermalIntegrator:
         g += np.multiply.outer(self._c_u, u)
         if self.air_tau_s > 0:
             g += np.multiply.outer(self._c_air, air_k)
+        if b is not None:                    # further boundaries: element-wise (no BLAS)
+            db = np.diff(b, axis=0)
+            for j in range(b.shape[1]):
+                g += np.multiply.outer(self._c_b[j], b[:-1, j])
+                g += np.multiply.outer(self._c_db[j], db[:, j])
         W = np.empty((n, m))
         for i in range(n):
             W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
