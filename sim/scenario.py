@@ -5,62 +5,63 @@ chamber programme, the turntable programme, the duration and the seed (docs/scen
 every key with its unit). This module validates the top level and the small tables it owns
 (``site``, ``acquisition``, ``power``); each other table is validated by the module that owns
 it (``[chamber]`` by :class:`rlgsim.sim.chamber.ChamberProgram`, ``[turntable]`` by
-:mod:`rlgsim.sim.turntable`, the device's ``[thermal]`` by :class:`rlgsim.sim.thermal.ThermalNetwork`, its
-sensor tables by the sensor modules — see :data:`DEVICE_TABLES`). Every user mistake is a
-one-line :class:`~rlgsim.ground.errors.UserInputError` naming file, key, value and what is allowed.
+:mod:`rlgsim.sim.turntable`, the device's ``[thermal]`` by
+:class:`rlgsim.sim.thermal.ThermalNetwork`, its sensor tables by the sensor modules — see
+:data:`DEVICE_TABLES`). Every user mistake is a one-line
+:class:`~rlgsim.ground.errors.UserInputError` naming file, key, value and what is allowed.
 """
 
 from __future__ import annotations
 
-import importlib
 import pathlib
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from rlgsim.sim import presets
-from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
-                        get_quantity, get_str, get_table, unit_keys)
+from rlgsim.sim.accelerometer import AccelerometerModel
 from rlgsim.sim.chamber import ChamberProgram
+from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
+                               get_quantity, get_str, get_table, unit_keys)
 from rlgsim.sim.earth import Site
+from rlgsim.sim.gyro import GyroModel
+from rlgsim.sim.imu import Tolerance
+from rlgsim.sim.noise import NoiseModel
 from rlgsim.sim.rng import generator
 from rlgsim.sim.thermal import ThermalNetwork
 from rlgsim.sim.thermometers import ProbeSet
 from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.sim.uhfo import UhfoModel
 
 #: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
 #: loader can check that steps and samples tile a block without importing the simulator).
 BLOCK_S = 600.0
 
-#: Tables a device preset may hold besides ``[device]``, each with the validator that owns it:
-#: ``"module:Class.from_config"`` called as ``f(table, ctx)``; the result is stored in
-#: ``Device.parts[name]``. ``None`` = accepted as is (kept raw in ``Device.tables``). Sensor
-#: modules add their tables here (``"gyro": "rlgsim.sim.gyro:GyroModel.from_config"``, ...).
-DEVICE_TABLES: dict[str, str | None] = {
-    "gyro": "rlgsim.sim.gyro:GyroModel.from_config",
-    "accelerometer": "rlgsim.sim.accelerometer:AccelerometerModel.from_config",
-    "uhfo": "rlgsim.sim.uhfo:UhfoModel.from_config",
-    "noise": "rlgsim.sim.noise:NoiseModel.from_config",
-    "tolerance": "rlgsim.sim.imu:Tolerance.from_config",
+#: A device-table validator: ``f(table, ctx)`` -> the validated object (UserInputError if bad).
+TableValidator = Callable[[Mapping[str, Any], Ctx], Any]
+
+#: Tables a device preset may hold besides ``[device]``, each with the validator of the module
+#: that owns it, called as ``f(table, ctx)``; the result is stored in ``Device.parts[name]``.
+#: ``None`` = accepted as is (kept raw in ``Device.tables``). Sensor modules add their tables
+#: here.
+DEVICE_TABLES: dict[str, TableValidator | None] = {
+    "gyro": GyroModel.from_config,
+    "accelerometer": AccelerometerModel.from_config,
+    "uhfo": UhfoModel.from_config,
+    "noise": NoiseModel.from_config,
+    "tolerance": Tolerance.from_config,
 }
 
 #: Keys of a device preset's ``[device]`` table.
 DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
 
 #: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
-SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device", *unit_keys("duration", TIME_UNITS),
-                 "site", "acquisition", "power", "chamber", "turntable")
+SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device",
+                 *unit_keys("duration", TIME_UNITS), "site", "acquisition", "power", "chamber",
+                 "turntable")
 
 _TOLERANCE = 1e-9
-
-
-def _resolve(spec: str) -> Callable:
-    module, _, attr = spec.partition(":")
-    obj: Any = importlib.import_module(module)
-    for part in attr.split("."):
-        obj = getattr(obj, part)
-    return obj
 
 
 # --------------------------------------------------------------------------- device presets
@@ -117,11 +118,11 @@ def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
                                   context=f"{f.source}: device.thermal_preset")
     tables: dict[str, dict] = {}
     parts: dict[str, Any] = {}
-    for key, spec in DEVICE_TABLES.items():
+    for key, validate in DEVICE_TABLES.items():
         if key in f.data:
             tables[key] = get_table(f.data, key, ctx)
-            if spec is not None:
-                parts[key] = _resolve(spec)(tables[key], ctx.child(key))
+            if validate is not None:
+                parts[key] = validate(tables[key], ctx.child(key))
     return Device(name=get_str(dev, "name", dctx, f.name),
                   description=get_str(dev, "description", dctx, ""),
                   reference=get_str(dev, "source", dctx, ""),
