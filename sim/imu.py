@@ -53,6 +53,9 @@ from rlgsim.sim import pulses as pulse_counter
 from rlgsim.sim.accelerometer import AccelerometerModel, Accelerometers
 from rlgsim.sim.accelerometer import phase_increments as accel_increments
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
+from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_imu, declare_truth,
+                                       declare_turntable)
+from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
 from rlgsim.sim.gyro import phase_increments as gyro_increments
@@ -499,14 +502,7 @@ class ImuStage:
 
     needs_motion = True
 
-    groups = {
-        "imu": "what the hardware outputs: gyro and accelerometer pulses per sample (int32) and "
-               "the UHFO voltage on the thermal grid",
-        "turntable": "turntable angles and motion index at the end of each thermal step, and the "
-                     "table of motions (labels for calibration)",
-        "truth": "ground truth: every true sensor parameter on the thermal grid, the true inputs "
-                 "and the drawn device realisation",
-    }
+    groups = {name: DESCRIPTIONS[name] for name in (IMU, TURNTABLE, TRUTH)}
 
     def __init__(self, scenario, timeline, model: ImuModel, *, unit: int = 0) -> None:
         network = scenario.device.thermal.network
@@ -537,144 +533,15 @@ class ImuStage:
 
     # ---- dataset layout -------------------------------------------------------------------
     def declare(self, writers: Mapping[str, Any]) -> None:
-        """Declare the three groups' dimensions and variables (docs/dataset.md)."""
-        r = self.realisation
-        g, acc, uh = r.gyros, r.accels, r.uhfo
-        rate = self.sim.rate_hz
-        time_desc = "time since the start of the run at the end of each thermal step"
-        # pulses: lossless integer packing (HDF5 scale-offset) in chunks of 4096 samples, short
-        # enough that most hold no turntable rotation and pack into 1-2 bits per value
-        # (≈ 0.7 B per value at 100 Hz on paper 000's programme instead of 4; benchmarks)
-        def pulses(n: int) -> dict:
-            return {"scaleoffset": 0, "chunks": (4096, n)}
-
-        imu = writers["imu"]
-        imu.set_attrs({"sample_rate_hz": rate, "thermal_step_s": self.sim.step_s,
-                       "sample_time": "sample k covers [k/f, (k+1)/f); its time is (k+1)/f s "
-                                      "(f = sample_rate_hz); no coordinate is stored"})
-        imu.dimension("sample")
-        imu.coordinate("time", growing=True, units="s", description=time_desc)
-        imu.coordinate("gyro", g.axes, description="gyro input axis (body axis)")
-        imu.variable("gyro_pulses", ("sample", "gyro"), units="1", dtype=np.int32,
-                     storage=pulses(g.n),
-                     description="gyro pulses counted in each sample interval (paper 000 eq. 17)")
-        if acc is not None:
-            imu.coordinate("accel", acc.axes, description="accelerometer input axis (body axis)")
-            imu.variable("accel_pulses", ("sample", "accel"), units="1", dtype=np.int32,
-                         storage=pulses(acc.n),
-                         description="accelerometer pulses counted in each sample interval "
-                                     "(paper 000 eq. 20)")
-        if uh is not None:
-            imu.variable("uhfo", ("time", "gyro"), units="V", dtype=np.float32,
-                         description="high-frequency-oscillator voltage of each gyro's "
-                                     "light-intensity loop as logged (read-out noise, ADC step)")
-
-        tt = writers["turntable"]
-        segs = self.turntable_segments
-        tt.coordinate("time", growing=True, units="s", description=time_desc)
-        tt.variable("outer_angle", ("time",), units="degree",
-                    description="outer-axis angle at the end of the step (rlgsim.sim.turntable)")
-        tt.variable("inner_angle", ("time",), units="degree",
-                    description="inner-axis angle at the end of the step")
-        tt.variable("motion_index", ("time",), units="1", dtype=np.int32,
-                    description="index (dimension motion) of the turntable motion in which the "
-                                "step ends")
-        tt.coordinate("motion", np.arange(len(segs), dtype=np.int32), units="1", dtype=np.int32,
-                      description="turntable motion index (timeline track 'turntable')")
-        attr = [dict(s.attrs) for s in segs]
-
-        def col(key, default):
-            return [a.get(key) if a.get(key) is not None else default for a in attr]
-        tt.variable("motion_t0", ("motion",), units="s", data=np.array([s.t0_s for s in segs]),
-                    description="start of the motion")
-        tt.variable("motion_t1", ("motion",), units="s", data=np.array([s.t1_s for s in segs]),
-                    description="end of the motion")
-        tt.variable("motion_label", ("motion",), dtype=str, data=[s.label for s in segs],
-                    description="label of the motion")
-        tt.variable("motion_kind", ("motion",), dtype=str, data=col("kind", "static"),
-                    description="'static' or 'rotate'")
-        tt.variable("motion_axis", ("motion",), dtype=str, data=col("axis", ""),
-                    description="rotating table axis ('outer', 'inner', '' when static)")
-        tt.variable("motion_rate", ("motion",), units="degree s-1",
-                    data=np.array(col("rate_deg_s", 0.0), dtype=float),
-                    description="signed table rate during the motion")
-        tt.variable("motion_position", ("motion",), units="1", dtype=np.int32,
-                    data=np.array(col("position", -1), dtype=np.int32),
-                    description="1-based position within the programme (-1: none)")
-        tt.variable("motion_window", ("motion",), units="1", dtype=np.int32,
-                    data=np.array(col("window", -1), dtype=np.int32),
-                    description="calibration window (-1: not a calibration)")
-
-        tr = writers["truth"]
-        names, values, unit_list = r.coefficient_table()
-        tr.set_attrs({
-            "seed": np.int64(self.scenario.seed), "unit": np.int64(self.unit),
-            "sample_rate_hz": rate, "thermal_step_s": self.sim.step_s,
-            "parameter_hold": "every parameter row holds over the samples of its thermal step "
-                              "(samples whose mid-point lies in [time - thermal_step_s, time))",
-            "white_noise": "block b (600 s) of axis a: z = rlgsim.sim.rng.generator(seed, unit, "
-                           "'gyro.white' | 'accel.white', a, b).standard_normal(n_b, "
-                           "dtype=float32); increment = float64(z) * white_sigma",
-            "gyro_equation": "u = ((E_x dth_x + E_y dth_y) + E_z dth_z) + bias*dt; u = u + "
-                             "sigma*z; inc = K*u [pulses]; pulses: rlgsim.sim.pulses fixed point",
-            "accel_equation": "u = ((E_x dv_x + E_y dv_y) + E_z dv_z) + bias*dt; u = u + "
-                              "sigma*z; inc = (K+ if u >= 0 else K-)*u [pulses]",
-        })
-        tr.coordinate("time", growing=True, units="s", description=time_desc)
-        tr.coordinate("body", BODY_AXES, description="body (measurement) axis")
-        tr.coordinate("gyro", g.axes, description="gyro input axis (body axis)")
-        tr.coordinate("coefficient", names,
-                      description="drawn coefficient of the unit: <law>.<term>[<axis>]")
-        tr.variable("coefficient_value", ("coefficient",), data=values,
-                    units="per coefficient: see coefficient_units",
-                    description="value of the drawn coefficient")
-        tr.variable("coefficient_units", ("coefficient",), dtype=str, data=unit_list,
-                    description="unit of the coefficient (preset units)")
-        tr.variable("gyro_bias", ("time", "gyro"), units="rad s-1",
-                    description="true gyro bias D_g (temperature law + flicker + rate random "
-                                "walk), held over the step")
-        tr.variable("gyro_bias_random", ("time", "gyro"), units="rad s-1",
-                    description="the flicker + rate-random-walk part of gyro_bias")
-        tr.variable("gyro_scale_factor", ("time", "gyro"), units="rad-1",
-                    description="true gyro scale factor K_g [pulses/rad]")
-        tr.variable("gyro_installation", ("time", "gyro", "body"), units="1",
-                    description="true gyro installation matrix rows E_g (1 on the own axis, "
-                                "misalignment angles [rad] off it)")
-        tr.variable("gyro_white_sigma", ("gyro",), units="rad", data=self.sim.gyro_white_sigma,
-                    description="standard deviation of the white angle increment per sample "
-                                "(ARW·sqrt(1/f))")
-        if acc is not None:
-            tr.coordinate("accel", acc.axes, description="accelerometer input axis (body axis)")
-            tr.variable("accel_bias", ("time", "accel"), units="m s-2",
-                        description="true accelerometer bias D_a (law + flicker + random walk)")
-            tr.variable("accel_bias_random", ("time", "accel"), units="m s-2",
-                        description="the flicker + random-walk part of accel_bias")
-            tr.variable("accel_scale_factor_pos", ("time", "accel"), units="s m-1",
-                        description="true positive-input scale factor K_a+ [pulses/(m/s)]")
-            tr.variable("accel_scale_factor_neg", ("time", "accel"), units="s m-1",
-                        description="true negative-input scale factor K_a- [pulses/(m/s)]")
-            tr.variable("accel_installation", ("time", "accel", "body"), units="1",
-                        description="true accelerometer installation matrix rows E_a")
-            tr.variable("accel_white_sigma", ("accel",), units="m s-1",
-                        data=self.sim.accel_white_sigma,
-                        description="standard deviation of the white velocity increment per "
-                                    "sample (VRW·sqrt(1/f))")
-        if uh is not None:
-            tr.variable("uhfo_true", ("time", "gyro"), units="V",
-                        description="true light-intensity-loop voltage (law + discharge wander), "
-                                    "before read-out noise and ADC")
-            tr.variable("uhfo_u0", ("gyro",), units="V", data=uh.u0,
-                        description="U_0: the excitation the bias law's UHFO term is relative to")
-        tr.variable("dtheta_step", ("time", "body"), units="rad",
-                    description="true angle increment ∫ω_ib^b dt summed over the step's samples")
-        tr.variable("dv_step", ("time", "body"), units="m s-1",
-                    description="true velocity increment ∫f^b dt summed over the step's samples")
-        if self.truth_samples:
-            tr.dimension("sample")
-            tr.variable("dtheta", ("sample", "body"), units="rad",
-                        description="true angle increment ∫ω_ib^b dt over each sample interval")
-            tr.variable("dv", ("sample", "body"), units="m s-1",
-                        description="true velocity increment ∫f^b dt over each sample interval")
+        """Declare the three groups' dimensions and variables (:mod:`rlgsim.sim.dataset_schema`,
+        docs/dataset.md)."""
+        r, sim = self.realisation, self.sim
+        declare_imu(writers[IMU], r, rate_hz=sim.rate_hz, step_s=sim.step_s)
+        declare_turntable(writers[TURNTABLE], self.turntable_segments)
+        declare_truth(writers[TRUTH], r, seed=self.scenario.seed, unit=self.unit,
+                      rate_hz=sim.rate_hz, step_s=sim.step_s,
+                      gyro_white_sigma=sim.gyro_white_sigma,
+                      accel_white_sigma=sim.accel_white_sigma, truth_samples=self.truth_samples)
 
     # ---- running --------------------------------------------------------------------------
     def initial_state(self) -> ImuState:

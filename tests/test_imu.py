@@ -11,10 +11,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground import units
+from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.sim import presets
 from rlgsim.sim.imu import ImuModel, true_increments
 from rlgsim.sim.rng import generator
+from rlgsim.sim.dataset_schema import DESCRIPTIONS
 from rlgsim.sim.scenario import load_device, parse_scenario
 from rlgsim.sim.simulate import simulate
 
@@ -108,6 +111,24 @@ def test_groups_open_with_xarray(short_run):
     with xr.open_dataset(short_run, engine="h5netcdf", group="truth") as ds:
         assert ds.dtheta.dims == ("sample", "body") and ds.gyro_installation.shape == (1500, 3, 3)
         assert ds.coefficient.size == ds.coefficient_value.size > 100
+
+
+def test_schema_room_declares_the_ground_names(short_run):
+    """A device with every optional part (accelerometers, UHFO, per-sample truth): the groups
+    and variables on disk are exactly rlgsim.ground.dataset_format's names, in its order, each
+    group described by the schema room and every variable documented (units unless a string)."""
+    with open_dataset(short_run) as ds:
+        assert ds.groups() == [fmt.TIMELINE, fmt.THERMAL, fmt.PROBES, fmt.IMU, fmt.TURNTABLE,
+                               fmt.TRUTH]
+        for group in ds.groups():
+            assert ds.group_attrs(group)["description"] == DESCRIPTIONS[group]
+            info = ds.variables(group)
+            assert tuple(v.name for v in info) == fmt.VARIABLES[group], group
+            for v in info:
+                if v.name == fmt.SAMPLE:            # dimension without a stored coordinate
+                    continue
+                assert v.description, (group, v.name)
+                assert v.units is not None or v.dtype.kind == "O", (group, v.name)
 
 
 def test_same_bytes_whatever_the_chunk(tmp_path, short_run):

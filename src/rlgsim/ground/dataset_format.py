@@ -58,7 +58,7 @@ SAMPLE = "sample"          #: IMU sample axis (no stored coordinate)
 
 #: Every variable (coordinates included) of each group the simulator writes, in the order it
 #: declares them; optional ones (accelerometers, UHFO, per-sample truth) are listed too.
-#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_dataset.py checks it).
+#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_imu.py checks it).
 VARIABLES: dict[str, tuple[str, ...]] = {
     TIMELINE: ("segment", "t0", "t1", "track", "label", "attrs", "breakpoint", "setpoint_time",
                "setpoint"),
