@@ -30,8 +30,10 @@ Adding a stage (issue 3: the IMU) — write a class with
   block only: block ``b`` covers ``[b·BLOCK_S, b·BLOCK_S + len(trace.t_s)·trace.step_s)``;
   random draws from ``generator(seed, scenario.unit, purpose, channel, b)``;
 
-and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. Then add the
-group to docs/dataset.md. :class:`ProbeStage` is the worked example. A stage that writes several
+and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. The
+shipped groups are declared in one room, :mod:`rlgsim.sim.dataset_schema` (a new group goes
+there, its names into :data:`rlgsim.ground.dataset_format.VARIABLES`, and its prose into
+docs/dataset.md). :class:`ProbeStage` is the worked example. A stage that writes several
 groups (the IMU: ``imu``, ``turntable``, ``truth``) sets ``groups = {name: description}``
 instead of ``group``/``description``; its ``declare`` then receives ``{name: group_writer}`` and
 its ``block`` returns ``{name: rows}``.
@@ -39,7 +41,6 @@ its ``block`` returns ``{name: rows}``.
 
 from __future__ import annotations
 
-import json
 import math
 import pathlib
 from dataclasses import dataclass
@@ -48,9 +49,12 @@ from typing import Any, Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from rlgsim.ground.dataset_format import PROBES, THERMAL
 from rlgsim.sim.dataset import DatasetWriter, GroupWriter, check_writable
+from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_probes, declare_thermal,
+                                       write_timeline)
 from rlgsim.sim.rng import generator
-from rlgsim.sim.schedule import TRACKS, Timeline, build_timeline
+from rlgsim.sim.schedule import Timeline, build_timeline
 from rlgsim.sim.thermal_integrator import ThermalIntegrator
 
 #: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
@@ -99,9 +103,8 @@ class Stage:
 class ThermalPart:
     """Samples the timeline and propagates the thermal network block by block."""
 
-    group = "thermal"
-    description = ("chamber setpoint and air, power state and true node temperatures on the "
-                   "thermal grid")
+    group = THERMAL
+    description = DESCRIPTIONS[THERMAL]
 
     def __init__(self, scenario, timeline: Timeline) -> None:
         self.timeline = timeline
@@ -116,44 +119,7 @@ class ThermalPart:
         return tuple(self.network.node_names)
 
     def declare(self, g: GroupWriter) -> None:
-        g.coordinate("time", growing=True, units="s",
-                     description="time since the start of the run at the end of each thermal "
-                                 "step")
-        g.variable("chamber_setpoint", ("time",), units="degC",
-                   description="rate-limited chamber setpoint")
-        g.variable("chamber_air", ("time",), units="degC",
-                   description="chamber air temperature (setpoint through the air lag)")
-        g.variable("power_on", ("time",), units="1", dtype=np.int8,
-                   description="device power state held over the step ending at time (1 = on)")
-        g.coordinate("node", self.node_names, description="thermal network node")
-        g.variable("node_temperature", ("time", "node"), units="degC",
-                   description="true temperature of each thermal network node")
-        # the drawn unit (ThermalNetwork.realise): realised values and factors over nominal
-        nom, real = self.nominal, self.network
-        with np.errstate(divide="ignore", invalid="ignore"):
-            def factor(r: np.ndarray, n: np.ndarray) -> np.ndarray:
-                return np.where(n != 0, r / np.where(n != 0, n, 1.0), 1.0)
-            for name, units, what, r, n in (
-                    ("capacitance", "J K-1", "heat capacity", real.capacitance_j_per_k,
-                     nom.capacitance_j_per_k),
-                    ("ambient_conductance", "W K-1", "conductance to the chamber air",
-                     real.ambient_conductance_w_per_k, nom.ambient_conductance_w_per_k),
-                    ("power", "W", "heat source when powered", real.power_w, nom.power_w)):
-                g.variable(name, ("node",), units=units, data=r,
-                           description=f"realised {what} of the node (this unit)")
-                g.variable(f"{name}_factor", ("node",), units="1", data=factor(r, n),
-                           description=f"drawn factor: realised / nominal {what} (1 where "
-                                       f"the nominal value is 0)")
-            iu, ju = np.nonzero(np.triu(nom.conductance_w_per_k > 0, k=1))
-            names = self.node_names
-            g.coordinate("link", [f"{names[i]}--{names[j]}" for i, j in zip(iu, ju)],
-                         description="node-to-node link of the network ('a--b')")
-            g.variable("link_conductance", ("link",), units="W K-1",
-                       data=real.conductance_w_per_k[iu, ju],
-                       description="realised conductance of the link (this unit)")
-            g.variable("link_conductance_factor", ("link",), units="1",
-                       data=real.conductance_w_per_k[iu, ju] / nom.conductance_w_per_k[iu, ju],
-                       description="drawn factor: realised / nominal link conductance")
+        declare_thermal(g, self.nominal, self.network)
 
     def initial_state(self) -> Any:
         ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
@@ -214,8 +180,8 @@ class ProbeStage(Stage):
     """Thermometer probes on the network nodes (lag, noise, resolution): what the compensators
     see. Random draws: ``generator(seed, unit, "probes", "noise", b)``."""
 
-    group = "probes"
-    description = "thermometer probe readings on the thermal grid (what hardware would log)"
+    group = PROBES
+    description = DESCRIPTIONS[PROBES]
 
     def __init__(self, scenario, timeline: Timeline) -> None:
         self.probes = scenario.device.thermal.probes
@@ -231,24 +197,7 @@ class ProbeStage(Stage):
         return cls(scenario, timeline)
 
     def declare(self, g: GroupWriter) -> None:
-        names = tuple(self.probes.names)
-        nodes = [self.network.node_names[i] for i in np.asarray(self.probes.node_index)]
-        g.coordinate("time", growing=True, units="s",
-                     description="time since the start of the run at the end of each thermal "
-                                 "step")
-        g.coordinate("probe", names, description="thermometer probe")
-        g.variable("probe_node", ("probe",), data=nodes, dtype=str,
-                   description="thermal network node each probe is mounted on")
-        g.variable("tau", ("probe",), units="s", data=np.asarray(self.probes.tau_s),
-                   description="time constant of the probe's first-order lag")
-        g.variable("noise_sigma", ("probe",), units="K",
-                   data=np.asarray(self.probes.noise_sigma_c),
-                   description="standard deviation of the probe's white reading noise")
-        g.variable("resolution", ("probe",), units="K",
-                   data=np.asarray(self.probes.resolution_c),
-                   description="reading resolution (quantisation step; 0 = none)")
-        g.variable("temperature", ("time", "probe"), units="degC",
-                   description="probe reading (first-order lag, white noise, resolution)")
+        declare_probes(g, self.probes, self.network)
 
     def initial_state(self) -> Any:
         return None          # built from the first block's start temperatures
@@ -269,36 +218,6 @@ def _imu_stage(scenario, timeline: Timeline) -> Stage | None:
 
 
 STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu_stage]
-
-
-# --------------------------------------------------------------------------- timeline group
-
-
-def _write_timeline(w: DatasetWriter, timeline: Timeline) -> None:
-    g = w.group("timeline", "labelled segments of the run (chamber, power, turntable, "
-                            "calibration, acquisition) and the chamber setpoint breakpoints")
-    segs = timeline.segments
-    g.coordinate("segment", np.arange(len(segs), dtype=np.int32), units="1",
-                 description="segment index", dtype=np.int32)
-    g.variable("t0", ("segment",), units="s", data=np.array([s.t0_s for s in segs], float),
-               description="segment start, s since the start of the run")
-    g.variable("t1", ("segment",), units="s", data=np.array([s.t1_s for s in segs], float),
-               description="segment end, s since the start of the run")
-    g.variable("track", ("segment",), dtype=str, data=[s.track for s in segs],
-               description=f"track of the segment: one of {', '.join(TRACKS)}")
-    g.variable("label", ("segment",), dtype=str, data=[s.label for s in segs],
-               description="human-readable label")
-    g.variable("attrs", ("segment",), dtype=str,
-               data=[json.dumps(s.attrs, sort_keys=True, default=float) for s in segs],
-               description="segment details as a JSON object (kind, temperatures, rates ...)")
-    sp = timeline.setpoint
-    g.coordinate("breakpoint", np.arange(len(sp.t_s), dtype=np.int32), units="1",
-                 description="setpoint breakpoint index", dtype=np.int32)
-    g.variable("setpoint_time", ("breakpoint",), units="s", data=np.asarray(sp.t_s, float),
-               description="breakpoint time of the rate-limited chamber setpoint (linear in "
-                           "between, last value held)")
-    g.variable("setpoint", ("breakpoint",), units="degC", data=np.asarray(sp.y, float),
-               description="chamber setpoint at the breakpoint")
 
 
 # --------------------------------------------------------------------------- the run
@@ -359,7 +278,7 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     }
     from tqdm import tqdm
     with DatasetWriter(out, attrs) as w:
-        _write_timeline(w, timeline)
+        write_timeline(w, timeline)
         writers = {}
         writers[thermal.group] = w.group(thermal.group, thermal.description)
         thermal.declare(writers[thermal.group])
