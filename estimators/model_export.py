@@ -171,14 +171,36 @@ def _kernel_table(centres, coef, intercept, factor: float) -> dict:
             "coefficients": _floats(np.ravel(coef)), "centres": _floats(centres)}
 
 
+def _is_frame(X: Any) -> bool:
+    """A pandas-like table: named columns selectable with ``X[list_of_names]``."""
+    return hasattr(X, "columns") and hasattr(X, "iloc")
+
+
+def _select(X: Any, names: Sequence[str]) -> Any:
+    """The named inputs of a Columns or DataFrame (``ValueError`` naming missing ones), in
+    order; any other ``X`` unchanged."""
+    if isinstance(X, Columns) or _is_frame(X):
+        have = X.names if isinstance(X, Columns) else [str(c) for c in X.columns]
+        missing = [n for n in names if n not in have]
+        if missing:
+            raise ValueError(f"X lacks the input(s) {', '.join(missing)}; X has "
+                             f"{', '.join(have)}")
+        return X.select(names) if isinstance(X, Columns) else X[list(names)]
+    return X
+
+
 def _input_names(model: Any, X_train: Any, input_names: Sequence[str] | None,
                  n: int) -> tuple[str, ...]:
     if input_names is not None:
         names = tuple(str(v) for v in input_names)
     elif hasattr(model, "input_names_"):
         names = tuple(model.input_names_)
+    elif hasattr(model, "feature_names_in_"):                 # fitted on a DataFrame
+        names = tuple(str(c) for c in model.feature_names_in_)
     elif isinstance(X_train, Columns):
         names = X_train.names
+    elif _is_frame(X_train):
+        names = tuple(str(c) for c in X_train.columns)
     else:
         names = tuple(f"x{i}" for i in range(n))
     if len(names) != n or len(set(names)) != n:
@@ -219,9 +241,7 @@ def export_compensator(model: Any, X_train: Any, *, name: str = "",
     center, scale, table, svr = _form_of(model, kind)
     n = len(center)
     names = _input_names(model, X_train, input_names, n)
-    if isinstance(X_train, Columns):
-        X_train = X_train.select(names)
-    X = check_array(X_train, dtype=np.float64)
+    X = check_array(_select(X_train, names), dtype=np.float64)
     if X.shape[1] != n:
         raise ValueError(f"X_train has {X.shape[1]} columns, the model {n} inputs")
     if isinstance(input_units, Mapping):
@@ -307,17 +327,12 @@ class ExportedCompensator(RegressorMixin, BaseEstimator):
                       + "; ".join(parts), OutOfTrainingRangeWarning, stacklevel=3)
 
     def predict(self, X) -> np.ndarray:
-        """Predicted target (``target_unit_``) for inputs ``X`` (array in input order, or a
-        :class:`~rlgsim.estimators.columns.Columns` holding the inputs by name). Warns with
-        :class:`OutOfTrainingRangeWarning` when an input is outside its training range."""
+        """Predicted target (``target_unit_``) for inputs ``X``: an array in input order, or a
+        :class:`~rlgsim.estimators.columns.Columns` or DataFrame holding the inputs by name.
+        Warns with :class:`OutOfTrainingRangeWarning` when an input is outside its training
+        range."""
         check_is_fitted(self, "form_")
-        if isinstance(X, Columns):
-            missing = [n for n in self.input_names_ if n not in X]
-            if missing:
-                raise ValueError(f"X lacks the input(s) {', '.join(missing)}; X has "
-                                 f"{', '.join(X.names)}")
-            X = X.select(self.input_names_)
-        X = check_array(X, dtype=np.float64)
+        X = check_array(_select(X, self.input_names_), dtype=np.float64)
         if X.shape[1] != len(self.input_names_):
             raise ValueError(f"X has {X.shape[1]} columns, the compensator "
                              f"{len(self.input_names_)} inputs ({', '.join(self.input_names_)})")

@@ -137,6 +137,23 @@ def test_out_of_range_warns_and_names_the_input(fitted, tmp_path):
         loaded.predict(Xq)
 
 
+def test_dataframe_inputs_by_name(fitted, tmp_path):
+    pd = pytest.importorskip("pandas")
+    X, _, models = fitted
+    loaded = load_json(_export(models["rbf"], X).to_json(tmp_path / "m.json"))
+    Xq = _inside(X, 20)
+    frame = pd.DataFrame({"U": Xq[:, 2], "extra": 0.0, "T": Xq[:, 0], "dT/dt": Xq[:, 1]})
+    np.testing.assert_array_equal(loaded.predict(frame), loaded.predict(Xq))
+    with pytest.raises(ValueError, match="lacks the input.*dT/dt"):
+        loaded.predict(frame.drop(columns="dT/dt"))
+    # a model fitted on a DataFrame: names from feature_names_in_, range from the frame
+    from rlgsim.estimators.rvr import RVR
+    train = pd.DataFrame(X.values, columns=list(NAMES))
+    rvr = RVR(width=20.0).fit(train, _data()[1])
+    exported = export_compensator(rvr, train.assign(extra=1.0))
+    assert exported.input_names_ == NAMES
+
+
 def test_export_rejects_models_without_export():
     from sklearn.linear_model import LinearRegression
     X, y = _data(30)
