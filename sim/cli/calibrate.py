@@ -95,10 +95,12 @@ def run(args: argparse.Namespace) -> int:
     from rlgsim.estimators.strapdown import SensorModel
     from rlgsim.sim.dataset import check_writable
 
-    path = pathlib.Path(args.dataset)
-    if not path.is_file():
-        raise UserInputError(f"{path}: no such dataset file")
-    out = check_writable(args.output or path.with_name(f"{path.stem}_calibration.csv"))
+    from rlgsim.sim.cli.paths import input_file, output_file
+    path = input_file(args.dataset, "an rlgsim dataset or a recording",
+                      missing="no such dataset file")
+    out = check_writable(output_file(args.output or
+                                     path.with_name(f"{path.stem}_calibration.csv"),
+                                     inputs=[path, args.programme or ""]))
     source = path
     if args.programme is not None or _is_recording(path):
         from rlgsim.sim.recordings import calibration_source

@@ -84,7 +84,12 @@ def _run(scenario_ref: str, output: str | None, chunk_s: float | None, quiet: bo
          ) -> pathlib.Path:
     from rlgsim.sim.scenario import load_scenario
     from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.cli.paths import name_path, output_file
     scenario = load_scenario(scenario_ref)
+    inputs = [scenario.source, scenario.device.source, scenario.device.thermal.source]
+    output = output_file(output if output is not None else
+                         name_path(scenario.name, suffix=".h5", source=scenario.source),
+                         inputs=inputs)
     t0 = time.perf_counter()
     path = simulate(scenario, output, chunk_s=chunk_s, progress=not quiet,
                     should_stop=_stop_requested)
@@ -149,8 +154,9 @@ def _main(argv: Sequence[str] | None) -> int:
         if args.command == "run":
             _run(args.scenario, args.output, args.chunk_s, args.quiet)
         elif args.command == "info":
+            from rlgsim.sim.cli.paths import input_file
             from rlgsim.sim.recordings import info
-            print(info(args.file))
+            print(info(input_file(args.file, "an rlgsim dataset or a recording")))
         elif args.command == "demo":
             from rlgsim.sim.cli.study import demo
             demo(args.quiet)

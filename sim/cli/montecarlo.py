@@ -361,7 +361,10 @@ def main(args: argparse.Namespace) -> int:
     metrics = study.tables.get("metrics")
     if isinstance(metrics, dict) and isinstance(metrics.get("baseline"), str):
         baseline = metrics["baseline"]
-    out = args.output or f"montecarlo-{study.name}"
+    from rlgsim.sim.cli.paths import name_path, output_folder
+    out = output_folder(args.output or name_path(study.name, prefix="montecarlo-",
+                                                 source=study.source, key="study.name"),
+                        inputs=[study.source])
     payload = study_payload(study)
     if args.chamber_offset_c or args.chamber_rate_rel:
         payload["chamber_variation"] = {"offset_c": args.chamber_offset_c,
@@ -369,4 +372,3 @@ def main(args: argparse.Namespace) -> int:
     run(payload, args.units, out, workers=args.workers, scheduler=args.scheduler,
         quiet=args.quiet, title=study.name, baseline=baseline or "raw")
     return 0
-

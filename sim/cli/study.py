@@ -46,8 +46,11 @@ def run(ref: str, out_dir: str | pathlib.Path | None, *, quiet: bool,
     """Run study ``ref`` into ``out_dir``; unless ``quiet``, show progress and (with
     ``summary``) print where the report is. Returns the path of report.md."""
     from rlgsim.sim.study import load_study, run_study
+    from rlgsim.sim.cli.paths import name_path, output_folder
     study = load_study(ref)
-    out = pathlib.Path(out_dir) if out_dir else pathlib.Path(f"{study.name}-study")
+    out = output_folder(out_dir if out_dir else
+                        name_path(study.name, suffix="-study", source=study.source,
+                                  key="study.name"), inputs=[study.source])
     t0 = time.perf_counter()
     if not quiet and summary:
         print(f"study {study.name}: {study.description}")

@@ -1,0 +1,151 @@
+"""Checks of the command line's input and output paths, made before any work.
+
+Inputs (``rlgsim info FILE``, ``rlgsim calibrate DATASET``) must be regular files: a FIFO would
+hang the reader, ``/dev/zero`` never ends, a directory is no dataset. Outputs:
+
+* an existing output *file* must be a regular file: ``-o /dev/null`` (or any device, FIFO,
+  socket, directory) is refused, never replaced;
+* a *symbolic link* as an output file is refused (saying so): the dataset is written to a
+  temporary file and renamed, which would replace the link itself, so give the link's target;
+  output *folders* (``rlgsim study -o``, ``rlgsim montecarlo -o``) may be symlinks to folders
+  and are written through;
+* an output equal to one of the command's inputs (``rlgsim run my.toml -o my.toml``) is refused;
+* a default output name derived from a scenario's or study's ``name`` (``./<name>.h5``,
+  ``./<name>-study/``, ``./montecarlo-<name>/``) must stay in the working folder: a name with a
+  path separator, ``.``/``..`` or more than :data:`MAX_NAME` characters is refused (give ``-o``);
+* a name too long for the file system is one line, not an ``OSError``.
+
+Every refusal is a one-line :class:`~rlgsim.ground.errors.UserInputError`.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import pathlib
+import stat
+from typing import Iterable
+
+from rlgsim.ground.errors import UserInputError
+
+#: Longest file name component written [characters] (file systems allow 255 bytes; the
+#: temporary file adds ``.tmp-<pid>``).
+MAX_NAME = 200
+
+
+def _kind(mode: int) -> str:
+    from rlgsim.sim.presets import file_kind
+    return file_kind(mode)
+
+
+def _os_error(path: pathlib.Path | str, exc: OSError, doing: str) -> UserInputError:
+    if exc.errno == errno.ENAMETOOLONG:
+        return UserInputError(f"{str(path)[:80]}...: file name too long ({len(str(path))} "
+                              f"characters); use a shorter name")
+    return UserInputError(f"{path}: cannot {doing} ({exc.strerror or exc})")
+
+
+def _check_length(path: pathlib.Path) -> None:
+    for part in path.parts:
+        if len(part.encode("utf-8", "surrogateescape")) > MAX_NAME:
+            raise UserInputError(f"{str(path)[:80]}...: file name too long ({len(part)} "
+                                 f"characters in one name; at most {MAX_NAME}); use a shorter "
+                                 f"name")
+
+
+def input_file(path: str | os.PathLike, what: str = "an rlgsim dataset", *,
+               missing: str = "no such file") -> pathlib.Path:
+    """A regular file to read; anything else is a one-line error naming it."""
+    p = pathlib.Path(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise UserInputError(f"{p}: {missing}") from None
+    except OSError as exc:
+        raise _os_error(p, exc, "read it") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserInputError(f"{p}: is a directory, expected {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserInputError(f"{p}: is {_kind(st.st_mode)}, not a regular file; expected "
+                             f"{what}")
+    return p
+
+
+def _same(a: pathlib.Path, b: str | os.PathLike) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        try:
+            return a.resolve() == pathlib.Path(b).resolve()
+        except (OSError, RuntimeError, ValueError):
+            return False
+
+
+def output_file(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
+                option: str = "-o") -> pathlib.Path:
+    """An output file that may be created or replaced: not a symlink, not a non-regular
+    file, not one of ``inputs``, a name the file system takes."""
+    p = pathlib.Path(path).expanduser()
+    _check_length(p)
+    try:
+        st = os.lstat(p)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise _os_error(p, exc, "write it") from None
+    if st is not None:
+        if stat.S_ISLNK(st.st_mode):
+            raise UserInputError(f"{p}: is a symbolic link; rlgsim does not replace links "
+                                 f"(give its target {os.path.realpath(p)} with {option})")
+        if stat.S_ISDIR(st.st_mode):
+            raise UserInputError(f"{p}: output path is a directory; give a file name such as "
+                                 f"{p / 'out.h5'}")
+        if not stat.S_ISREG(st.st_mode):
+            raise UserInputError(f"{p}: is {_kind(st.st_mode)}; an output must be a regular "
+                                 f"file (it would be replaced), choose another {option}")
+        for source in inputs:
+            if source and _same(p, source):
+                raise UserInputError(f"{p}: is also an input of this command ({source}); "
+                                     f"choose another {option}")
+    return p
+
+
+def output_folder(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
+                  option: str = "-o") -> pathlib.Path:
+    """An output folder: created if missing, written through if a symlink to a folder; an
+    existing non-folder, an input or an over-long name is refused."""
+    p = pathlib.Path(path).expanduser()
+    _check_length(p)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise _os_error(p, exc, "use it as the output folder") from None
+    if st is not None and not stat.S_ISDIR(st.st_mode):
+        what = "a regular file" if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
+        raise UserInputError(f"{p}: is {what}, not a folder; choose another output folder "
+                             f"with {option}")
+    for source in inputs:
+        if source and _same(p, source):
+            raise UserInputError(f"{p}: is also an input of this command; choose another "
+                                 f"output folder with {option}")
+    return p
+
+
+def name_path(name: str, *, prefix: str = "", suffix: str = "", source: str = "",
+              key: str = "name") -> pathlib.Path:
+    """The default output ``./<prefix><name><suffix>`` in the working folder; a ``name`` that
+    would leave it (path separators, ``.``, ``..``) or is too long is refused (give -o)."""
+    where = f"{source}: {key}" if source else key
+    bad = (not name or name in (".", "..") or "/" in name or os.sep in name
+           or (os.altsep and os.altsep in name) or "\0" in name)
+    if bad:
+        raise UserInputError(f"{where}: value {name!r} not allowed as the default output name "
+                             f"(it must stay in the working folder: no '/', '.' or '..'); "
+                             f"give the output with -o")
+    if len(prefix + name + suffix) > MAX_NAME:
+        raise UserInputError(f"{where}: value {name[:40]!r}... is {len(name)} characters, too "
+                             f"long for the default output name (at most "
+                             f"{MAX_NAME - len(prefix + suffix)}); give the output with -o")
+    return pathlib.Path(f"{prefix}{name}{suffix}")
