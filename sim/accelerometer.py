@@ -14,27 +14,30 @@ The pulses are counted with the remainder carried (:mod:`rlgsim.sim.pulses`).
 
 Temperature dependence (paper 000 §2(2): the torque coil's magnet and the pendulum's thermal
 imbalance move bias and scale factor): bias law in µg, K^± = K_0·(1 + 10⁻⁶·law_±) with separate
-ppm laws for the two signs, misalignment law in arcsec (all :mod:`rlgsim.sim.temperature_laws`, local node the
-accelerometer's own thermal node by default). Typical navigation-grade quartz-flexure figures:
-bias temperature coefficient tens of µg/°C, scale factor tens of ppm/°C (DESIGN.md). Bias
-instability (flicker) and acceleration random walk join the true bias
+ppm laws for the two signs, misalignment law in arcsec (all :mod:`rlgsim.sim.temperature_laws`,
+local node the accelerometer's own thermal node by default). Typical navigation-grade
+quartz-flexure figures: bias temperature coefficient tens of µg/°C, scale factor tens of ppm/°C
+(DESIGN.md). Bias instability (flicker) and acceleration random walk join the true bias
 (:class:`rlgsim.sim.noise.SlowNoise`).
 
 Evaluation order (float64; the stored truth reproduces the pulses in this order):
 ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``, ``u = u + σ·z``, ``inc = K^±·u`` with
-K^+ where u ≥ 0. Zero while unpowered.
+K^+ where u ≥ 0. Zero while unpowered. The equation, the per-axis bookkeeping and the preset
+parsing are shared with the gyros (:mod:`rlgsim.sim.sensor_triad`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
 from rlgsim.ground import units
-from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
-from rlgsim.sim.gyro import row_times, axis_indices, expand, installation_rows
+from rlgsim.sim.config import Ctx, check_known_keys, get_float
+from rlgsim.sim.sensor_triad import (SensorTriad, SensorTriadModel, axis_indices, law_context,
+                                     law_spec, parse_sensor_sites)
+from rlgsim.sim.sensor_triad import phase_increments as _triad_increments
 from rlgsim.sim.temperature_laws import Law, LawSpec
 
 _ACCEL_KEYS = ("axes", "nodes", "scale_factor_pulses_per_s_per_g", "node", "t_ref_c", "bias",
@@ -42,13 +45,15 @@ _ACCEL_KEYS = ("axes", "nodes", "scale_factor_pulses_per_s_per_g", "node", "t_re
 
 
 @dataclass(frozen=True)
-class AccelerometerModel:
+class AccelerometerModel(SensorTriadModel):
     """Nominal accelerometer triad + tolerances: the ``[accelerometer]`` preset table.
 
     ``axes`` body axes, ``nodes`` each accelerometer's thermal node (its "block"), ``k0``
     nominal scale factor [pulses/(m/s)], laws ``bias`` (µg), ``scale_factor_pos`` /
     ``scale_factor_neg`` (ppm), ``misalignment`` (arcsec, two per accelerometer).
     """
+
+    LAWS = ("bias", "scale_factor_pos", "scale_factor_neg", "misalignment")
 
     axes: tuple[str, ...]
     nodes: tuple[str, ...]
@@ -66,46 +71,26 @@ class AccelerometerModel:
         the law tables ``[accelerometer.bias]`` (µg), ``scale_factor_pos``/``scale_factor_neg``
         (ppm), ``misalignment`` (arcsec)."""
         check_known_keys(table, _ACCEL_KEYS, ctx)
-        axes = tuple(str(a) for a in get_list(table, "axes", ctx, ["x", "y", "z"], min_len=1))
-        axis_indices(axes, ctx)
-        nodes = tuple(str(v) for v in get_list(table, "nodes", ctx, [f"a{a}" for a in axes]))
-        if len(nodes) != len(axes):
-            raise ctx.error("nodes", f"expected {len(axes)} node names (one per axis), got "
-                                     f"{len(nodes)}")
+        axes, nodes = parse_sensor_sites(table, ctx, "nodes", "node",
+                                         lambda axes: [f"a{a}" for a in axes])
         k = get_float(table, "scale_factor_pulses_per_s_per_g", ctx, 5000.0, min=0.0,
                       min_exclusive=True)
-        common = dict(node=get_str(table, "node", ctx, "self"),
-                      t_ref_c=get_float(table, "t_ref_c", ctx, 20.0, min=-100.0, max=200.0))
+        common = law_context(table, ctx, "self")
         n = len(axes)
 
-        def law(key: str, name: str, unit: str, to_si: float, count: int) -> LawSpec:
-            return LawSpec.from_config(get_table(table, key, ctx, {}), ctx.child(key),
-                                       name=f"accel.{name}", unit=unit, to_si=to_si, n=count,
-                                       **common)
+        def law(key: str, unit: str, to_si: float, count: int) -> LawSpec:
+            return law_spec(table, ctx, key, "accel", unit, to_si, count, common)
         return cls(axes=axes, nodes=nodes, k0=k / units.G0,
-                   bias=law("bias", "bias", "ug", units.MICRO_G, n),
-                   scale_factor_pos=law("scale_factor_pos", "scale_factor_pos", "ppm", 1e-6, n),
-                   scale_factor_neg=law("scale_factor_neg", "scale_factor_neg", "ppm", 1e-6, n),
-                   misalignment=law("misalignment", "misalignment", "arcsec", units.ARCSEC,
-                                    2 * n))
-
-    def with_tolerance(self, table: Mapping | None, ctx: Ctx) -> "AccelerometerModel":
-        """Add ``[tolerance.accelerometer]``: sub-tables per law (1σ per law key)."""
-        if not table:
-            return self
-        names = ("bias", "scale_factor_pos", "scale_factor_neg", "misalignment")
-        check_known_keys(table, names, ctx)
-        return replace(self, **{k: getattr(self, k).with_tolerance(get_table(table, k, ctx, {}),
-                                                                   ctx.child(k))
-                                for k in names})
+                   bias=law("bias", "ug", units.MICRO_G, n),
+                   scale_factor_pos=law("scale_factor_pos", "ppm", 1e-6, n),
+                   scale_factor_neg=law("scale_factor_neg", "ppm", 1e-6, n),
+                   misalignment=law("misalignment", "arcsec", units.ARCSEC, 2 * n))
 
     def realise(self, draw) -> "Accelerometers":
+        """Draw one unit (``draw(name, shape)`` → standard normals, keyed by name)."""
         return Accelerometers(axes=self.axes, nodes=self.nodes,
                               axis_idx=axis_indices(self.axes, Ctx()), k0=self.k0,
-                              bias=self.bias.realise(draw),
-                              scale_factor_pos=self.scale_factor_pos.realise(draw),
-                              scale_factor_neg=self.scale_factor_neg.realise(draw),
-                              misalignment=self.misalignment.realise(draw))
+                              **self.realised_laws(draw))
 
 
 @dataclass
@@ -122,8 +107,11 @@ class AccelParameters:
 
 
 @dataclass
-class Accelerometers:
-    """One unit's accelerometers: realised laws and the measurement equation."""
+class Accelerometers(SensorTriad):
+    """One unit's accelerometers: realised laws and the measurement equation. A law's node
+    "self" is the accelerometer's own node."""
+
+    LAWS = AccelerometerModel.LAWS
 
     axes: tuple[str, ...]
     nodes: tuple[str, ...]
@@ -135,27 +123,18 @@ class Accelerometers:
     misalignment: Law
 
     @property
-    def n(self) -> int:
-        return len(self.axes)
-
-    def laws(self) -> tuple[Law, ...]:
-        return (self.bias, self.scale_factor_pos, self.scale_factor_neg, self.misalignment)
-
-    def bind(self, node_names: Sequence[str]) -> None:
-        """Resolve the laws' nodes; the node "self" is the accelerometer's own node."""
-        for law in (self.bias, self.scale_factor_pos, self.scale_factor_neg):
-            law.bind(self.nodes, node_names)
-        self.misalignment.bind(tuple(v for v in self.nodes for _ in range(2)), node_names)
+    def sites(self) -> tuple[str, ...]:
+        return self.nodes
 
     def parameters(self, nodes_c: np.ndarray, start_c: np.ndarray, dt: float,
                    bias_random: np.ndarray) -> AccelParameters:
+        """Evaluate the laws on the thermal grid (see the module docstring)."""
         bias = self.bias.evaluate(nodes_c, start_c, dt) + bias_random
-        kp = self.k0 * (1.0 + self.scale_factor_pos.evaluate(nodes_c, start_c, dt))
-        kn = self.k0 * (1.0 + self.scale_factor_neg.evaluate(nodes_c, start_c, dt))
-        mis = self.misalignment.evaluate(nodes_c, start_c, dt)
-        return AccelParameters(bias=bias, bias_random=bias_random, scale_factor_pos=kp,
-                               scale_factor_neg=kn,
-                               installation=installation_rows(mis, self.axis_idx))
+        return AccelParameters(
+            bias=bias, bias_random=bias_random,
+            scale_factor_pos=self.scale_factor_of(self.scale_factor_pos, nodes_c, start_c, dt),
+            scale_factor_neg=self.scale_factor_of(self.scale_factor_neg, nodes_c, start_c, dt),
+            installation=self.installation(nodes_c, start_c, dt))
 
 
 def phase_increments(kpos: np.ndarray, kneg: np.ndarray, bias: np.ndarray,
@@ -167,24 +146,9 @@ def phase_increments(kpos: np.ndarray, kneg: np.ndarray, bias: np.ndarray,
 
     ``kpos``/``kneg`` (m, C) [pulses/(m/s)], ``bias`` (m, C) [m/s²], ``installation``
     (m, C, 3), ``dv_t`` (3, n) [m/s], ``z`` (C, n) float32 standard normals or None, ``sigma``
-    (C,) [m/s], ``own_axis`` as in :func:`rlgsim.sim.gyro.phase_increments`. Per sample, in this
-    order: ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``,
+    (C,) [m/s], ``own_axis`` as in :func:`rlgsim.sim.sensor_triad.phase_increments`. Per
+    sample, in this order: ``u = ((E_x·Δv_x + E_y·Δv_y) + E_z·Δv_z) + D·Δt``,
     ``u = u + σ·z``, ``inc = (K⁺ if u ≥ 0 else K⁻)·u``.
     """
-    a = bias * sample_dt
-    n = dv_t.shape[1]
-    c = bias.shape[1]
-    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
-    out = np.empty((c, n))
-    tmp = np.empty(n)
-    for s in range(c):
-        u = out[s]
-        row_times(u, tmp, installation[:, s], dv_t, own[s], idx)
-        u += expand(a[:, s], idx)
-        if z is not None:
-            np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
-            u += tmp
-        u *= np.where(u >= 0, expand(kpos[:, s], idx), expand(kneg[:, s], idx))
-    if power is not None and not np.all(power > 0):
-        out[:, expand(power, idx) <= 0] = 0.0
-    return out
+    return _triad_increments(kpos, bias, installation, dv_t, z, sigma, sample_dt, idx, power,
+                             own_axis, scale_factor_neg=kneg)

@@ -14,7 +14,8 @@ from rlgsim.ground import units
 from rlgsim.sim import pulses
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.gyro import GyroModel, installation_rows, sample_step_index
+from rlgsim.sim.gyro import GyroModel
+from rlgsim.sim.sensor_triad import installation_rows, sample_step_index
 from rlgsim.sim.motion import Motion, body_to_enu, segments_from_program
 from rlgsim.sim.turntable import Hold, Rotate, TurntableProgram
 

@@ -1,0 +1,232 @@
+"""What the gyro and accelerometer models share: sensors on body axes with temperature laws, an
+installation matrix and a pulse output (paper 000 §3.3, eqs. 17 and 20).
+
+Both sensor kinds are a set of C sensors (a triad, or one gyro) on distinct body axes x/y/z,
+each on a thermal site of the network (a gyro block such as "gx", or an accelerometer's own
+node such as "ax"). Each has a nominal scale factor ``k0``, a bias law, one or two scale-factor
+laws in ppm and a misalignment law with two angles per sensor (:mod:`rlgsim.sim.temperature_laws`).
+Their measurement equation differs only in the last step (one scale factor for a gyro, K⁺/K⁻ by
+the sign of the input for a quartz-flexure accelerometer):
+
+    u_i = ((E_x·x_x + E_y·x_y) + E_z·x_z) + D_i·Δt,   u_i = u_i + σ_i·z,   N_i = K_i·u_i
+
+with ``x`` the exact angle (gyro) or velocity (accelerometer) increment of the sample in body
+axes, ``E`` the sensor's installation row, ``D`` its bias and ``K`` its scale factor, each the
+value of the sample's thermal step (:func:`sample_step_index`). This module holds that
+equation (:func:`phase_increments`), the per-axis bookkeeping (:func:`axis_indices`,
+:func:`installation_rows`), the preset-table parsing both ``from_config`` share
+(:func:`parse_sensor_sites`, :func:`law_spec`) and the two base classes
+:class:`SensorTriadModel` (the nominal laws + tolerances: ``with_tolerance``, ``realise``) and
+:class:`SensorTriad` (one unit's realised laws: ``bind``, evaluation on the thermal grid).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Callable, ClassVar, Mapping, Sequence
+
+import numpy as np
+
+from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from rlgsim.sim.temperature_laws import Law, LawSpec
+
+BODY_AXES = ("x", "y", "z")
+
+
+# --------------------------------------------------------------------------- per-axis helpers
+
+def axis_indices(axes: Sequence[str], ctx: Ctx, key: str = "axes") -> np.ndarray:
+    """Body-axis indices (0..2) of sensor axes named x/y/z; distinct."""
+    out = []
+    for a in axes:
+        if a not in BODY_AXES:
+            raise ctx.error(key, f"value {a!r} not allowed; axes are named x, y or z")
+        out.append(BODY_AXES.index(a))
+    if len(set(out)) != len(out):
+        raise ctx.error(key, f"value {list(axes)!r} not allowed; axes must be distinct")
+    return np.array(out)
+
+
+def installation_rows(mis: np.ndarray, axis_idx: np.ndarray) -> np.ndarray:
+    """Installation-matrix rows (…, C, 3) from misalignments (…, 2C) [rad]: 1 on each sensor's
+    own body axis, its two angles towards the other two axes (in x, y, z order)."""
+    c = axis_idx.size
+    out = np.zeros(mis.shape[:-1] + (c, 3))
+    for s, a in enumerate(axis_idx):
+        others = [j for j in range(3) if j != a]
+        out[..., s, a] = 1.0
+        out[..., s, others[0]] = mis[..., 2 * s]
+        out[..., s, others[1]] = mis[..., 2 * s + 1]
+    return out
+
+
+def sample_step_index(n: int, m: int, rate_hz: float, step_s: float) -> np.ndarray | int:
+    """For each of ``n`` samples of a block, the thermal step (0..m−1) holding its mid-point;
+    an int ``r`` when every step holds exactly ``r`` samples (then sample j → step j // r)."""
+    r = rate_hz * step_s
+    if abs(r - round(r)) < 1e-9 and round(r) >= 1 and n == m * round(r):
+        return int(round(r))
+    k = np.floor((np.arange(n) + 0.5) / r).astype(np.int64)
+    return np.minimum(k, m - 1)
+
+
+def expand(values: np.ndarray, idx: np.ndarray | int) -> np.ndarray:
+    """Per-step ``values`` (m, …) held over their samples: (n, …) (:func:`sample_step_index`)."""
+    if isinstance(idx, int):
+        return np.repeat(values, idx, axis=0)
+    return values[idx]
+
+
+# --------------------------------------------------------------------------- preset tables
+
+def parse_sensor_sites(table: Mapping, ctx: Ctx, site_key: str, noun: str,
+                       default_sites: Callable[[tuple[str, ...]], list[str]]
+                       ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """``axes`` (default ["x", "y", "z"], distinct) and one thermal site per axis under
+    ``site_key`` (default ``default_sites(axes)``); ``noun`` names a site in the message."""
+    axes = tuple(str(a) for a in get_list(table, "axes", ctx, ["x", "y", "z"], min_len=1))
+    axis_indices(axes, ctx)
+    sites = tuple(str(b) for b in get_list(table, site_key, ctx, default_sites(axes)))
+    if len(sites) != len(axes):
+        raise ctx.error(site_key, f"expected {len(axes)} {noun} names (one per axis), got "
+                                  f"{len(sites)}")
+    return axes, sites
+
+
+def law_context(table: Mapping, ctx: Ctx, default_node: str) -> dict[str, Any]:
+    """The keys every law of a sensor table shares: its local ``node`` and ``t_ref_c``."""
+    return dict(node=get_str(table, "node", ctx, default_node),
+                t_ref_c=get_float(table, "t_ref_c", ctx, 20.0, min=-100.0, max=200.0))
+
+
+def law_spec(table: Mapping, ctx: Ctx, key: str, prefix: str, unit: str, to_si: float,
+             n: int, common: Mapping[str, Any], **extra: Any) -> LawSpec:
+    """The law of sub-table ``[<prefix>.<key>]`` (absent: all zero) for ``n`` components."""
+    return LawSpec.from_config(get_table(table, key, ctx, {}), ctx.child(key),
+                               name=f"{prefix}.{key}", unit=unit, to_si=to_si, n=n,
+                               **common, **extra)
+
+
+# --------------------------------------------------------------------------- base classes
+
+class SensorTriadModel:
+    """Nominal sensors + tolerances (a frozen dataclass with ``axes``, ``k0`` and one
+    :class:`~rlgsim.sim.temperature_laws.LawSpec` field per name in ``LAWS``)."""
+
+    #: Law fields, bias first and misalignment (two components per sensor) last.
+    LAWS: ClassVar[tuple[str, ...]]
+    axes: tuple[str, ...]
+
+    def with_tolerance(self, table: Mapping | None, ctx: Ctx) -> Any:
+        """Add ``[tolerance.<sensor>]``: one sub-table per law (1σ per law key)."""
+        if not table:
+            return self
+        check_known_keys(table, self.LAWS, ctx)
+        return replace(self, **{k: getattr(self, k).with_tolerance(get_table(table, k, ctx, {}),
+                                                                   ctx.child(k))
+                                for k in self.LAWS})
+
+    def realised_laws(self, draw) -> dict[str, Law]:
+        """Every law drawn for one unit (``draw(name, shape)`` → standard normals, keyed by
+        name), by field name."""
+        return {k: getattr(self, k).realise(draw) for k in self.LAWS}
+
+
+class SensorTriad:
+    """One unit's sensors: realised laws (fields named in ``LAWS``), their thermal ``sites``,
+    ``axes``, ``axis_idx`` and nominal scale factor ``k0``."""
+
+    LAWS: ClassVar[tuple[str, ...]]
+    axes: tuple[str, ...]
+    axis_idx: np.ndarray
+    k0: float
+    misalignment: Law
+
+    @property
+    def sites(self) -> tuple[str, ...]:
+        """Each sensor's thermal site (gyro block or accelerometer node)."""
+        raise NotImplementedError
+
+    @property
+    def n(self) -> int:
+        return len(self.axes)
+
+    def laws(self) -> tuple[Law, ...]:
+        return tuple(getattr(self, k) for k in self.LAWS)
+
+    def bind(self, node_names: Sequence[str]) -> None:
+        """Resolve every law's nodes in the thermal network (KeyError names a missing node);
+        the misalignment law has two components per sensor, on that sensor's site."""
+        for law in self.laws()[:-1]:
+            law.bind(self.sites, node_names)
+        self.misalignment.bind(tuple(s for s in self.sites for _ in range(2)), node_names)
+
+    def scale_factor_of(self, law: Law, nodes_c: np.ndarray, start_c: np.ndarray,
+                        dt: float) -> np.ndarray:
+        """``K = k0·(1 + law)`` on the thermal grid (m, C) [pulses per unit of input]."""
+        return self.k0 * (1.0 + law.evaluate(nodes_c, start_c, dt))
+
+    def installation(self, nodes_c: np.ndarray, start_c: np.ndarray, dt: float) -> np.ndarray:
+        """Installation rows (m, C, 3) from the misalignment law on the thermal grid."""
+        return installation_rows(self.misalignment.evaluate(nodes_c, start_c, dt),
+                                 self.axis_idx)
+
+
+# --------------------------------------------------------------------------- the equation
+
+def row_times(u: np.ndarray, tmp: np.ndarray, row: np.ndarray, x_t: np.ndarray, own: int,
+              idx: np.ndarray | int) -> None:
+    """u = (row_x·x_x + row_y·x_y) + row_z·x_z per sample, the row (m, 3) held over each step.
+
+    Column ``own`` (the sensor's own axis, −1: none) is exactly 1 (:func:`installation_rows`),
+    so its product is the input itself — the same float64 result without the multiplication."""
+    for j in range(3):
+        dst = u if j == 0 else tmp
+        if j == own:
+            np.copyto(dst, x_t[j])
+        else:
+            np.multiply(expand(row[:, j], idx), x_t[j], out=dst)
+        if j:
+            u += tmp
+
+
+def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: np.ndarray,
+                     x_t: np.ndarray, z: np.ndarray | None, sigma: np.ndarray,
+                     sample_dt: float, idx: np.ndarray | int,
+                     power: np.ndarray | None = None, own_axis: np.ndarray | None = None,
+                     scale_factor_neg: np.ndarray | None = None) -> np.ndarray:
+    """Phase increments [pulses] (C, n) of one block, float64 (module docstring).
+
+    ``scale_factor`` (m, C) [pulses per unit of x], ``bias`` (m, C) [unit of x per s],
+    ``installation`` (m, C, 3), ``x_t`` (3, n) the increments of the sample in body x, y, z
+    rows, ``z`` (C, n) float32 standard normals or None, ``sigma`` (C,) white-noise standard
+    deviation per sample [unit of x], ``sample_dt`` = 1/f [s], ``idx`` from
+    :func:`sample_step_index`, ``power`` (m,) 0/1 or None (= on; zero increments while off),
+    ``own_axis`` (C,) each sensor's body axis, whose installation entry is exactly 1 (skips
+    that multiplication; same result). With ``scale_factor_neg`` (m, C) the scale factor is
+    ``scale_factor`` where ``u ≥ 0`` and ``scale_factor_neg`` where ``u < 0``.
+
+    Per sample, in this order (float64): ``u = ((E_x·x_x + E_y·x_y) + E_z·x_z) + D·Δt``,
+    ``u = u + σ·z`` (σ·z in float64 from the float32 z), ``inc = K·u``.
+    """
+    a = bias * sample_dt
+    n = x_t.shape[1]
+    c = bias.shape[1]
+    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
+    out = np.empty((c, n))
+    tmp = np.empty(n)
+    for s in range(c):
+        u = out[s]
+        row_times(u, tmp, installation[:, s], x_t, own[s], idx)
+        u += expand(a[:, s], idx)
+        if z is not None:
+            np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
+            u += tmp
+        if scale_factor_neg is None:
+            u *= expand(scale_factor[:, s], idx)
+        else:
+            u *= np.where(u >= 0, expand(scale_factor[:, s], idx),
+                          expand(scale_factor_neg[:, s], idx))
+    if power is not None and not np.all(power > 0):
+        out[:, expand(power, idx) <= 0] = 0.0
+    return out
