@@ -70,7 +70,8 @@ from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_i
                                get_str)
 from rlgsim.sim.report import Report, Table
 from rlgsim.sim.study import StudyResult, scenario_for
-from rlgsim.sim.studies.runs import device_coefficients, simulated_dataset
+from rlgsim.sim.studies.runs import (device_coefficients, probe_temperatures, rewrite_pulses,
+                                     simulated_dataset)
 
 #: Paper 000 abstract and §4.2-4.3 (average and maximum improvement of HHO-RVR over LSM, %).
 PAPER_AVG_IMPROVEMENT = {"rmse": 35.27, "mae": 39.29, "r2": 2.29, "residual_variance": 30.34}
@@ -186,8 +187,6 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
     """Write a copy of dataset ``src`` whose IMU pulses are converted to ``desired_c`` by
     paper 000 eqs. (26) and (29) with the fitted parameter ``models`` (name → regressor of the
     window-mean temperature of ``probes[name]``); see the module docstring."""
-    import h5py
-
     from rlgsim.estimators.calibration import DatasetReader
     from rlgsim.estimators.kalman_calibration import DEG_PER_H, UG
 
@@ -196,83 +195,64 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
     rate = reader.rate_hz
     reader.close()
     dt = 1.0 / rate
-    tmp = dst.with_name(f".{dst.name}.tmp{os.getpid()}")
-    with h5py.File(src, "r") as fs, h5py.File(tmp, "w") as fd:
-        for k, v in fs.attrs.items():
-            fd.attrs[k] = v
-        fd.attrs["title"] = f"{fs.attrs.get('title', '')} — pulses compensated to {desired_c} °C"
-        fd.attrs["compensated_to_c"] = float(desired_c)
-        for name in fs:
-            if name != "imu":
-                fs.copy(fs[name], fd, name=name)
-        gi, go = fs["imu"], fd.create_group("imu")
-        for k, v in gi.attrs.items():
-            go.attrs[k] = v
-        for name in gi:
-            if name not in ("gyro_pulses", "accel_pulses"):
-                gi.copy(gi[name], go, name=name)
-        ptime = fs["probes/time"][:]
-        pnames = [p.decode() if isinstance(p, bytes) else str(p) for p in fs["probes/probe"][:]]
-        ptemp = fs["probes/temperature"]
+    ptime, temps = probe_temperatures(src, sorted(set(probes.values())))
 
-        def on_grid(param: str) -> np.ndarray:
-            col = ptemp[:, pnames.index(probes[param])].astype(float)
-            good = np.isfinite(col)
-            col = np.interp(ptime, ptime[good], col[good])
-            return models[param].predict(col[:, None])
+    def on_grid(param: str) -> np.ndarray:
+        col = temps[probes[param]]
+        good = np.isfinite(col)
+        col = np.interp(ptime, ptime[good], col[good])
+        return models[param].predict(col[:, None])
 
-        def at_desired(param: str) -> float:
-            return float(models[param].predict(np.array([[desired_c]]))[0])
+    def at_desired(param: str) -> float:
+        return float(models[param].predict(np.array([[desired_c]]))[0])
 
-        n = gi["gyro_pulses"].shape[0]
-        for sensor in ("gyro", "accel"):
-            src_ds = gi[f"{sensor}_pulses"]
-            out = go.create_dataset(f"{sensor}_pulses", shape=src_ds.shape, dtype="int32",
-                                    chunks=src_ds.chunks, scaleoffset=0)
-            for k, v in src_ds.attrs.items():
-                if k not in ("DIMENSION_LIST", "REFERENCE_LIST"):
-                    out.attrs[k] = v
-            # per axis: parameter on the probe grid (sf ppm, bias °/h or µg) and at T_d
-            if sensor == "gyro":
-                sf = [on_grid(f"gyro_sf_{a}") for a in AXES]
-                sf_d = [at_desired(f"gyro_sf_{a}") for a in AXES]
-                b = [on_grid(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
-                b_d = [at_desired(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
-                k_nom = nominal.k_g
-            else:
-                sfp = [on_grid(f"accel_sf_pos_{a}") for a in AXES]
-                sfn = [on_grid(f"accel_sf_neg_{a}") for a in AXES]
-                sfp_d = [at_desired(f"accel_sf_pos_{a}") for a in AXES]
-                sfn_d = [at_desired(f"accel_sf_neg_{a}") for a in AXES]
-                b = [on_grid(f"accel_bias_{a}") * UG for a in AXES]
-                b_d = [at_desired(f"accel_bias_{a}") * UG for a in AXES]
-                k_nom = nominal.k_a_pos
-            cum = np.zeros(3)
-            last = np.zeros(3)
-            for k0 in range(0, n, chunk):
-                k1 = min(n, k0 + chunk)
-                N = src_ds[k0:k1].astype(float)
-                t = (np.arange(k0, k1) + 0.5) * dt
-                comp = np.empty_like(N)
-                for i in range(3):
-                    bi = np.interp(t, ptime, b[i])
-                    if sensor == "gyro":
-                        ratio = (1 + 1e-6 * sf_d[i]) / (1 + 1e-6 * np.interp(t, ptime, sf[i]))
-                        kd = k_nom[i] * (1 + 1e-6 * sf_d[i])
-                    else:
-                        pos = N[:, i] >= 0
-                        s_now = np.where(pos, np.interp(t, ptime, sfp[i]),
-                                         np.interp(t, ptime, sfn[i]))
-                        s_d = np.where(pos, sfp_d[i], sfn_d[i])
-                        ratio = (1 + 1e-6 * s_d) / (1 + 1e-6 * s_now)
-                        kd = k_nom[i] * (1 + 1e-6 * s_d)
-                    comp[:, i] = ratio * N[:, i] + kd * (b_d[i] - bi) * dt
-                c = cum + np.cumsum(comp, axis=0)
-                r = np.rint(c)
-                out[k0:k1] = np.diff(np.vstack([last, r]), axis=0).astype(np.int32)
-                cum, last = c[-1], r[-1]
-    os.replace(tmp, dst)
-    return dst
+    def make_transform(sensor: str):
+        """Eqs. (26)/(29) on one sensor's pulses, cumulatively rounded (module docstring)."""
+        # per axis: parameter on the probe grid (sf ppm, bias °/h or µg) and at T_d
+        if sensor == "gyro":
+            sf = [on_grid(f"gyro_sf_{a}") for a in AXES]
+            sf_d = [at_desired(f"gyro_sf_{a}") for a in AXES]
+            b = [on_grid(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
+            b_d = [at_desired(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
+            k_nom = nominal.k_g
+        else:
+            sfp = [on_grid(f"accel_sf_pos_{a}") for a in AXES]
+            sfn = [on_grid(f"accel_sf_neg_{a}") for a in AXES]
+            sfp_d = [at_desired(f"accel_sf_pos_{a}") for a in AXES]
+            sfn_d = [at_desired(f"accel_sf_neg_{a}") for a in AXES]
+            b = [on_grid(f"accel_bias_{a}") * UG for a in AXES]
+            b_d = [at_desired(f"accel_bias_{a}") * UG for a in AXES]
+            k_nom = nominal.k_a_pos
+        carried = {"cum": np.zeros(3), "last": np.zeros(3)}
+
+        def transform(k0: int, pulses: np.ndarray) -> np.ndarray:
+            N = pulses.astype(float)
+            t = (np.arange(k0, k0 + N.shape[0]) + 0.5) * dt
+            comp = np.empty_like(N)
+            for i in range(3):
+                bi = np.interp(t, ptime, b[i])
+                if sensor == "gyro":
+                    ratio = (1 + 1e-6 * sf_d[i]) / (1 + 1e-6 * np.interp(t, ptime, sf[i]))
+                    kd = k_nom[i] * (1 + 1e-6 * sf_d[i])
+                else:
+                    pos = N[:, i] >= 0
+                    s_now = np.where(pos, np.interp(t, ptime, sfp[i]),
+                                     np.interp(t, ptime, sfn[i]))
+                    s_d = np.where(pos, sfp_d[i], sfn_d[i])
+                    ratio = (1 + 1e-6 * s_d) / (1 + 1e-6 * s_now)
+                    kd = k_nom[i] * (1 + 1e-6 * s_d)
+                comp[:, i] = ratio * N[:, i] + kd * (b_d[i] - bi) * dt
+            c = carried["cum"] + np.cumsum(comp, axis=0)
+            r = np.rint(c)
+            out = np.diff(np.vstack([carried["last"], r]), axis=0).astype(np.int32)
+            carried["cum"], carried["last"] = c[-1], r[-1]
+            return out
+
+        return transform
+
+    return rewrite_pulses(src, dst, make_transform,
+                          title_suffix=f" — pulses compensated to {desired_c} °C",
+                          attrs={"compensated_to_c": float(desired_c)}, chunk=chunk)
 
 
 # ----------------------------------------------------------------------------------- run

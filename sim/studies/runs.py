@@ -1,6 +1,7 @@
 """The runs of a study: their datasets (simulated, or reused when the one dataset fingerprint
-matches) and the window series read from them. Every study reads its datasets here, so the
-dataset format is known in one place of ``sim/studies``.
+matches) and the window series read from them. Every study reads its datasets here, through the
+one dataset reader :func:`rlgsim.ground.dataset_format.open_dataset`, and writes the one
+derived dataset a study makes (paper 000's compensated pulses, :func:`rewrite_pulses`).
 
 A dataset under ``DIR/data/`` is reused when it was made from the same scenario text, device
 preset text, thermal preset text, noise seed, device seed and Monte Carlo unit
@@ -25,10 +26,12 @@ import dataclasses
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
+from rlgsim.ground.dataset_format import IMU, PROBES, THERMAL, TRUTH, Dataset, open_dataset
+from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
 from rlgsim.sim.study import Study, scenario_for
 from rlgsim.sim.studies.study_tables import FeatureSpec, RunSpec
@@ -41,21 +44,19 @@ def dataset_matches(path: pathlib.Path, scenario) -> bool:
     """Whether the dataset at ``path`` was simulated from ``scenario``: the same scenario,
     device preset and thermal preset texts, noise seed, Monte Carlo unit and device seed (the
     dataset fingerprint every study uses to reuse a dataset)."""
-    import h5py
     try:
-        with h5py.File(path, "r") as f:
-            a = f.attrs
+        with open_dataset(path) as ds:
+            a = ds.attrs
 
             def text(key: str) -> str:
-                v = a.get(key, "")
-                return v.decode() if isinstance(v, bytes) else str(v)
+                return str(a.get(key, ""))
             return (text("scenario_text") == scenario.text
                     and int(a.get("seed", -1)) == scenario.seed
                     and int(a.get("unit", -1)) == scenario.unit
                     and int(a.get("device_seed", -1)) == scenario.realisation_seed
                     and text("device_text") == scenario.device.text
                     and text("thermal_preset_text") == scenario.device.thermal.text)
-    except (OSError, KeyError, ValueError, TypeError):
+    except (UserInputError, OSError, KeyError, ValueError, TypeError):
         return False
 
 
@@ -81,10 +82,6 @@ def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int
     path, reused = simulated_dataset(scenario, workdir / "data" / f"{spec.label}.h5",
                                      progress=progress)
     return path, scenario, reused
-
-
-def _strings(values) -> list[str]:
-    return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
 
 
 @dataclass
@@ -114,15 +111,13 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
     before ``skip_s`` are dropped. The dataset is read a block of whole windows at a time
     (:data:`READ_BLOCK_SAMPLES`), so memory does not grow with the run's duration; every window
     is computed from its own samples only, so the result does not depend on the block size."""
-    import h5py
-
     from rlgsim.estimators.columns import Columns
     from rlgsim.estimators.features import pairwise_gradients, samples_per_window
 
     W = config.window_s
-    with h5py.File(path, "r") as f:
+    with open_dataset(path) as ds:
         dctx, fctx = Ctx(ctx.source, "data"), Ctx(ctx.source, "features")
-        gyros = _strings(f["imu/gyro"][:])
+        gyros = ds.strings(IMU, "gyro")
         axis = config.gyro or (gyros[0] if len(gyros) == 1 else None)
         if config.gyro and config.gyro not in gyros:
             raise dctx.error("gyro", f"value {config.gyro!r} not allowed; the device's gyro "
@@ -130,16 +125,16 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
         if axis is None:
             raise dctx.error("gyro", f"missing: the device has several gyros "
                                      f"({', '.join(gyros)}); say which one")
-        if config.uhfo and "imu/uhfo" not in f:
+        if config.uhfo and not ds.has(IMU, "uhfo"):
             raise fctx.error("uhfo", "the device logs no UHFO")
-        rate = float(f["imu"].attrs["sample_rate_hz"])
-        step = float(f.attrs["thermal_step_s"])
+        rate = float(ds.group_attrs(IMU)["sample_rate_hz"])
+        step = float(ds.attrs["thermal_step_s"])
         try:
             m_s = samples_per_window(rate, W)
             m_t = samples_per_window(1.0 / step, W)
         except ValueError as exc:
             raise dctx.error("window_s", str(exc)) from None
-        probes = _strings(f["probes/probe"][:])
+        probes = ds.strings(PROBES, "probe")
         wanted = {}                      # probe → column of probes/temperature
         for key, names in (("temperature", (config.temperature,) if config.temperature else ()),
                            ("probes", config.probes), ("gradients", config.gradients)):
@@ -148,18 +143,17 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
                     raise fctx.error(key, f"unknown probe {name!r}; the device's probes are "
                                           f"{', '.join(probes)}")
                 wanted[name] = probes.index(name)
-        coeff = dict(zip(_strings(f["truth/coefficient"][:]),
-                         map(float, f["truth/coefficient_value"][:])))
-        n_win = min(f["imu/gyro_pulses"].shape[0] // m_s, f["thermal/time"].shape[0] // m_t)
-        where = _Where(gyro=gyros.index(axis), body=_strings(f["truth/body"][:]).index(axis),
+        coeff = ds.coefficients()
+        n_win = min(ds.length(IMU, "gyro_pulses") // m_s, ds.length(THERMAL, "time") // m_t)
+        where = _Where(gyro=gyros.index(axis), body=ds.strings(TRUTH, "body").index(axis),
                        probes=wanted, uhfo=config.uhfo, temperature=config.temperature)
         per_block = max(1, READ_BLOCK_SAMPLES // max(m_s, m_t))
         if n_win == 0:
             raise dctx.error("window_s", f"run {label!r} is shorter than one {W:g} s window")
-        blocks = [_window_block(f, i, min(n_win, i + per_block), m_s, m_t, step, W, where)
+        blocks = [_window_block(ds, i, min(n_win, i + per_block), m_s, m_t, step, W, where)
                   for i in range(0, n_win, per_block)]
-        seed = int(f.attrs["seed"])
-        device_seed = int(f.attrs.get("device_seed", seed))
+        seed = int(ds.attrs["seed"])
+        device_seed = int(ds.attrs.get("device_seed", seed))
     w = {k: np.concatenate([blk[k] for blk in blocks]) for k in blocks[0]}
 
     k0 = coeff[f"gyro.k0[{axis}]"]
@@ -197,7 +191,7 @@ class _Where:
     temperature: str | None         # the probe whose window slope is dT/dt
 
 
-def _window_block(f, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
+def _window_block(ds: Dataset, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
                   where: _Where) -> dict[str, np.ndarray]:
     """Per-window sums and means of windows ``i … j−1`` (rad for dtheta, rad/s for b and r,
     °C, K/s, V): only these windows' samples are read."""
@@ -205,22 +199,24 @@ def _window_block(f, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
     n = j - i
     t0, t1 = i * m_t, j * m_t
     thermal_rate = 1.0 / step
-    out = {"counts": f["imu/gyro_pulses"][i * m_s: j * m_s, where.gyro].astype(np.int64)
+    rows, grid = slice(i * m_s, j * m_s), slice(t0, t1)
+    out = {"counts": ds.read(IMU, "gyro_pulses", rows, where.gyro).astype(np.int64)
            .reshape(n, m_s).sum(axis=1),
-           "dtheta": f["truth/dtheta_step"][t0:t1, where.body].reshape(n, m_t).sum(axis=1),
-           "b": window_average(f["truth/gyro_bias"][t0:t1, where.gyro], thermal_rate, W),
-           "r": window_average(f["truth/gyro_bias_random"][t0:t1, where.gyro], thermal_rate, W),
-           "power": f["thermal/power_on"][t0:t1].reshape(n, m_t).min(axis=1) > 0}
+           "dtheta": ds.read(TRUTH, "dtheta_step", grid, where.body).reshape(n, m_t).sum(axis=1),
+           "b": window_average(ds.read(TRUTH, "gyro_bias", grid, where.gyro), thermal_rate, W),
+           "r": window_average(ds.read(TRUTH, "gyro_bias_random", grid, where.gyro),
+                               thermal_rate, W),
+           "power": ds.read(THERMAL, "power_on", grid).reshape(n, m_t).min(axis=1) > 0}
     if where.probes:
         cols = sorted(set(where.probes.values()))
-        temps = f["probes/temperature"][t0:t1, cols].astype(np.float64)
+        temps = ds.read(PROBES, "temperature", grid, cols).astype(np.float64)
         for name, c in where.probes.items():
             out[f"mean:{name}"] = window_average(temps[:, cols.index(c)], thermal_rate, W)
         if where.temperature:
             T = temps[:, cols.index(where.probes[where.temperature])]
             out["slope"] = temperature_rate(T, thermal_rate, W)
     if where.uhfo:
-        out["uhfo"] = window_average(f["imu/uhfo"][t0:t1, where.gyro].astype(np.float64),
+        out["uhfo"] = window_average(ds.read(IMU, "uhfo", grid, where.gyro).astype(np.float64),
                                      thermal_rate, W)
     return out
 
@@ -297,23 +293,74 @@ def worth_showing(name: str) -> bool:
 def gyro_white_sigma(path: pathlib.Path, gyro: str | None) -> tuple[str, float, float]:
     """(axis, white angle noise σ per sample [rad], IMU sample rate [Hz]) of gyro axis
     ``gyro`` (None: the device's first gyro) from a dataset's truth."""
-    import h5py
-    with h5py.File(path, "r") as f:
-        gyros = _strings(f["imu/gyro"][:])
+    with open_dataset(path) as ds:
+        gyros = ds.strings(IMU, "gyro")
         axis = gyro or gyros[0]
-        sigma = float(f["truth/gyro_white_sigma"][gyros.index(axis)])      # rad per sample
-        rate = float(f["imu"].attrs["sample_rate_hz"])
+        sigma = float(ds.read(TRUTH, "gyro_white_sigma")[gyros.index(axis)])  # rad per sample
+        rate = float(ds.group_attrs(IMU)["sample_rate_hz"])
     return axis, sigma, rate
 
 
 def device_coefficients(path: pathlib.Path) -> dict[str, float]:
     """Every drawn device coefficient of a dataset's truth (name → value); empty if the file
     or its truth cannot be read."""
-    import h5py
     try:
-        with h5py.File(path, "r") as f:
-            names = _strings(f["truth/coefficient"][:])
-            vals = f["truth/coefficient_value"][:]
-    except (OSError, KeyError):
+        with open_dataset(path) as ds:
+            return ds.coefficients()
+    except (UserInputError, OSError, KeyError):
         return {}
-    return {n: float(v) for n, v in zip(names, vals)}
+
+
+def probe_temperatures(path: pathlib.Path, names: list[str]
+                       ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The probe log of a dataset: its time grid [s] and the readings [°C] of probes
+    ``names`` (float64, NaN where the probe gave no reading)."""
+    with open_dataset(path) as ds:
+        time_s = ds.read(PROBES, "time")
+        probes = ds.strings(PROBES, "probe")
+        return time_s, {n: ds.read(PROBES, "temperature", None, probes.index(n)).astype(float)
+                        for n in names}
+
+
+def rewrite_pulses(src: pathlib.Path, dst: pathlib.Path,
+                   make_transform: Callable[[str], Callable[[int, np.ndarray], np.ndarray]],
+                   *, title_suffix: str, attrs: dict[str, Any], chunk: int) -> pathlib.Path:
+    """Write a copy of dataset ``src`` to ``dst`` (atomically) whose ``imu/<sensor>_pulses``
+    (sensor "gyro", then "accel") are rewritten ``chunk`` samples at a time by
+    ``make_transform(sensor)``, a function ``(first sample, pulses (samples × axes)) -> new
+    pulses`` called block by block in sample order (stored as int32 with the original's chunks
+    and compression); every other group and attribute is copied unchanged, the root's ``title``
+    gets ``title_suffix`` and ``attrs`` are added to the root."""
+    import os
+
+    import h5py
+    tmp = dst.with_name(f".{dst.name}.tmp{os.getpid()}")
+    with h5py.File(src, "r") as fs, h5py.File(tmp, "w") as fd:
+        for k, v in fs.attrs.items():
+            fd.attrs[k] = v
+        fd.attrs["title"] = f"{fs.attrs.get('title', '')}{title_suffix}"
+        for k, v in attrs.items():
+            fd.attrs[k] = v
+        for name in fs:
+            if name != "imu":
+                fs.copy(fs[name], fd, name=name)
+        gi, go = fs["imu"], fd.create_group("imu")
+        for k, v in gi.attrs.items():
+            go.attrs[k] = v
+        for name in gi:
+            if name not in ("gyro_pulses", "accel_pulses"):
+                gi.copy(gi[name], go, name=name)
+        n = gi["gyro_pulses"].shape[0]
+        for sensor in ("gyro", "accel"):
+            src_ds = gi[f"{sensor}_pulses"]
+            out = go.create_dataset(f"{sensor}_pulses", shape=src_ds.shape, dtype="int32",
+                                    chunks=src_ds.chunks, scaleoffset=0)
+            for k, v in src_ds.attrs.items():
+                if k not in ("DIMENSION_LIST", "REFERENCE_LIST"):
+                    out.attrs[k] = v
+            transform = make_transform(sensor)
+            for k0 in range(0, n, chunk):
+                k1 = min(n, k0 + chunk)
+                out[k0:k1] = transform(k0, src_ds[k0:k1])
+    os.replace(tmp, dst)
+    return dst
