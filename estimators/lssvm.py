@@ -240,7 +240,23 @@ def make_folds(n_samples: int, cv: int | None, random_state) -> list[np.ndarray]
 # the estimator
 # --------------------------------------------------------------------------------------------
 
-class LSSVMRegressor(RegressorMixin, BaseEstimator):
+class LSSVMOutput:
+    """The prediction every LS-SVM shares (paper 001 eq. 10): inputs standardised with
+    ``x_mean_``/``x_scale_`` through the RBF kernel expansion on ``support_`` with
+    ``dual_coef_``, ``intercept_`` and ``sigma2``. Mixed into the estimators before
+    ``RegressorMixin``."""
+
+    def predict(self, X) -> np.ndarray:
+        """Predicted target (unit of ``y``) for inputs ``X`` (n_samples, n_features)."""
+        check_is_fitted(self, "dual_coef_")
+        X = validate_data(self, X, dtype=np.float64, reset=False)
+        Xs = (X - self.x_mean_) / self.x_scale_
+        sigma2 = float(self.sigma2)
+        return kernel_expansion(Xs, self.support_, self.dual_coef_, self.intercept_,
+                                lambda A, B: rbf(A, B, sigma2))
+
+
+class LSSVMRegressor(LSSVMOutput, RegressorMixin, BaseEstimator):
     """LS-SVM regression with an RBF kernel (paper 001 §2.2; Suykens et al. 2002).
 
     Parameters
@@ -387,12 +403,3 @@ class LSSVMRegressor(RegressorMixin, BaseEstimator):
                 h += (1.0 - Phi @ eta) ** 2 / schur
             r[sl] = e / (1.0 - h)
         return r
-
-    def predict(self, X) -> np.ndarray:
-        """Predicted target (unit of ``y``) for inputs ``X`` (n_samples, n_features)."""
-        check_is_fitted(self, "dual_coef_")
-        X = validate_data(self, X, dtype=np.float64, reset=False)
-        Xs = (X - self.x_mean_) / self.x_scale_
-        sigma2 = float(self.sigma2)
-        return kernel_expansion(Xs, self.support_, self.dual_coef_, self.intercept_,
-                                lambda A, B: rbf(A, B, sigma2))

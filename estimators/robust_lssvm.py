@@ -54,12 +54,12 @@ from typing import Callable
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.utils.validation import check_is_fitted, validate_data
 
 from rlgsim.estimators._validation import (check_positive, check_positive_grid, standardisation,
                                            validate_fit_input)
-from rlgsim.estimators.kernels import kernel_expansion, rbf
-from rlgsim.estimators.lssvm import BorderedSolution, blas_threads_for, make_folds, solve_bordered
+from rlgsim.estimators.kernels import rbf
+from rlgsim.estimators.lssvm import (BorderedSolution, LSSVMOutput, blas_threads_for, make_folds,
+                                      solve_bordered)
 from rlgsim.estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights,
                                               robust_scale, weight_function)
 
@@ -151,7 +151,7 @@ def robust_cv_score(r: np.ndarray, criterion: str, scale: str = "mad") -> float:
     raise ValueError(f"cv_criterion must be one of {', '.join(CV_CRITERIA)}, got {criterion!r}")
 
 
-class RobustLSSVMRegressor(RegressorMixin, BaseEstimator):
+class RobustLSSVMRegressor(LSSVMOutput, RegressorMixin, BaseEstimator):
     """Iteratively re-weighted LS-SVM regression (IR-LSSVM, paper 001 §2.3).
 
     Parameters
@@ -299,12 +299,3 @@ class RobustLSSVMRegressor(RegressorMixin, BaseEstimator):
             r[test] = y[test] - (K[np.ix_(test, train)] @ res.solution.alpha
                                  + res.solution.intercept)
         return robust_cv_score(r, self.cv_criterion, self.scale)
-
-    def predict(self, X) -> np.ndarray:
-        """Predicted target (unit of ``y``) for inputs ``X`` (n_samples, n_features)."""
-        check_is_fitted(self, "dual_coef_")
-        X = validate_data(self, X, dtype=np.float64, reset=False)
-        Xs = (X - self.x_mean_) / self.x_scale_
-        sigma2 = float(self.sigma2)
-        return kernel_expansion(Xs, self.support_, self.dual_coef_, self.intercept_,
-                                lambda A, B: rbf(A, B, sigma2))

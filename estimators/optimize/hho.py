@@ -53,8 +53,7 @@ import math
 
 import numpy as np
 
-from rlgsim.estimators._validation import check_bounds, check_positive
-from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult
+from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult, check_run
 
 LEVY_BETA = 1.5
 
@@ -184,13 +183,8 @@ def harris_hawks(fun: Fitness, bounds, n_hawks: int = 30, max_iter: int | None =
     OptimizeResult with the rabbit (best position), its fitness, evaluation count, the
     best-so-far curve and per-rule counts.
     """
-    lower, upper = check_bounds(bounds)
+    lower, upper, n, T, budget = check_run(bounds, n_hawks, "n_hawks", max_iter, max_evals)
     dim = lower.size
-    n = check_positive(n_hawks, "n_hawks", integer=True, minimum=2)
-    T = check_positive(max_iter, "max_iter", integer=True, allow_none=True)
-    budget = check_positive(max_evals, "max_evals", integer=True, allow_none=True)
-    if T is None and budget is None:
-        raise ValueError("give max_iter, max_evals or both; with neither the run never ends")
     rng = np.random.default_rng(random_state)
     evaluate = Evaluator(fun, dim, budget, vectorized)
 

@@ -35,8 +35,7 @@ import math
 
 import numpy as np
 
-from rlgsim.estimators._validation import check_bounds, check_positive
-from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult
+from rlgsim.estimators.optimize.result import Evaluator, Fitness, OptimizeResult, check_run
 
 BOUNDARY_RULES = ("absorb", "reflect")
 
@@ -93,13 +92,8 @@ def particle_swarm(fun: Fitness, bounds, n_particles: int = 30, max_iter: int | 
         it).
     random_state : seed (int, ``None`` or ``numpy.random.Generator``).
     """
-    lower, upper = check_bounds(bounds)
+    lower, upper, n, T, budget = check_run(bounds, n_particles, "n_particles", max_iter, max_evals)
     dim = lower.size
-    n = check_positive(n_particles, "n_particles", integer=True, minimum=2)
-    T = check_positive(max_iter, "max_iter", integer=True, allow_none=True)
-    budget = check_positive(max_evals, "max_evals", integer=True, allow_none=True)
-    if T is None and budget is None:
-        raise ValueError("give max_iter, max_evals or both; with neither the run never ends")
     if boundary not in BOUNDARY_RULES:
         raise ValueError(f"boundary must be one of {BOUNDARY_RULES}, got {boundary!r}")
     for name, val in (("w_start", w_start), ("w_end", w_end), ("c1", c1), ("c2", c2)):

@@ -1,4 +1,5 @@
-"""What every optimiser returns, and the bookkeeping they share (budget, evaluation).
+"""What every optimiser returns, and the bookkeeping they share (run settings, budget,
+evaluation).
 
 The optimisers in this package minimise a *vectorised* fitness: ``fun(P)`` takes a batch of
 positions ``P`` of shape ``(m, d)`` and returns ``m`` fitness values (``vectorized=False`` wraps a
@@ -14,6 +15,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+
+from rlgsim.estimators._validation import check_bounds, check_positive
 
 Fitness = Callable[[np.ndarray], np.ndarray]
 
@@ -47,6 +50,23 @@ class OptimizeResult:
     message: str
     method: str
     counts: dict[str, int] = field(default_factory=dict)
+
+
+def check_run(bounds, n_agents, agents_name: str, max_iter, max_evals
+              ) -> tuple[np.ndarray, np.ndarray, int, int | None, int | None]:
+    """The checked settings of one run: ``(lower, upper, n_agents, max_iter, max_evals)``.
+
+    Box bounds as in :func:`rlgsim.estimators._validation.check_bounds`, a population of at
+    least 2 (``agents_name`` names it in the message), iterations and evaluation budget each an
+    integer >= 1 or ``None``, not both ``None``; else ``ValueError``.
+    """
+    lower, upper = check_bounds(bounds)
+    n = check_positive(n_agents, agents_name, integer=True, minimum=2)
+    T = check_positive(max_iter, "max_iter", integer=True, allow_none=True)
+    budget = check_positive(max_evals, "max_evals", integer=True, allow_none=True)
+    if T is None and budget is None:
+        raise ValueError("give max_iter, max_evals or both; with neither the run never ends")
+    return lower, upper, n, T, budget
 
 
 class Evaluator:
