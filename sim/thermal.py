@@ -76,8 +76,32 @@ _INSTANCE_KEYS = ("template", "ports", "description", "power_factors",
 _BOUNDARY_KEYS = ("description", "source", "temperature_c", "amplitude_c", "period_h",
                   "phase_deg")
 _AIRFLOW_KEYS = ("description", "source", "face_factors")
+_HEATER_KEYS = ("description", "source", "node", "sensor", "setpoint_c", "max_power_w",
+                "kp_w_per_k", "ti_s", "track_node", "track_gain", "track_reference_c")
 _THERMAL_KEYS = ("description", "source", "radiation_reference_c", "materials", "tolerance",
-                 "templates", "instances", "nodes", "links", "boundaries", "airflow")
+                 "templates", "instances", "nodes", "links", "boundaries", "airflow",
+                 "heaters")
+
+
+@dataclass(frozen=True)
+class Heater:
+    """A controlled heater (state-dependent heat source): a digital PI controller, sampled on
+    the thermal grid, drives ``power ∈ [0, max_power_w]`` into ``node`` to hold the
+    temperature of ``sensor`` at ``setpoint_c + track_gain·(T_track − track_reference_c)``
+    (``track_node`` optional: a set point that follows another node, as the
+    frequency-stabilisation heater of paper 001 §2.1 follows the cavity). Works only while the
+    device is powered. Equations: docs/thermal.md §1.2b."""
+
+    name: str
+    node: int
+    sensor: int
+    setpoint_c: float
+    max_power_w: float
+    kp_w_per_k: float
+    ti_s: float
+    track_node: int = -1
+    track_gain: float = 0.0
+    track_reference_c: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -148,6 +172,8 @@ class ThermalNetwork:
     #: further boundaries (prescribed temperatures) and the conductances (nb, n) to them
     boundaries: tuple[Boundary, ...] = ()
     boundary_conductance_w_per_k: Any = None
+    #: controlled heaters (state-dependent sources, nonlinear through their limits)
+    heaters: tuple[Heater, ...] = ()
 
     def __post_init__(self) -> None:
         names = tuple(self.node_names)
@@ -191,6 +217,10 @@ class ThermalNetwork:
         if len(set(names_b)) != nb or set(names_b) & set(names):
             raise ValueError("boundary names must be unique and differ from node names")
         Gb.setflags(write=False)
+        object.__setattr__(self, "heaters", tuple(self.heaters))
+        for h in self.heaters:
+            if not (0 <= h.node < n and 0 <= h.sensor < n and -1 <= h.track_node < n):
+                raise ValueError(f"heater {h.name!r}: node index out of range")
         object.__setattr__(self, "boundaries", tuple(self.boundaries))
         object.__setattr__(self, "boundary_conductance_w_per_k", Gb)
         _check_grounded(names, G, g + Gb.sum(axis=0) if nb else g)
@@ -247,11 +277,12 @@ class ThermalNetwork:
 
     # ----------------------------------------------------------------- physics
 
-    def derivative(self, T: Any, ambient_c: Any, powered: Any, boundary_c: Any = None
-                   ) -> np.ndarray:
+    def derivative(self, T: Any, ambient_c: Any, powered: Any, boundary_c: Any = None,
+                   heater_w: Any = None) -> np.ndarray:
         """dT/dt [K/s] for node temperatures ``T`` (…, n) [°C], chamber air ``ambient_c``
         (scalar or (…,)) [°C], power state ``powered`` (bool/0..1, scalar or (…,)) and the
-        further boundaries' temperatures ``boundary_c`` (…, nb) [°C] (default: at t = 0)."""
+        further boundaries' temperatures ``boundary_c`` (…, nb) [°C] (default: at t = 0) and
+        the heaters' powers ``heater_w`` (…, H) [W] (default: none)."""
         T = np.asarray(T, dtype=float)
         Ta = np.asarray(ambient_c, dtype=float)[..., None]
         u = np.asarray(powered, dtype=float)[..., None]
@@ -263,6 +294,10 @@ class ThermalNetwork:
                   else np.asarray(boundary_c, dtype=float))
             Gb = self.boundary_conductance_w_per_k
             flow = flow + Tb @ Gb - T * Gb.sum(axis=0)
+        if heater_w is not None and self.heaters:
+            Ph = np.asarray(heater_w, dtype=float)
+            for i, h in enumerate(self.heaters):
+                flow[..., h.node] += Ph[..., i]
         return flow / self.capacitance_j_per_k
 
     def steady_state(self, ambient_c: float, powered: bool | float,
@@ -275,7 +310,70 @@ class ThermalNetwork:
             Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
                   else np.asarray(boundary_c, dtype=float).reshape(-1))
             rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        if self.heaters and float(powered) > 0:
+            return self._steady_with_heaters(rhs)[0]
         return scipy.linalg.solve(self.stiffness_w_per_k(), rhs, assume_a="pos")
+
+    def steady_heater_power_w(self, ambient_c: float, powered: bool | float,
+                              boundary_c: Any = None) -> np.ndarray:
+        """The heaters' powers [W] (H,) in the steady state of :meth:`steady_state`."""
+        if not self.heaters or float(powered) <= 0:
+            return np.zeros(len(self.heaters))
+        rhs = self.ambient_conductance_w_per_k * float(ambient_c) + float(powered) * self.power_w
+        if self.boundaries:
+            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
+                  else np.asarray(boundary_c, dtype=float).reshape(-1))
+            rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        return self._steady_with_heaters(rhs)[1]
+
+    def heater_setpoints_c(self, T: Any) -> np.ndarray:
+        """Set points (…, H) [°C] of the heaters for node temperatures ``T`` (…, n)."""
+        T = np.asarray(T, dtype=float)
+        out = []
+        for h in self.heaters:
+            sp = np.full(T.shape[:-1], h.setpoint_c)
+            if h.track_node >= 0:
+                sp = sp + h.track_gain * (T[..., h.track_node] - h.track_reference_c)
+            out.append(sp)
+        return np.stack(out, axis=-1) if out else np.zeros(T.shape[:-1] + (0,))
+
+    def _steady_with_heaters(self, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Equilibrium with the heaters' integral action: every unsaturated heater holds its
+        sensor at its set point; a heater whose power would leave [0, max] sits at the limit
+        (active-set iteration, at most 2H + 1 linear solves)."""
+        n, H = self.n_nodes, len(self.heaters)
+        K = self.stiffness_w_per_k()
+        fixed: dict[int, float] = {}
+        for _ in range(2 * H + 2):
+            free = [i for i in range(H) if i not in fixed]
+            A = np.zeros((n + len(free), n + len(free)))
+            b = np.zeros(n + len(free))
+            A[:n, :n] = K
+            b[:n] = rhs
+            for i, P in fixed.items():
+                b[self.heaters[i].node] += P
+            for r, i in enumerate(free):
+                h = self.heaters[i]
+                A[h.node, n + r] = -1.0
+                A[n + r, h.sensor] = 1.0
+                if h.track_node >= 0:
+                    A[n + r, h.track_node] -= h.track_gain
+                b[n + r] = h.setpoint_c - h.track_gain * h.track_reference_c * (h.track_node >= 0)
+            x = np.linalg.solve(A, b)
+            powers = np.zeros(H)
+            for i, P in fixed.items():
+                powers[i] = P
+            changed = False
+            for r, i in enumerate(free):
+                P = x[n + r]
+                h = self.heaters[i]
+                if P < 0.0 or P > h.max_power_w:
+                    fixed[i] = min(max(P, 0.0), h.max_power_w)
+                    changed = True
+                powers[i] = P
+            if not changed:
+                return x[:n], powers
+        raise ValueError("no steady state of the heater controllers found")
 
     def heat_to_ambient_w(self, T: Any, ambient_c: Any) -> np.ndarray:
         """Heat flowing from the nodes into the chamber air [W], summed over nodes (…)."""
@@ -501,6 +599,7 @@ class _Builder:
 
         if not self.nodes:
             raise ctx.error("nodes", "the network has no nodes")
+        heaters = self._heaters(get_table(t, "heaters", ctx, {}), ctx.child("heaters"))
         n = len(self.nodes)
         G = np.zeros((n, n))
         g = np.zeros(n)
@@ -524,7 +623,7 @@ class _Builder:
                            for inst in instances},
                 node_descriptions=tuple(nd.description for nd in self.nodes),
                 description=description, boundaries=tuple(self.boundaries),
-                boundary_conductance_w_per_k=Gb)
+                boundary_conductance_w_per_k=Gb, heaters=heaters)
         except ValueError as exc:
             where = f"{ctx.source}: " if ctx.source else ""
             raise UserInputError(f"{where}{ctx.path or 'thermal'}: {exc}") from None
@@ -588,6 +687,43 @@ class _Builder:
                                                           min=-360.0, max=360.0)))
             self.boundary_index[name] = len(self.boundaries)
             self.boundaries.append(b)
+
+    def _heaters(self, table: Mapping[str, Any], ctx: Ctx) -> tuple[Heater, ...]:
+        out = []
+        for name, spec in table.items():
+            self._check_name(name, ctx, "heater")
+            c = ctx.child(name)
+            if not isinstance(spec, Mapping):
+                raise ctx.error(name, "expected a table")
+            check_known_keys(spec, _HEATER_KEYS, c)
+            get_str(spec, "description", c, "")
+            get_str(spec, "source", c, "")
+
+            def node(key: str, default: Any = None) -> int:
+                if default is not None and key not in spec:
+                    return -1
+                ref = get_str(spec, key, c)
+                if ref not in self.index:
+                    close = difflib.get_close_matches(ref, list(self.index), n=1)
+                    hint = f" (did you mean '{close[0]}'?)" if close else ""
+                    raise c.error(key, f"unknown node {ref!r}{hint}")
+                return self.index[ref]
+            track = node("track_node", default=-1)
+            if track < 0 and ("track_gain" in spec or "track_reference_c" in spec):
+                raise c.error("track_node", "track_gain / track_reference_c need a track_node")
+            out.append(Heater(
+                name=name, node=node("node"), sensor=node("sensor"),
+                setpoint_c=get_float(spec, "setpoint_c", c, min=-100.0, max=200.0),
+                max_power_w=get_float(spec, "max_power_w", c, min=0.0, min_exclusive=True,
+                                      max=1e4),
+                kp_w_per_k=get_float(spec, "kp_w_per_k", c, min=0.0, min_exclusive=True,
+                                     max=1e6),
+                ti_s=get_float(spec, "ti_s", c, min=0.0, min_exclusive=True, max=1e7),
+                track_node=track,
+                track_gain=get_float(spec, "track_gain", c, 0.0, min=-100.0, max=100.0),
+                track_reference_c=get_float(spec, "track_reference_c", c, 0.0, min=-100.0,
+                                            max=200.0)))
+        return tuple(out)
 
     @staticmethod
     def _factors(spec: Mapping[str, Any], key: str, ctx: Ctx, nodes: Mapping[str, Any]

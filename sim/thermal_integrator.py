@@ -82,14 +82,17 @@ class ThermalState(np.ndarray):
     modal: np.ndarray | None
     chamber: tuple[float, ...] | None
     time_s: float | None
+    heaters: np.ndarray | None
     _check: bytes | None
 
     def __new__(cls, temperatures: np.ndarray, modal: np.ndarray | None = None,
-                chamber: tuple[float, ...] | None = None, time_s: float | None = None):
+                chamber: tuple[float, ...] | None = None, time_s: float | None = None,
+                heaters: np.ndarray | None = None):
         obj = np.array(temperatures, dtype=float).view(cls)
         obj.modal = None if modal is None else np.array(modal, dtype=float)
         obj.chamber = None if chamber is None else tuple(float(v) for v in chamber)
         obj.time_s = None if time_s is None else float(time_s)
+        obj.heaters = None if heaters is None else np.array(heaters, dtype=float)
         obj._check = obj.view(np.ndarray).tobytes() if modal is not None else None
         return obj
 
@@ -98,10 +101,12 @@ class ThermalState(np.ndarray):
         self.modal = None
         self.chamber = None
         self.time_s = None
+        self.heaters = None
         self._check = None
 
     def __reduce__(self):
-        return (ThermalState, (np.asarray(self), self.modal, self.chamber, self.time_s))
+        return (ThermalState, (np.asarray(self), self.modal, self.chamber, self.time_s,
+                               self.heaters))
 
     def modal_if_valid(self) -> np.ndarray | None:
         if self.modal is None or self._check != self.view(np.ndarray).tobytes():
@@ -195,6 +200,25 @@ class ThermalIntegrator:
             self._c_db = beta_b * E0[None, :, 0, 3] / h          # × (T_b[k+1] − T_b[k])
         else:
             self._c_b = self._c_db = np.zeros((0, n))
+        # controlled heaters: ZOH power into their node, sensors read from the modal state
+        self.heaters = tuple(network.heaters)
+        if self.heaters:
+            nodes_map = d[:, None] * V                            # T = nodes_map @ w
+            self._c_h = np.column_stack([V.T[:, hh.node] * d[hh.node] * E[:, 0, 4]
+                                         for hh in self.heaters])          # (n, H)
+            self._r_s = np.array([nodes_map[hh.sensor] for hh in self.heaters])   # (H, n)
+            self._r_t = np.array([nodes_map[max(hh.track_node, 0)] for hh in self.heaters])
+            self._h_kp = np.array([hh.kp_w_per_k for hh in self.heaters])
+            self._h_ki = np.array([hh.kp_w_per_k * h / hh.ti_s for hh in self.heaters])
+            self._h_aw = np.array([h / hh.ti_s for hh in self.heaters])
+            self._h_max = np.array([hh.max_power_w for hh in self.heaters])
+            self._h_sp = np.array([hh.setpoint_c - (hh.track_gain * hh.track_reference_c
+                                                    if hh.track_node >= 0 else 0.0)
+                                   for hh in self.heaters])
+            self._h_tg = np.array([hh.track_gain if hh.track_node >= 0 else 0.0
+                                   for hh in self.heaters])
+        #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
+        self.last_heater_power_w = np.zeros((0, len(self.heaters)))
         if tau > 0:
             self._air_mu = float(E[0, 1, 1])
             self._air_s = float(E[0, 1, 2])
@@ -231,12 +255,17 @@ class ThermalIntegrator:
         settled at the setpoint ``ambient_c`` in its periodic ripple state (the air column holds
         the air at ``t0``, within the ripple of ``ambient_c``)."""
         if self.chamber_loop is None:
-            return self.state(ambient_c, self.network.steady_state(ambient_c, powered), 0.0)
+            st = self.state(ambient_c, self.network.steady_state(ambient_c, powered), 0.0)
+            if self.heaters:
+                st.heaters = self.network.steady_heater_power_w(ambient_c, powered)
+            return st
         chamber = self.chamber_loop.initial_state(float(ambient_c))
         T = self.network.steady_state(ambient_c, powered)
         w = self._to_modal @ T
+        heaters = (self.network.steady_heater_power_w(ambient_c, powered) if self.heaters
+                   else None)
         return ThermalState(np.concatenate(([chamber[0]], self._nodes(w[None, :])[0])), w,
-                            chamber, 0.0)
+                            chamber, 0.0, heaters)
 
     def _nodes(self, W: np.ndarray) -> np.ndarray:
         """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks."""
@@ -292,8 +321,16 @@ class ThermalIntegrator:
             t0_s = state.time_s if isinstance(state, ThermalState) else None
             t0_s = 0.0 if t0_s is None else t0_s
         k_start = int(round(float(t0_s) / self.step_s))
+        hstate = None
+        if self.heaters:
+            hstate = state.heaters if isinstance(state, ThermalState) else None
+            if hstate is None or np.shape(hstate) != (len(self.heaters),):
+                hstate = np.zeros(len(self.heaters))     # controllers start from rest
+            hstate = np.array(hstate, dtype=float)
+        self.last_heater_power_w = np.zeros((max(m, 0), len(self.heaters)))
         if m == 0:
-            return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber, k_start * self.step_s)
+            return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber, k_start * self.step_s,
+                                                      hstate)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
             raise ValueError("setpoint and power must be finite")
         states = np.empty((m, 1 + n))
@@ -310,11 +347,14 @@ class ThermalIntegrator:
             if self.boundaries:
                 tk = self.step_s * np.arange(k_start + k0, k_start + k1 + 1, dtype=float)
                 bk = self.network.boundary_temperatures_c(tk)          # (len, nb)
-            air, w = self._advance(air, w, sk, u[k0:k1], states[k0:k1], bk)
-        return states, ThermalState(states[-1], w, chamber, (k_start + m) * self.step_s)
+            air, w, hstate = self._advance(air, w, sk, u[k0:k1], states[k0:k1], bk, hstate,
+                                           self.last_heater_power_w[k0:k1])
+        return states, ThermalState(states[-1], w, chamber, (k_start + m) * self.step_s,
+                                    hstate)
 
     def _advance(self, air0: float, w0: np.ndarray, s: np.ndarray, u: np.ndarray,
-                 out: np.ndarray, b: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+                 out: np.ndarray, b: np.ndarray | None = None, hstate: Any = None,
+                 hpower: Any = None) -> tuple[float, np.ndarray, Any]:
         """Propagate ``len(u)`` steps from chamber air ``air0`` and modal state ``w0`` into
         ``out`` (m, 1+n); return the final air temperature and modal state."""
         n = self.n_nodes
@@ -341,9 +381,54 @@ class ThermalIntegrator:
                 g += np.multiply.outer(self._c_b[j], b[:-1, j])
                 g += np.multiply.outer(self._c_db[j], db[:, j])
         W = np.empty((n, m))
-        for i in range(n):
-            W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
-                                           zi=[self._mu[i] * w0[i]])
+        if self.heaters:
+            hstate = self._heater_loop(w0, g, u, W, hstate, hpower)
+        else:
+            for i in range(n):
+                W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
+                                               zi=[self._mu[i] * w0[i]])
         out[:, 0] = air_next
         out[:, 1:] = self._nodes(W.T)
-        return float(out[-1, 0]), W[:, -1].copy()
+        return float(out[-1, 0]), W[:, -1].copy(), hstate
+
+    def _heater_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
+                     integ: np.ndarray, power_out: np.ndarray) -> np.ndarray:
+        """The modal recurrence with the heaters' digital PI controllers (docs/thermal.md
+        §1.2b): at each grid point the sensors are read, the powers computed, limited to
+        [0, max] and held over the step (exact ZOH input); back-calculation anti-windup. A
+        step-by-step loop, since each power depends on the state the previous one produced."""
+        mu, rs, rt = self._mu, self._r_s, self._r_t
+        cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(self._c_h.shape[1])]
+        kp, ki, aw, pmax = (self._h_kp.tolist(), self._h_ki.tolist(), self._h_aw.tolist(),
+                            self._h_max.tolist())
+        sp0, tg = self._h_sp.tolist(), self._h_tg.tolist()
+        H = len(kp)
+        track = any(x != 0.0 for x in tg)
+        w = w0.copy()
+        I = [float(x) for x in integ]
+        gT = np.ascontiguousarray(g.T)
+        tmp = np.empty_like(w)
+        for k in range(g.shape[1]):
+            np.multiply(mu, w, out=w)
+            w += gT[k]
+            if u[k] > 0:
+                # sensors read the state at the start of the step (before this update)
+                ts = (rs @ wprev).tolist() if k else (rs @ w0).tolist()
+                tt = ((rt @ wprev).tolist() if k else (rt @ w0).tolist()) if track else None
+                for j in range(H):
+                    sp = sp0[j] + tg[j] * tt[j] if track else sp0[j]
+                    e = sp - ts[j]
+                    v = kp[j] * e + I[j]
+                    P = pmax[j] if v > pmax[j] else (0.0 if v < 0.0 else v)
+                    I[j] = I[j] + ki[j] * e + aw[j] * (P - v)
+                    power_out[k, j] = P
+                    if P != 0.0:
+                        np.multiply(cols[j], P, out=tmp)
+                        w += tmp
+            else:                               # unpowered: controller off and reset
+                for j in range(H):
+                    I[j] = 0.0
+                    power_out[k, j] = 0.0
+            W[:, k] = w
+            wprev = W[:, k]
+        return np.array(I)
