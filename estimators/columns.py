@@ -171,7 +171,16 @@ def resolve_input_names(X: Any, feature_names: Sequence[str] | None,
         return names
     if isinstance(X, Columns):
         return X.names
+    if _is_dataframe(X):
+        return tuple(X.columns)
     return tuple(f"x{i}" for i in range(n_features))
+
+
+def _is_dataframe(X: Any) -> bool:
+    """A pandas DataFrame (duck-typed, so this module never imports pandas): its column names
+    are the input names, like a :class:`Columns`'."""
+    return (hasattr(X, "columns") and hasattr(X, "iloc") and getattr(X, "ndim", 0) == 2
+            and all(isinstance(c, str) for c in X.columns))
 
 
 def select_inputs(X: Any, names: Sequence[str]) -> Any:
@@ -186,4 +195,11 @@ def select_inputs(X: Any, names: Sequence[str]) -> Any:
             raise ValueError(f"X lacks the input(s) the model was fitted on: "
                              f"{', '.join(missing)}; X has {', '.join(X.names)}")
         return X.select(names)
+    if _is_dataframe(X):
+        have = list(X.columns)
+        missing = [n for n in names if n not in have]
+        if missing:
+            raise ValueError(f"X lacks the input(s) the model was fitted on: "
+                             f"{', '.join(missing)}; X has {', '.join(have)}")
+        return X[list(names)]
     return X

@@ -218,6 +218,13 @@ class Scenario:
         """The generator that expands the chamber programme (repeat/random segments)."""
         return generator(self.seed, 0, "chamber", "programme", 0)
 
+    def with_changes(self, changes: dict | None = None, /, **keys) -> "Scenario":
+        """This scenario with TOML keys changed (dotted paths, e.g. ``{"chamber.start_c": 25}``,
+        or top-level keywords ``seed=3``), validated again; its ``text`` is the changed TOML
+        (:func:`rlgsim.sim.scenario_changes.with_changes`)."""
+        from rlgsim.sim.scenario_changes import with_changes
+        return with_changes(self, changes, **keys)
+
 
 def _parse_turntable(table: dict | None, ctx: Ctx) -> TurntableProgram:
     return TurntableProgram.from_config(table, ctx)

@@ -127,8 +127,9 @@ def connect(address: str, timeout_s: float = 10.0):
     try:
         from distributed import Client
     except ImportError:
-        raise UserInputError("--scheduler needs dask.distributed (pip install distributed)"
-                             ) from None
+        raise UserInputError("--scheduler needs Dask's distributed scheduler, an optional extra: "
+                             "pip install 'rlgsim[cluster]' (without --scheduler the units run "
+                             "in local processes)") from None
     scheme, _, rest = address.partition("://")
     if scheme == "tcp":                 # fail fast on a refused or unknown host:port
         import socket

@@ -33,6 +33,16 @@ _PUBLIC = {
     "load_study": "rlgsim.sim.study:load_study",
     "run_study": "rlgsim.sim.study:run_study",
     "UserInputError": "rlgsim.ground.errors:UserInputError",
+    # the notebook API (docs/api.md; rlgsim.api)
+    "with_changes": "rlgsim.api:with_changes",
+    "run": "rlgsim.api:run",
+    "open_tree": "rlgsim.api:open_tree",
+    "window_table": "rlgsim.api:window_table",
+    "score": "rlgsim.api:score",
+    "calibrate": "rlgsim.api:calibrate",
+    # recordings (docs/recordings.md)
+    "load_recording": "rlgsim.ground.recording:load_recording",
+    "export": "rlgsim.ground.recording_export:export",
 }
 
 __all__ = ["__version__", *_PUBLIC]

@@ -497,7 +497,16 @@ def is_recording(path: str | os.PathLike) -> bool:
     if p.suffix.lower() in (".csv", ".parquet", ".pq"):
         return True
     if p.suffix.lower() in (".h5", ".hdf5", ".hdf"):
-        return _is_sidecar(sidecar_path(p))
+        # an HDF5 table of another tool, with a sidecar made for it (not the sidecar of a
+        # CSV export of this dataset, which shares the stem)
+        side = sidecar_path(p)
+        if not _is_sidecar(side):
+            return False
+        try:
+            data = tomllib.loads(side.read_text(encoding="utf-8"))["recording"].get("data")
+        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, AttributeError):
+            return False
+        return data is None or pathlib.Path(str(data)).name == p.name
     return False
 
 
@@ -540,13 +549,14 @@ def _read_table(path: pathlib.Path, kind: str, sc: Sidecar) -> tuple[list[str], 
     Non-numeric cells are reported by the caller using the raw values."""
     if kind == "csv":
         import pandas as pd
-        try:
-            df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+        try:                 # numbers parsed by pandas' C reader; only empty cells are NaN
+            df = pd.read_csv(path, keep_default_na=False, na_values=[""],
+                             skipinitialspace=True, low_memory=False)
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
             msg = " ".join(str(exc).split())
             raise UserInputError(f"{path}: not a readable CSV table ({msg})") from None
         names = [str(c).strip() for c in df.columns]
-        raw = {n: df.iloc[:, i].to_numpy(dtype=object) for i, n in enumerate(names)}
+        raw = {n: df.iloc[:, i].to_numpy() for i, n in enumerate(names)}
         return names, raw, len(df)
     if kind == "parquet":
         import pandas as pd
@@ -582,26 +592,27 @@ def _read_table(path: pathlib.Path, kind: str, sc: Sidecar) -> tuple[list[str], 
 def _numeric(path: pathlib.Path, name: str, raw: np.ndarray) -> np.ndarray:
     """float64 values; empty cells → NaN; anything else non-numeric is an error."""
     if raw.dtype.kind in "fiub":
-        return raw.astype(np.float64)
-    out = np.empty(raw.size, dtype=np.float64)
-    for i, cell in enumerate(raw):
-        if cell is None or (isinstance(cell, float) and math.isnan(cell)):
-            out[i] = np.nan
-            continue
-        text = cell.decode() if isinstance(cell, bytes) else str(cell)
-        text = text.strip()
-        if text == "":
-            out[i] = np.nan
-            continue
-        try:
-            out[i] = float(text)
-        except ValueError:
-            raise UserInputError(f"{path}: column {name!r}, row {i + 1}: value {text!r} not "
-                                 f"allowed; must be a number (an empty cell marks a missing "
-                                 f"value)") from None
-        if not math.isfinite(out[i]) and not math.isnan(out[i]):
-            raise UserInputError(f"{path}: column {name!r}, row {i + 1}: value {text!r} not "
-                                 f"allowed; must be finite")
+        out = raw.astype(np.float64)
+    else:
+        import pandas as pd
+        text = pd.Series(raw, dtype=object).map(
+            lambda c: c.decode() if isinstance(c, bytes) else c).astype("string").str.strip()
+        empty = text.isna() | (text == "")
+        out = pd.to_numeric(text.mask(empty), errors="coerce").to_numpy(dtype=np.float64,
+                                                                        na_value=np.nan)
+        named_nan = text.str.lower().isin(["nan", "+nan", "-nan"]).to_numpy(dtype=bool,
+                                                                           na_value=False)
+        bad = np.flatnonzero(np.isnan(out) & ~empty.to_numpy(dtype=bool) & ~named_nan)
+        if bad.size:
+            i = int(bad[0])
+            raise UserInputError(f"{path}: column {name!r}, row {i + 1}: value {str(text[i])!r} "
+                                 f"not allowed; must be a number (an empty cell marks a missing "
+                                 f"value)")
+    inf = np.flatnonzero(np.isinf(out))
+    if inf.size:
+        i = int(inf[0])
+        raise UserInputError(f"{path}: column {name!r}, row {i + 1}: value {float(out[i])!r} not "
+                             f"allowed; must be finite")
     return out
 
 

@@ -1,0 +1,119 @@
+"""The public Python API (src/rlgsim/api.py, docs/api.md): changed scenarios whose text matches,
+runs into memory, DataTree views with a time coordinate on every group, window tables of a
+dataset and of its exported recording, compensators on DataFrames, the cluster extra."""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import rlgsim
+from rlgsim.ground.errors import UserInputError
+
+SHORT = {"duration_min": 20, "acquisition.sample_rate_hz": 10}
+
+
+@pytest.fixture(scope="module")
+def short(tmp_path_factory):
+    d = tmp_path_factory.mktemp("api")
+    sc = rlgsim.with_changes(rlgsim.load_scenario("demo_cycle"), SHORT)
+    path = d / "short.h5"
+    rlgsim.run(sc, path).close()
+    return sc, path
+
+
+def test_with_changes_text_matches_and_validates():
+    sc = rlgsim.load_scenario("quickstart")
+    ch = sc.with_changes({"chamber.segments[1].to_c": 35.0, "site.latitude_deg": 40.0},
+                         seed=3, duration_h=None)
+    assert tomllib.loads(ch.text) == ch.tables
+    assert ch.tables["chamber"]["segments"][1]["to_c"] == 35.0 and ch.seed == 3
+    assert ch.site.latitude_deg == 40.0
+    assert "duration_h" not in ch.tables and ch.duration_s != sc.duration_s   # programme length
+    assert sc.tables["chamber"]["segments"][1]["to_c"] == 40.0               # original intact
+    assert rlgsim.with_changes(sc, {"chamber.segments[1].to_c": 35.0}).tables[
+        "chamber"]["segments"][1] == {"type": "ramp", "to_c": 35.0, "rate_c_per_min": 1.0}
+    with pytest.raises(UserInputError, match="start_cc: unknown key"):
+        sc.with_changes({"chamber.start_cc": 3})
+    with pytest.raises(UserInputError, match="no element"):
+        sc.with_changes({"chamber.segments[9].to_c": 3})
+
+
+def test_run_in_memory_and_tree_times(short, tmp_path, monkeypatch):
+    sc, path = short
+    monkeypatch.chdir(tmp_path)
+    tree = rlgsim.run(sc)                         # into memory: no file left behind
+    assert list(tmp_path.iterdir()) == []
+    imu = tree["imu"]
+    n = imu.sizes["sample"]
+    assert n == 12000
+    np.testing.assert_allclose(imu["sample_time"].values, (np.arange(n) + 1) / 10.0,
+                               rtol=1e-15, atol=1e-12)
+    for name, node in tree.children.items():     # a time coordinate on every group
+        assert any(c in node.coords for c in ("time", "sample_time", "t0")), name
+    assert "details" in tree["timeline"] and "attrs" not in tree["timeline"].data_vars
+    lazy = rlgsim.open_tree(path)
+    np.testing.assert_array_equal(lazy["imu"]["gyro_pulses"].values,
+                                  tree["imu"]["gyro_pulses"].values)
+    lazy.close()
+
+
+def test_window_table_dataset_vs_recording_and_independent(short, tmp_path):
+    _, path = short
+    df = rlgsim.window_table(path)
+    assert len(df) == 12 and df["time_s"].iloc[-1] == 1200.0
+    # independent: window 3 from the raw pulses, K from the preset, the truth's Earth rate
+    import h5py
+    with h5py.File(path, "r") as f:
+        p = f["imu/gyro_pulses"][3000:4000, 0].astype(float)
+        k = 2.14 / (np.pi / 180 / 3600)
+        dth = f["truth/dtheta_step"][300:400, 2].sum()
+        temp = f["probes/temperature"][300:400, 0].mean()
+    bias = (p.sum() / (k * 100.0) - dth / 100.0) * 180 / np.pi * 3600
+    assert df["bias_deg_per_h"][3] == pytest.approx(bias, rel=1e-9)
+    assert df["probe_g.A_c"][3] == pytest.approx(temp, rel=1e-12)
+    out = rlgsim.export(path, "parquet", tmp_path / "short.parquet")
+    rec = rlgsim.window_table(out.table)
+    assert "true_bias_deg_per_h" not in rec.columns
+    for c in rec.columns:
+        np.testing.assert_allclose(rec[c], df[c], rtol=1e-12, atol=1e-12, err_msg=c)
+    tree = rlgsim.open_tree(out.table)
+    assert set(tree.children) == {"imu", "probes", "thermal", "turntable"}
+    np.testing.assert_array_equal(tree["probes"]["time"].values, np.arange(1, 1201.0))
+
+
+def test_compensator_on_dataframe_prints_column_names():
+    from rlgsim.estimators.stepwise import StepwiseRegressor
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame({"probe_A_c": rng.normal(20, 5, 300), "uhfo_v": rng.normal(4, 0.1, 300)})
+    y = 0.01 * df["probe_A_c"] - 0.2 * df["uhfo_v"] + rng.normal(0, 1e-4, 300)
+    m = StepwiseRegressor().fit(df, y)
+    assert "probe_A_c" in m.equation() and "uhfo_v" in m.equation()
+    np.testing.assert_allclose(m.predict(df[["uhfo_v", "probe_A_c"]]), m.predict(df))
+    with pytest.raises(ValueError, match="lacks the input"):
+        m.predict(df[["uhfo_v"]])
+    s = rlgsim.score(y, m.predict(df))
+    assert s["rmse"] < 2e-4 and s["r2"] > 0.999
+
+
+def test_scheduler_without_the_cluster_extra(monkeypatch, capsys):
+    from rlgsim.sim.cli.montecarlo import connect
+    monkeypatch.setitem(sys.modules, "distributed", None)        # as if not installed
+    with pytest.raises(UserInputError, match=r"pip install 'rlgsim\[cluster\]'"):
+        connect("tcp://127.0.0.1:8786")
+
+
+def test_public_modules_declare_all():
+    import importlib
+    for mod in ("rlgsim.api", "rlgsim.ground.recording", "rlgsim.ground.recording_export",
+                "rlgsim.ground.programme", "rlgsim.ground.datatree", "rlgsim.sim.recordings",
+                "rlgsim.sim.scenario_changes", "rlgsim.estimators.recording_calibration"):
+        m = importlib.import_module(mod)
+        assert m.__all__ and all(hasattr(m, n) for n in m.__all__), mod
+    for name in ("run", "open_tree", "with_changes", "window_table", "score", "calibrate",
+                 "load_recording", "export"):
+        assert callable(getattr(rlgsim, name))
