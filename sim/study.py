@@ -63,6 +63,11 @@ class Study:
     device_seed: int | None = None
     tables: dict = field(default_factory=dict, repr=False)
 
+    @property
+    def title(self) -> str:
+        """The report's title: "Study <name>", with " — paper <paper>" if it replays one."""
+        return f"Study {self.name}" + (f" — paper {self.paper}" if self.paper else "")
+
     def ctx(self, *path: str) -> Ctx:
         """A :class:`~rlgsim.sim.config.Ctx` for messages about ``path`` in this study's file."""
         return Ctx(self.source, ".".join(path))
@@ -183,7 +188,7 @@ def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = Tru
 
 def _rows_report(study: Study, result: StudyResult) -> Report:
     """The report of a recipe without a ``report`` hook: its score rows as one table."""
-    rep = Report(f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else ""))
+    rep = Report(study.title)
     if study.description:
         rep.paragraph(study.description)
     rep.table(Table("Scores", ["compensator", "metric", "value"],

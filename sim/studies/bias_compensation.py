@@ -49,12 +49,13 @@ from typing import Any
 import numpy as np
 
 from rlgsim.sim.config import check_known_keys, get_float, get_section, get_str, get_table
-from rlgsim.sim.report import Report, Table
+from rlgsim.sim.report import Report, Table, slug
 from rlgsim.sim.study import Study, StudyResult
 from rlgsim.sim.studies.compensators import (EQUATION_KINDS, ORACLE, RAW, CompensatorSpec,
                                               parse_compensators)
 from rlgsim.sim.studies.fitting import Fitted, fit_all
-from rlgsim.sim.studies.report_text import before_check, definitions, fmt, truth_score_tables
+from rlgsim.sim.studies.report_text import (before_check, definitions, device_coefficients_section,
+                                             fmt, truth_score_tables)
 from rlgsim.sim.studies.runs import LoadedRun, RunSeries, load_experiment, worth_showing
 from rlgsim.sim.studies.scoring import score_run, series_stability
 from rlgsim.sim.studies.study_tables import FeatureSpec, RunSpec, parse_experiment, parse_metrics
@@ -161,8 +162,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     runs, fitted, per_test, predictions = out.runs, out.fitted, out.per_test, out.predictions
     Xtr, ytr, unit, t_data, t_total = out.Xtr, out.ytr, out.unit, out.t_data, out.t_total
 
-    title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
-    rep = Report(title)
+    rep = Report(study.title)
     if study.description:
         rep.paragraph(study.description)
     test_label = config.test[0].label
@@ -232,7 +232,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         for rec in recs:
             cols += [k for k in rec if k not in cols]
         recs = [{k: rec.get(k) for k in cols} for rec in recs]
-        rep.table(Table.from_records(tname, recs, csv_name=f"paper_{_slug(tname)}.csv",
+        rep.table(Table.from_records(tname, recs, csv_name=f"paper_{slug(tname)}.csv",
                                      note="paper: the published value; — where the paper gives "
                                           "none. c is the LS-SVM regularisation (gamma), σ² the "
                                           "squared kernel width in standardised inputs (ours; "
@@ -277,10 +277,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         _run_figures(rep, config, fitted, runs[spec.key].series, predictions[spec.label],
                      per_test[spec.label], ytr, spec.label, multi)
 
-    rep.heading("Drawn device parameters (truth)", 2)
-    rep.table(Table.from_records("Device coefficients", [
-        {"coefficient": k, "value": v} for k, v in rs_test.coefficients.items()
-        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    device_coefficients_section(rep, rs_test.coefficients)
     return rep
 
 
@@ -295,7 +292,7 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
 
     from rlgsim.estimators import metrics as M
 
-    tag = f"_{_slug(label)}" if multi else ""
+    tag = f"_{slug(label)}" if multi else ""
     where = f"Test run {label}. " if multi else ""
     best = _best_per_kind(fitted, sc)
     th = rs.time_s / 3600.0
@@ -356,11 +353,6 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
 
 def _raw_stability(rs: RunSeries, config: Config) -> float:
     return series_stability(rs.y, config.window_s, config.cluster_s, config.ddof)
-
-
-def _slug(text: str) -> str:
-    from rlgsim.sim.report import slug
-    return slug(text)
 
 
 def _best_per_kind(fitted: list[Fitted], sc: dict) -> dict[str, str]:

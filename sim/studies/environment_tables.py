@@ -111,7 +111,8 @@ def _parse_environments(data: dict, ctx: Ctx, names: list[str]) -> tuple[Environ
 
 
 def parse_config(study: Study) -> Config:
-    """Validate the recipe's tables; :class:`~rlgsim.ground.errors.UserInputError` naming file/key/value."""
+    """Validate the recipe's tables into a :class:`Config`;
+    :class:`~rlgsim.ground.errors.UserInputError` naming file/key/value."""
     data = study.tables
     ctx = study.ctx()
     check_known_keys(data, TOP_KEYS, ctx)

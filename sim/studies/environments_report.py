@@ -1,5 +1,5 @@
-"""The report of the ``environments`` recipe (paper 002 Table 1; :mod:`rlgsim.sim.studies.environments`
-calls :func:`report` from its report hook).
+"""The report of the ``environments`` recipe (paper 002 Table 1), which
+:mod:`rlgsim.sim.studies.environments` calls from its report hook.
 
 Re-creates Table 1 beside the paper's numbers, checks the "before" σ against the paper, scores
 every model against the simulator's truth, checks the paper's ranking (modified RBFNN ≥ RBFNN >
@@ -22,9 +22,8 @@ from rlgsim.sim.studies.compensators import EQUATION_KINDS, ORACLE, RAW
 from rlgsim.sim.studies.environment_fits import EnvResult, stability
 from rlgsim.sim.studies.environment_tables import Config
 from rlgsim.sim.studies.fitting import Fitted, fit, predict
-from rlgsim.sim.studies.report_text import definitions, fmt
-from rlgsim.sim.studies.runs import (DEG_PER_H_PER_RAD_PER_S, RunSeries, gyro_white_sigma, stack,
-                                     worth_showing)
+from rlgsim.sim.studies.report_text import definitions, device_coefficients_section, fmt
+from rlgsim.sim.studies.runs import DEG_PER_H_PER_RAD_PER_S, RunSeries, gyro_white_sigma, stack
 from rlgsim.sim.studies.scoring import scores
 
 #: Paper 002's ranking, best first (§4.2, Table 1, §5): kind, label.
@@ -220,8 +219,8 @@ def _why_noise(results: list[EnvResult], budgets: dict[str, NoiseBudget],
         f = max(r.fitted, key=lambda f: r.scores[f.spec.name]["improvement_factor"])
         sc, orc = r.scores[f.spec.name], r.scores[ORACLE]
         closer = sc["resid_std_true"] < orc["resid_std_true"]
-        text += (f" In {r.env.name}, {f.spec.name} beats the oracle's σ after ({sc['stability_after']:.5f} "
-                 f"vs {orc['stability_after']:.5f} °/h) but is "
+        text += (f" In {r.env.name}, {f.spec.name} beats the oracle's σ after "
+                 f"({sc['stability_after']:.5f} vs {orc['stability_after']:.5f} °/h) but is "
                  f"{'closer to' if closer else 'further from'} the true bias (std(ŷ − b) "
                  f"{sc['resid_std_true']:.5f} vs {orc['resid_std_true']:.5f} °/h)"
                  + ("" if closer else ": its prediction happens to cancel part of that one "
@@ -688,7 +687,8 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
 
 
 def _definitions() -> list[str]:
-    """The shared definitions (:func:`rlgsim.sim.studies.report_text.definitions`) plus this recipe's."""
+    """The shared definitions (:func:`rlgsim.sim.studies.report_text.definitions`) plus this
+    recipe's."""
     return definitions() + [
         "Inputs: window means of the probe temperature T [°C] and its least-squares slope "
         "dT/dt [K/s] in each window. The east gyro (paper 002 §4.1) sees no Earth rate.",
@@ -702,8 +702,7 @@ def _definitions() -> list[str]:
 
 def report(study: Study, config: Config, loaded: dict, results: list[EnvResult], unit: int,
             t_data: float, t_total: float) -> Report:
-    title = f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else "")
-    rep = Report(title)
+    rep = Report(study.title)
     if study.description:
         rep.paragraph(study.description)
     rep.heading("Runs, seeds and software", 2)
@@ -760,8 +759,5 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     _figures(rep, results, config)
-    rep.heading("Drawn device parameters (truth)", 2)
-    rep.table(Table.from_records("Device coefficients", [
-        {"coefficient": k, "value": v} for k, v in results[0].tests[0].coefficients.items()
-        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    device_coefficients_section(rep, results[0].tests[0].coefficients)
     return rep

@@ -53,12 +53,14 @@ from typing import Any
 
 import numpy as np
 
-from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_section, get_str, get_table
-from rlgsim.sim.report import Report, Table
+from rlgsim.sim.config import (Ctx, check_known_keys, get_float, get_list, get_section, get_str,
+                               get_table)
+from rlgsim.sim.report import Report, Table, slug
 from rlgsim.sim.study import Study, StudyResult
 from rlgsim.sim.studies.compensators import ORACLE, RAW, CompensatorSpec, parse_compensators
 from rlgsim.sim.studies.fitting import Fitted, fit_all
-from rlgsim.sim.studies.report_text import before_check, definitions, fmt, truth_score_tables
+from rlgsim.sim.studies.report_text import (before_check, definitions, device_coefficients_section,
+                                             fmt, truth_score_tables)
 from rlgsim.sim.studies.runs import LoadedRun, load_experiment, worth_showing
 from rlgsim.sim.studies.scoring import score_run
 from rlgsim.sim.studies.study_tables import (FeatureSpec, RunSpec, parse_experiment, parse_metrics,
@@ -241,8 +243,8 @@ def _column_name(a: str, b: str, names: set[str]) -> str:
 def select_inputs(spec: CompensatorSpec, sel: Selection, X, y: np.ndarray
                   ) -> tuple[CompensatorSpec, list[tuple[str, float, bool]]]:
     """``spec`` with the gradients of ``sel`` that pass |r| ≥ min_abs_r appended to its inputs
-    (strongest first, as rlgsim.estimators.input_selection ranks them); also every candidate with its
-    r and whether it was kept."""
+    (strongest first, as rlgsim.estimators.input_selection ranks them); also every candidate with
+    its r and whether it was kept."""
     from rlgsim.estimators.input_selection import correlation_ranking
     names = set(X.names)
     cands = [_column_name(a, b, names) for a, b in itertools.combinations(sel.among, 2)]
@@ -335,7 +337,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     predictions, corr, Xtr, unit = out.predictions, out.corr, out.Xtr, out.unit
     t_data, t_total = out.t_data, out.t_total
 
-    rep = Report(f"Study {study.name}" + (f" — paper {study.paper}" if study.paper else ""))
+    rep = Report(study.title)
     if study.description:
         rep.paragraph(study.description)
     rep.heading("Runs, seeds and software", 2)
@@ -369,11 +371,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         rep.paragraph(para)
     _series_attachments(rep, config, runs, predictions)
     _figures(rep, config, runs, per_test, predictions, fitted, corr)
-    first = runs[config.test[0].key].series
-    rep.heading("Drawn device parameters (truth)", 2)
-    rep.table(Table.from_records("Device coefficients", [
-        {"coefficient": k, "value": v} for k, v in first.coefficients.items()
-        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    device_coefficients_section(rep, runs[config.test[0].key].series.coefficients)
     return rep
 
 
@@ -434,12 +432,7 @@ def _selection_section(rep: Report, listings) -> None:
         recs = [{"gradient": g, "r": fmt(r), "|r|": fmt(abs(r)), "selected": "yes" if k else ""}
                 for g, r, k in listing]
         rep.table(Table.from_records(f"{name}: candidate gradients", recs,
-                                     csv_name=f"selection_{_slug(name)}.csv"))
-
-
-def _slug(text: str) -> str:
-    from rlgsim.sim.report import slug
-    return slug(text)
+                                     csv_name=f"selection_{slug(name)}.csv"))
 
 
 def _paper_table_section(rep: Report, pt: PaperTable, sc: dict) -> None:
@@ -473,7 +466,7 @@ def _paper_table_section(rep: Report, pt: PaperTable, sc: dict) -> None:
                                     else None)},
     ]
     rep.heading(f"{pt.title} (test run {pt.test})", 2)
-    rep.table(Table.from_records(pt.title, recs, csv_name=f"paper_{_slug(pt.title)}.csv",
+    rep.table(Table.from_records(pt.title, recs, csv_name=f"paper_{slug(pt.title)}.csv",
                                  note="improvement from the traditional method = "
                                       "100·(improvement_proposed − improvement_traditional) / "
                                       "improvement_traditional, as the paper computes it."))
@@ -569,7 +562,7 @@ def _series_attachments(rep: Report, config: Config, runs, predictions) -> None:
         names = list(cols)
         rows = [list(map(float, r)) for r in zip(*cols.values())]
         rep.attachment(Table(f"Test run {spec.label}: window series", names, rows,
-                             csv_name=f"series_{_slug(spec.label)}.csv",
+                             csv_name=f"series_{slug(spec.label)}.csv",
                              note=f"{config.window_s:g} s windows; pred: each compensator's ŷ"))
 
 
@@ -621,7 +614,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
         ax2.set_xlabel("time [h]")
         ax2.set_ylabel("compensated [°/h]")
         ax2.legend(fontsize=7)
-        rep.figure(fig, f"bias_over_time_{_slug(spec.label)}",
+        rep.figure(fig, f"bias_over_time_{slug(spec.label)}",
                    f"Test run {spec.label}: measured and true bias with each model's "
                    "prediction (top); compensated error curves (bottom; paper 003 Figs. 6-8).")
 
@@ -638,7 +631,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
         ax.set_title(f"Test run {spec.label}")
-        rep.figure(fig, f"allan_deviation_{_slug(spec.label)}",
+        rep.figure(fig, f"allan_deviation_{slug(spec.label)}",
                    f"Overlapping Allan deviation of the {config.window_s:g} s series before "
                    "and after compensation (allantools).")
 

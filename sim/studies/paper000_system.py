@@ -12,7 +12,8 @@ Study tables (defaults are the paper's)::
     temperature = "sensor"           # x of every model: "sensor" = each sensor's own probe
                                      #   (gyro a: "g<a>.A", the cathode probe its laws follow;
                                      #   accelerometer a: "a<a>"), or one probe name for all
-    workers = 2                      # processes (calibration campaigns, model fits); 0 = min(2, CPUs)
+    workers = 2                      # processes (calibration campaigns, model fits);
+                                     #   0 = min(2, CPUs)
 
     [models.hho_rvr]                 # paper 000 §3.2, §4.1
     hawks = 30
@@ -477,7 +478,7 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
         f"{'shuffled' if cfg.shuffle else 'contiguous'} CV, width grid "
         f"{cfg.width_resolution:g} decade) and a degree-{cfg.degree} least-squares polynomial, "
         f"each of the window-mean temperature of "
-        f"{'its own sensor probe (gyro: g<axis>.A, accelerometer: a<axis>)' if cfg.temperature == 'sensor' else 'probe ' + cfg.temperature}"
+        f"{_input_probe(cfg)}"
         f". Desired temperature {cfg.desired_c:g} °C.")
     deviations = []
     if (cfg.hawks, cfg.iterations, cfg.folds) != (30, 500, 5):
@@ -571,6 +572,12 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
     rep.table(Table("Wall time", ["step", "s"], [[k, v] for k, v in clock.items()],
                     csv_name="timing.csv"))
     return rep
+
+
+def _input_probe(cfg: Config) -> str:
+    """The report's words for the probe every model takes as input."""
+    return ("its own sensor probe (gyro: g<axis>.A, accelerometer: a<axis>)"
+            if cfg.temperature == "sensor" else "probe " + cfg.temperature)
 
 
 def _verdict(avg, avg_truth, fit_scores, truth_scores, resvar) -> str:

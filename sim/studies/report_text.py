@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from rlgsim.sim.studies.compensators import ORACLE, RAW
+from rlgsim.sim.studies.runs import worth_showing
 
 
 def fmt(x: float | None) -> float | None:
@@ -55,3 +56,13 @@ def truth_score_tables(rep, per_test: dict[str, dict[str, dict[str, float]]]) ->
                                      csv_name=f"scores_{slug(label)}.csv",
                                      note="°/h except r2_true (1), improvement_pct (%) and "
                                           "improvement_factor (1)."))
+
+
+def device_coefficients_section(rep, coefficients: dict[str, float]) -> None:
+    """The report's section of the drawn device coefficients worth showing (non-zero bias and
+    UHFO law terms; ``device_coefficients.csv``)."""
+    from rlgsim.sim.report import Table
+    rep.heading("Drawn device parameters (truth)", 2)
+    rep.table(Table.from_records("Device coefficients", [
+        {"coefficient": k, "value": v} for k, v in coefficients.items()
+        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
