@@ -41,22 +41,20 @@ def _modules() -> dict[str, tuple[pathlib.Path, bool]]:
 MODULES = _modules()
 
 
-def _resolve(name: str) -> str | None:
+def _resolve(name: str, known) -> str | None:
     """The internal module ``name`` refers to: itself or its longest known prefix."""
     while name:
-        if name in MODULES:
+        if name in known:
             return name
         name = name.rpartition(".")[0]
     return None
 
 
-def imports_of(module: str) -> set[str]:
-    """The internal modules ``module`` imports (edges of the import graph)."""
-    path, is_pkg = MODULES[module]
-    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+def edges(text: str, module: str, is_pkg: bool, known) -> set[str]:
+    """The modules of ``known`` that the source ``text`` of ``module`` imports."""
     here = module if is_pkg else module.rpartition(".")[0]    # the package of the module
     out: set[str] = set()
-    for node in ast.walk(tree):
+    for node in ast.walk(ast.parse(text)):
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -68,15 +66,21 @@ def imports_of(module: str) -> set[str]:
             else:
                 base = node.module or ""
             # "from pkg import mod" imports the module pkg.mod; "from mod import name" mod
-            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base
+            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base
                      for a in node.names]
         else:
             continue
         for n in names:
-            target = _resolve(n)
+            target = _resolve(n, known)
             if target is not None and target != module:
                 out.add(target)
     return out
+
+
+def imports_of(module: str) -> set[str]:
+    """The internal modules ``module`` imports (edges of the import graph)."""
+    path, is_pkg = MODULES[module]
+    return edges(path.read_text(encoding="utf-8"), module, is_pkg, MODULES)
 
 
 GRAPH = {m: imports_of(m) for m in MODULES}
@@ -118,9 +122,17 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def test_the_graph_is_read():
-    # the parser sees the modules and their edges, relative imports included
+    # the parser sees the modules and their edges, relative and function-level imports included
     assert "rlgsim.sim.study" in MODULES and "rlgsim.estimators.metrics" in MODULES
     assert "rlgsim.ground.errors" in GRAPH["rlgsim.sim.study"]
+    known = {"rlgsim", "rlgsim.ground", "rlgsim.ground.errors", "rlgsim.sim", "rlgsim.sim.study",
+             "rlgsim.sim.studies", "rlgsim.sim.studies.runs", "rlgsim.sim.studies.fitting"}
+    text = ("from . import runs\nfrom ..study import Study\nimport numpy\n"
+            "def f():\n    from rlgsim.ground.errors import UserInputError\n")
+    assert edges(text, "rlgsim.sim.studies.fitting", False, known) == {
+        "rlgsim.sim.studies.runs", "rlgsim.sim.study", "rlgsim.ground.errors"}
+    assert edges("from .studies import runs\n", "rlgsim.sim", True, known) == {
+        "rlgsim.sim.studies.runs"}
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
