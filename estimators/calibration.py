@@ -41,7 +41,6 @@ import os
 import pathlib
 import tomllib
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -54,6 +53,7 @@ from rlgsim.estimators.strapdown import SensorModel
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.lifeline import process_pool
 from rlgsim.ground.units import ARCSEC, G0
 
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).
@@ -585,7 +585,7 @@ def run_campaign(path, options: CampaignSettings | None = None,
                 progress(len(c))
         _WORKER_READER.pop(str(path), None)
     else:
-        with ProcessPoolExecutor(max_workers=workers) as ex:
+        with process_pool(max_workers=workers) as ex:   # workers die with us
             futures = [ex.submit(_chunk_job, _source(path), c, settings, nominal)
                        for c in chunks]
             for fut, c in zip(futures, chunks):

@@ -29,7 +29,6 @@ import os
 import pathlib
 import re
 import sys
-import threading
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -195,70 +194,18 @@ def check_manifest(out_dir: pathlib.Path, identity: dict[str, Any]) -> None:
         write_atomic(path, json.dumps(identity, sort_keys=True, indent=1))
 
 
-# -- workers die with their coordinator -------------------------------------------------------
-#: Write ends of the "coordinator alive" pipes of the pools this process started.
-_LIFELINES: dict[int, Any] = {}
-
-
-def _set_parent_death_signal() -> None:
-    """Linux: SIGKILL this process when its parent (the forkserver) dies (prctl
-    PR_SET_PDEATHSIG). Elsewhere a no-op; the lifeline thread covers the coordinator."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-        import signal
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)          # PR_SET_PDEATHSIG = 1
-    except (OSError, AttributeError):                        # pragma: no cover - no prctl
-        pass
-
-
-def _watch_lifeline(lifeline) -> None:
-    """Block on the read end of the coordinator's pipe; EOF (the coordinator exited or was
-    killed, even with SIGKILL) ends this worker at once."""
-    try:
-        while True:
-            lifeline.recv_bytes()                           # nothing is ever sent
-    except (EOFError, OSError):
-        pass
-    os._exit(70)
-
-
-def worker_init(lifeline=None) -> None:
-    """Initializer of every local worker: exit when the coordinator dies (a pipe whose write end
-    only the coordinator holds, watched by a daemon thread; also polled via os.getppid() for a
-    dead forkserver) so a killed campaign never leaves its pool behind."""
-    _set_parent_death_signal()
-    parent = os.getppid()
-    if lifeline is not None:
-        threading.Thread(target=_watch_lifeline, args=(lifeline,), daemon=True,
-                         name="rlgsim-lifeline").start()
-
-    def poll_parent() -> None:                              # portable fallback
-        while True:
-            time.sleep(1.0)
-            if os.getppid() != parent:
-                os._exit(70)
-    threading.Thread(target=poll_parent, daemon=True, name="rlgsim-parent-poll").start()
-
-
 def local_executor(workers: int) -> cf.Executor:
     """A process pool; 'forkserver' so workers do not inherit the parent's threads. Its workers
-    exit when this process dies (:func:`worker_init`); call :func:`close_executor` after
-    ``shutdown``."""
-    ctx = multiprocessing.get_context("forkserver")
-    reader, writer = ctx.Pipe(duplex=False)
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                                  initializer=worker_init, initargs=(reader,))
-    _LIFELINES[id(pool)] = (reader, writer)
-    return pool
+    exit when this process dies, even by SIGKILL (:mod:`rlgsim.ground.lifeline`); call
+    :func:`close_executor` after ``shutdown``."""
+    from rlgsim.ground.lifeline import process_pool
+    return process_pool(workers, mp_context=multiprocessing.get_context("forkserver"))
 
 
 def close_executor(pool: cf.Executor) -> None:
-    """Release the lifeline pipe of a pool made by :func:`local_executor` (after shutdown)."""
-    for conn in _LIFELINES.pop(id(pool), ()):
-        conn.close()
+    """Release the lifeline of a pool made by :func:`local_executor` (after shutdown)."""
+    from rlgsim.ground.lifeline import release
+    release(pool)
 
 
 class Progress:
