@@ -221,9 +221,16 @@ class Scenario:
     def with_changes(self, changes: dict | None = None, /, **keys) -> "Scenario":
         """This scenario with TOML keys changed (dotted paths, e.g. ``{"chamber.start_c": 25}``,
         or top-level keywords ``seed=3``), validated again; its ``text`` is the changed TOML
-        (:func:`rlgsim.sim.scenario_changes.with_changes`)."""
-        from rlgsim.sim.scenario_changes import with_changes
-        return with_changes(self, changes, **keys)
+        (:mod:`rlgsim.sim.scenario_changes`)."""
+        from rlgsim.sim.scenario_changes import changed_text
+        todo = {**(changes or {}), **keys}
+        if not todo:
+            return self
+        src = pathlib.Path(self.source)
+        return parse_scenario(changed_text(self, todo),
+                              f"{self.source} (changed: {', '.join(todo)})",
+                              base_dir=src.parent if src.is_file() else None,
+                              default_name=self.name)
 
 
 def _parse_turntable(table: dict | None, ctx: Ctx) -> TurntableProgram:

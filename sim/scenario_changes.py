@@ -25,13 +25,12 @@ from __future__ import annotations
 import copy
 import datetime as _dt
 import math
-import pathlib
 import re
 from typing import Any, Mapping
 
 from rlgsim.ground.errors import UserInputError
 
-__all__ = ["with_changes", "dumps_toml"]
+__all__ = ["with_changes", "changed_text", "dumps_toml"]
 
 _PART = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -152,22 +151,20 @@ def dumps_toml(data: Mapping) -> str:
 
 # ------------------------------------------------------------------------- the change
 
+def changed_text(scenario, changes: Mapping[str, Any]) -> str:
+    """The TOML text of ``scenario`` (its parsed tables) with the dotted ``changes`` applied,
+    headed by a comment naming the source and the changes. Parsing it is the caller's job
+    (:meth:`rlgsim.sim.scenario.Scenario.with_changes`), so this module imports no scenario
+    code."""
+    data = copy.deepcopy(scenario.tables)
+    for key, value in changes.items():
+        _apply(data, key, value)
+    said = ", ".join(f"{k} = {_inline(v) if v is not None else '(removed)'}"
+                     for k, v in changes.items())
+    return f"# scenario {scenario.name}, from {scenario.source}, with {said}\n" + dumps_toml(data)
+
+
 def with_changes(scenario, changes: Mapping[str, Any] | None = None, /, **keys: Any):
     """A new, validated :class:`~rlgsim.sim.scenario.Scenario`: ``scenario`` with the dotted
     ``changes`` and top-level ``keys`` applied; its ``text`` is the changed TOML."""
-    from rlgsim.sim.scenario import parse_scenario
-    data = copy.deepcopy(scenario.tables)
-    todo = dict(changes or {})
-    todo.update(keys)
-    if not todo:
-        return scenario
-    for key, value in todo.items():
-        _apply(data, key, value)
-    said = ", ".join(f"{k} = {_inline(v) if v is not None else '(removed)'}"
-                     for k, v in todo.items())
-    text = (f"# scenario {scenario.name}, from {scenario.source}, with {said}\n"
-            + dumps_toml(data))
-    src = pathlib.Path(scenario.source)
-    base_dir = src.parent if src.is_file() else None
-    return parse_scenario(text, f"{scenario.source} (changed: {', '.join(todo)})",
-                          base_dir=base_dir, default_name=scenario.name)
+    return scenario.with_changes(changes, **keys)

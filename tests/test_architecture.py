@@ -141,8 +141,6 @@ def test_the_graph_is_read():
 #: The list may only shrink: a new circle fails the test, and so does a listed one that is gone
 #: (delete its entry then).
 KNOWN_CIRCLES = [
-    # Scenario.with_changes imports scenario_changes, which imports parse_scenario back
-    ["rlgsim.sim.scenario", "rlgsim.sim.scenario_changes"],
     # ExportedCompensator.to_c / write_c import c_codegen, which imports ExportedCompensator
     ["rlgsim.estimators.c_codegen", "rlgsim.estimators.model_export"],
 ]
