@@ -65,7 +65,8 @@ _MATERIAL_KEYS = ("density_kg_per_m3", "specific_heat_j_per_kg_k", "conductivity
 _NODE_KEYS = ("description", "capacitance_j_per_k", "material", "volume_cm3", "mass_kg",
               "specific_heat_j_per_kg_k", "power_w", "source")
 _LINK_KEYS = ("between", "description", "conductance_w_per_k", "conduction", "convection",
-              "radiation", "source")
+              "radiation", "source", "radiation_exact", "natural_convection")
+_NATURAL_KEYS = ("h_ref_w_per_m2_k", "reference_dt_k", "area_cm2", "exponent")
 _CONDUCTION_KEYS = ("material", "conductivity_w_per_m_k", "area_cm2", "length_mm")
 _CONVECTION_KEYS = ("h_w_per_m2_k", "area_cm2", "face")
 _RADIATION_KEYS = ("emissivity", "area_cm2")
@@ -102,6 +103,25 @@ class Heater:
     track_node: int = -1
     track_gain: float = 0.0
     track_reference_c: float = 0.0
+
+
+@dataclass(frozen=True)
+class NonlinearLink:
+    """The part of a link's heat flow that the linear conductance does not carry.
+
+    ``kind = "radiation"``: ``q = c·(T_a⁴ − T_b⁴)`` [K in kelvin], ``c = ε σ A``, of which
+    ``4 c T_ref³ (T_a − T_b)`` is in the network's conductances; ``kind = "convection"``
+    (natural convection): ``q = h_ref A (|ΔT|/ΔT_ref)^n ΔT``, of which ``h_ref A ΔT`` is in the
+    conductances. ``a`` is a node index; ``b`` a node index, ``-1`` the chamber air or
+    ``-2 − j`` boundary ``j``. docs/thermal.md §1.2c."""
+
+    a: int
+    b: int
+    kind: str
+    coefficient: float        # c = εσA [W/K⁴] or h_ref·A [W/K]
+    linear_w_per_k: float     # the part already in the conductances [W/K]
+    reference_dt_k: float = 1.0
+    exponent: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -174,6 +194,8 @@ class ThermalNetwork:
     boundary_conductance_w_per_k: Any = None
     #: controlled heaters (state-dependent sources, nonlinear through their limits)
     heaters: tuple[Heater, ...] = ()
+    #: nonlinear parts of links (exact radiation, natural convection h(ΔT))
+    nonlinear_links: tuple[NonlinearLink, ...] = ()
 
     def __post_init__(self) -> None:
         names = tuple(self.node_names)
@@ -218,6 +240,7 @@ class ThermalNetwork:
             raise ValueError("boundary names must be unique and differ from node names")
         Gb.setflags(write=False)
         object.__setattr__(self, "heaters", tuple(self.heaters))
+        object.__setattr__(self, "nonlinear_links", tuple(self.nonlinear_links))
         for h in self.heaters:
             if not (0 <= h.node < n and 0 <= h.sensor < n and -1 <= h.track_node < n):
                 raise ValueError(f"heater {h.name!r}: node index out of range")
@@ -298,6 +321,8 @@ class ThermalNetwork:
             Ph = np.asarray(heater_w, dtype=float)
             for i, h in enumerate(self.heaters):
                 flow[..., h.node] += Ph[..., i]
+        if self.nonlinear_links:
+            flow = flow + self.nonlinear_heat_w(T, ambient_c, boundary_c)
         return flow / self.capacitance_j_per_k
 
     def steady_state(self, ambient_c: float, powered: bool | float,
@@ -310,9 +335,31 @@ class ThermalNetwork:
             Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
                   else np.asarray(boundary_c, dtype=float).reshape(-1))
             rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        if self.nonlinear_links:
+            return self._steady_nonlinear(rhs, ambient_c, powered, boundary_c)[0]
         if self.heaters and float(powered) > 0:
             return self._steady_with_heaters(rhs)[0]
         return scipy.linalg.solve(self.stiffness_w_per_k(), rhs, assume_a="pos")
+
+    def _steady_nonlinear(self, rhs: np.ndarray, ambient_c: float, powered: bool | float,
+                          boundary_c: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Equilibrium with the nonlinear link parts: the fixed point of
+        ``K T = rhs + N(T)`` (N is the small deviation from the linearised links, so the
+        iteration contracts), heaters included."""
+        heat = self.heaters and float(powered) > 0
+        T = None
+        powers = np.zeros(len(self.heaters))
+        extra = np.zeros(self.n_nodes)
+        for _ in range(200):
+            if heat:
+                Tn, powers = self._steady_with_heaters(rhs + extra)
+            else:
+                Tn = scipy.linalg.solve(self.stiffness_w_per_k(), rhs + extra, assume_a="pos")
+            if T is not None and np.max(np.abs(Tn - T)) <= 1e-12 * max(1.0, np.max(np.abs(Tn))):
+                return Tn, powers
+            T = Tn
+            extra = self.nonlinear_heat_w(T, float(ambient_c), boundary_c)
+        raise ValueError("the steady state with nonlinear links did not converge")
 
     def steady_heater_power_w(self, ambient_c: float, powered: bool | float,
                               boundary_c: Any = None) -> np.ndarray:
@@ -324,7 +371,34 @@ class ThermalNetwork:
             Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
                   else np.asarray(boundary_c, dtype=float).reshape(-1))
             rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        if self.nonlinear_links:
+            return self._steady_nonlinear(rhs, ambient_c, powered, boundary_c)[1]
         return self._steady_with_heaters(rhs)[1]
+
+    def nonlinear_heat_w(self, T: Any, ambient_c: Any, boundary_c: Any = None) -> np.ndarray:
+        """Heat [W] (…, n) into each node from the nonlinear parts of its links (the true flow
+        minus the linear part already in the conductances); zeros without such links."""
+        T = np.asarray(T, dtype=float)
+        out = np.zeros(T.shape)
+        if not self.nonlinear_links:
+            return out
+        Ta = np.asarray(ambient_c, dtype=float)
+        Tb = (None if not self.boundaries else
+              (self.boundary_temperatures_c(0.0) if boundary_c is None
+               else np.asarray(boundary_c, dtype=float)))
+        for ln in self.nonlinear_links:
+            ta = T[..., ln.a]
+            if ln.b >= 0:
+                tb = T[..., ln.b]
+            elif ln.b == -1:
+                tb = Ta
+            else:
+                tb = Tb[..., -2 - ln.b]
+            q = nonlinear_flow_w(ln, ta, tb)               # from a to b
+            out[..., ln.a] -= q
+            if ln.b >= 0:
+                out[..., ln.b] += q
+        return out
 
     def heater_setpoints_c(self, T: Any) -> np.ndarray:
         """Set points (…, H) [°C] of the heaters for node temperatures ``T`` (…, n)."""
@@ -428,6 +502,20 @@ class ThermalNetwork:
             nz = np.nonzero(Gb > 0)
             Gb[nz] *= np.exp(tol.ambient_conductance_rel * rng.standard_normal(nz[0].size))
             extra["boundary_conductance_w_per_k"] = Gb
+        if self.nonlinear_links:
+            Gb_new = extra.get("boundary_conductance_w_per_k", self.boundary_conductance_w_per_k)
+            links = []
+            for ln in self.nonlinear_links:
+                if ln.b >= 0:
+                    f = G[ln.a, ln.b] / self.conductance_w_per_k[ln.a, ln.b]
+                elif ln.b == -1:
+                    f = g[ln.a] / self.ambient_conductance_w_per_k[ln.a]
+                else:
+                    j = -2 - ln.b
+                    f = Gb_new[j, ln.a] / self.boundary_conductance_w_per_k[j, ln.a]
+                links.append(replace(ln, coefficient=ln.coefficient * f,
+                                     linear_w_per_k=ln.linear_w_per_k * f))
+            extra["nonlinear_links"] = tuple(links)
         return replace(self, capacitance_j_per_k=C, conductance_w_per_k=G,
                        ambient_conductance_w_per_k=g, power_w=P, **extra)
 
@@ -439,6 +527,19 @@ class ThermalNetwork:
         docs/thermal.md). Every key is validated; mistakes raise
         :class:`~rlgsim.ground.errors.UserInputError` naming file, key and value."""
         return _Builder(table, ctx).build()
+
+
+def nonlinear_flow_w(link: NonlinearLink, ta: Any, tb: Any) -> np.ndarray:
+    """Heat [W] from end ``a`` to end ``b`` carried by the nonlinear part of ``link``
+    (temperatures in °C)."""
+    ta = np.asarray(ta, dtype=float)
+    tb = np.asarray(tb, dtype=float)
+    d = ta - tb
+    if link.kind == "radiation":
+        full = link.coefficient * ((ta + ZERO_C_K) ** 4 - (tb + ZERO_C_K) ** 4)
+    else:
+        full = link.coefficient * (np.abs(d) / link.reference_dt_k) ** link.exponent * d
+    return full - link.linear_w_per_k * d
 
 
 def _check_grounded(names: tuple[str, ...], G: np.ndarray, g: np.ndarray) -> None:
@@ -491,6 +592,7 @@ class _Builder:
         self.boundaries: list[Boundary] = []
         self.boundary_index: dict[str, int] = {}
         self.face_factors: dict[str, float] | None = None
+        self.nonlinear: list[tuple[tuple[int, int], str, float, float, float, float]] = []
 
     # ----------------------------------------------------------------- top level
 
@@ -623,7 +725,11 @@ class _Builder:
                            for inst in instances},
                 node_descriptions=tuple(nd.description for nd in self.nodes),
                 description=description, boundaries=tuple(self.boundaries),
-                boundary_conductance_w_per_k=Gb, heaters=heaters)
+                boundary_conductance_w_per_k=Gb, heaters=heaters,
+                nonlinear_links=tuple(NonlinearLink(a=i, b=j, kind=kind, coefficient=c,
+                                                    linear_w_per_k=lin, reference_dt_k=dt,
+                                                    exponent=ex)
+                                      for (i, j), kind, c, lin, dt, ex in self.nonlinear))
         except ValueError as exc:
             where = f"{ctx.source}: " if ctx.source else ""
             raise UserInputError(f"{where}{ctx.path or 'thermal'}: {exc}") from None
@@ -836,16 +942,47 @@ class _Builder:
         key = (i, j) if j < 0 else (min(i, j), max(i, j))
         # parallel paths between one pair (e.g. two ports bound to the same node) add up
         value = self._conductance(spec, ctx)
+        nl = self._nonlinear(spec, ctx)
         if factor != 1.0:
             value = value * factor
+            nl = [(kind, c * factor, lin * factor, dt, ex) for kind, c, lin, dt, ex in nl]
+        for kind, c, lin, dt, ex in nl:
+            self.nonlinear.append(((i, j), kind, c, lin, dt, ex))
+            value += lin
         self.links[key] = self.links.get(key, 0.0) + value
+
+    def _nonlinear(self, spec: Mapping[str, Any], ctx: Ctx
+                   ) -> list[tuple[str, float, float, float, float]]:
+        """(kind, coefficient, linear part, ΔT_ref, exponent) of the nonlinear link parts."""
+        out = []
+        if "radiation_exact" in spec:
+            c = ctx.child("radiation_exact")
+            t = get_table(spec, "radiation_exact", ctx)
+            check_known_keys(t, _RADIATION_KEYS, c)
+            eps = get_float(t, "emissivity", c, min=0.0, max=1.0, min_exclusive=True)
+            area = get_float(t, "area_cm2", c, min=0.0, min_exclusive=True) * 1e-4
+            coef = eps * STEFAN_BOLTZMANN * area
+            out.append(("radiation", coef, 4.0 * coef * self.t_ref_k ** 3, 1.0, 0.0))
+        if "natural_convection" in spec:
+            c = ctx.child("natural_convection")
+            t = get_table(spec, "natural_convection", ctx)
+            check_known_keys(t, _NATURAL_KEYS, c)
+            h = get_float(t, "h_ref_w_per_m2_k", c, min=0.0, min_exclusive=True, max=1e4)
+            dt = get_float(t, "reference_dt_k", c, min=0.0, min_exclusive=True, max=1e3)
+            area = get_float(t, "area_cm2", c, min=0.0, min_exclusive=True) * 1e-4
+            ex = get_float(t, "exponent", c, 0.25, min=0.0, max=1.0)
+            out.append(("convection", h * area, h * area, dt, ex))
+        return out
 
     def _conductance(self, spec: Mapping[str, Any], ctx: Ctx) -> float:
         kinds = [k for k in ("conductance_w_per_k", "conduction", "convection", "radiation")
                  if k in spec]
+        if not kinds and ("radiation_exact" in spec or "natural_convection" in spec):
+            return 0.0
         if not kinds:
             raise ctx.error("conductance_w_per_k", "give at least one of conductance_w_per_k, "
-                                                   "conduction, convection, radiation")
+                                                   "conduction, convection, radiation, "
+                                                   "radiation_exact, natural_convection")
         total = 0.0
         if "conductance_w_per_k" in spec:
             total += get_float(spec, "conductance_w_per_k", ctx, min=0.0, min_exclusive=True)

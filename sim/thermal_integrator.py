@@ -217,6 +217,18 @@ class ThermalIntegrator:
                                    for hh in self.heaters])
             self._h_tg = np.array([hh.track_gain if hh.track_node >= 0 else 0.0
                                    for hh in self.heaters])
+        # nonlinear link parts (exact radiation, natural convection): their residual heat is
+        # evaluated at each grid point and held over the step (exponential Euler)
+        self.nonlinear_links = tuple(network.nonlinear_links)
+        if self.nonlinear_links:
+            inv = sorted({ln.a for ln in self.nonlinear_links}
+                         | {ln.b for ln in self.nonlinear_links if ln.b >= 0})
+            nodes_map = d[:, None] * V
+            self._nl_rows = nodes_map[inv]                                  # (ni, n)
+            self._nl_cols = (V.T[:, inv] * d[inv][None, :]) * E[:, 0, 4][:, None]   # (n, ni)
+            self._nl_ends = [(inv.index(ln.a), inv.index(ln.b) if ln.b >= 0 else ln.b, ln)
+                             for ln in self.nonlinear_links]
+            self._nl_n = len(inv)
         #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
         self.last_heater_power_w = np.zeros((0, len(self.heaters)))
         if tau > 0:
@@ -381,8 +393,9 @@ class ThermalIntegrator:
                 g += np.multiply.outer(self._c_b[j], b[:-1, j])
                 g += np.multiply.outer(self._c_db[j], db[:, j])
         W = np.empty((n, m))
-        if self.heaters:
-            hstate = self._heater_loop(w0, g, u, W, hstate, hpower)
+        if self.heaters or self.nonlinear_links:
+            hstate = self._stepwise_loop(w0, g, u, W, hstate, hpower, air_k,
+                                         None if b is None else b[:-1])
         else:
             for i in range(n):
                 W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
@@ -391,44 +404,75 @@ class ThermalIntegrator:
         out[:, 1:] = self._nodes(W.T)
         return float(out[-1, 0]), W[:, -1].copy(), hstate
 
-    def _heater_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
-                     integ: np.ndarray, power_out: np.ndarray) -> np.ndarray:
-        """The modal recurrence with the heaters' digital PI controllers (docs/thermal.md
-        §1.2b): at each grid point the sensors are read, the powers computed, limited to
-        [0, max] and held over the step (exact ZOH input); back-calculation anti-windup. A
-        step-by-step loop, since each power depends on the state the previous one produced."""
-        mu, rs, rt = self._mu, self._r_s, self._r_t
-        cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(self._c_h.shape[1])]
-        kp, ki, aw, pmax = (self._h_kp.tolist(), self._h_ki.tolist(), self._h_aw.tolist(),
-                            self._h_max.tolist())
-        sp0, tg = self._h_sp.tolist(), self._h_tg.tolist()
-        H = len(kp)
-        track = any(x != 0.0 for x in tg)
+    def _stepwise_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
+                       integ: Any, power_out: Any, air_k: np.ndarray,
+                       b_k: np.ndarray | None) -> np.ndarray:
+        """The modal recurrence step by step, for inputs that depend on the state
+        (docs/thermal.md §1.2b-c): at each grid point the heaters' PI controllers read their
+        sensors and set powers limited to [0, max], and the nonlinear link parts give their
+        residual heat; both are held over the step (exact ZOH propagation of a constant input;
+        for the nonlinear residual this is the exponential Euler method)."""
+        mu = self._mu
+        H = len(self.heaters)
+        if H:
+            rs, rt = self._r_s, self._r_t
+            cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(H)]
+            kp, ki, aw, pmax = (self._h_kp.tolist(), self._h_ki.tolist(),
+                                self._h_aw.tolist(), self._h_max.tolist())
+            sp0, tg = self._h_sp.tolist(), self._h_tg.tolist()
+            track = any(x != 0.0 for x in tg)
+            I = [float(x) for x in integ]
+        else:
+            I = []
+        nl = bool(self.nonlinear_links)
+        if nl:
+            from rlgsim.sim.thermal import nonlinear_flow_w
+            rows, ncols, ends = self._nl_rows, self._nl_cols, self._nl_ends
+            q = np.zeros(self._nl_n)
         w = w0.copy()
-        I = [float(x) for x in integ]
         gT = np.ascontiguousarray(g.T)
         tmp = np.empty_like(w)
+        ws = w0
         for k in range(g.shape[1]):
+            dq = None
+            if nl:                              # residual heat at the start of the step
+                tn = (rows @ ws).tolist()
+                q[:] = 0.0
+                for ia, ib, ln in ends:
+                    if ib >= 0:
+                        tb = tn[ib]
+                    elif ib == -1:
+                        tb = float(air_k[k])
+                    else:
+                        tb = float(b_k[k, -2 - ib])
+                    f = float(nonlinear_flow_w(ln, tn[ia], tb))
+                    q[ia] -= f
+                    if ib >= 0:
+                        q[ib] += f
+                dq = ncols @ q
+            if H and u[k] > 0:
+                ts = (rs @ ws).tolist()
+                tt = (rt @ ws).tolist() if track else None
             np.multiply(mu, w, out=w)
             w += gT[k]
-            if u[k] > 0:
-                # sensors read the state at the start of the step (before this update)
-                ts = (rs @ wprev).tolist() if k else (rs @ w0).tolist()
-                tt = ((rt @ wprev).tolist() if k else (rt @ w0).tolist()) if track else None
-                for j in range(H):
-                    sp = sp0[j] + tg[j] * tt[j] if track else sp0[j]
-                    e = sp - ts[j]
-                    v = kp[j] * e + I[j]
-                    P = pmax[j] if v > pmax[j] else (0.0 if v < 0.0 else v)
-                    I[j] = I[j] + ki[j] * e + aw[j] * (P - v)
-                    power_out[k, j] = P
-                    if P != 0.0:
-                        np.multiply(cols[j], P, out=tmp)
-                        w += tmp
-            else:                               # unpowered: controller off and reset
-                for j in range(H):
-                    I[j] = 0.0
-                    power_out[k, j] = 0.0
+            if dq is not None:
+                w += dq
+            if H:
+                if u[k] > 0:
+                    for j in range(H):
+                        sp = sp0[j] + tg[j] * tt[j] if track else sp0[j]
+                        e = sp - ts[j]
+                        v = kp[j] * e + I[j]
+                        P = pmax[j] if v > pmax[j] else (0.0 if v < 0.0 else v)
+                        I[j] = I[j] + ki[j] * e + aw[j] * (P - v)
+                        power_out[k, j] = P
+                        if P != 0.0:
+                            np.multiply(cols[j], P, out=tmp)
+                            w += tmp
+                else:                           # unpowered: controller off and reset
+                    for j in range(H):
+                        I[j] = 0.0
+                        power_out[k, j] = 0.0
             W[:, k] = w
-            wprev = W[:, k]
-        return np.array(I)
+            ws = W[:, k]
+        return np.array(I) if H else integ
