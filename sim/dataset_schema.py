@@ -70,7 +70,7 @@ def write_timeline(w: DatasetWriter, timeline) -> None:
                description=f"track of the segment: one of {', '.join(TRACKS)}")
     g.variable("label", ("segment",), dtype=str, data=[s.label for s in segs],
                description="human-readable label")
-    g.variable("attrs", ("segment",), dtype=str,
+    g.variable(fmt.SEGMENT_DETAILS, ("segment",), dtype=str,
                data=[json.dumps(s.attrs, sort_keys=True, default=float) for s in segs],
                description="segment details as a JSON object (kind, temperatures, rates ...)")
     sp = timeline.setpoint

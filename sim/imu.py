@@ -567,9 +567,10 @@ def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarra
     def text(v):
         return v.decode() if isinstance(v, bytes) else str(v)
     tl = dataset["timeline"]
+    details = tl["details"] if "details" in tl else tl["attrs"]      # format version 1: attrs
     segs = [TurntableSegment(float(a), float(b), "turntable", text(lab), json.loads(text(at)))
             for a, b, tr, lab, at in zip(tl["t0"][...], tl["t1"][...], tl["track"][...],
-                                         tl["label"][...], tl["attrs"][...])
+                                         tl["label"][...], details[...])
             if text(tr) == "turntable"]
     site = Site(float(dataset.attrs["latitude_deg"]), float(dataset.attrs["height_m"]))
     mb = Motion(segs, site).increments(t0_s, n, float(dataset.attrs["sample_rate_hz"]))

@@ -117,3 +117,27 @@ def test_public_modules_declare_all():
     for name in ("run", "open_tree", "with_changes", "window_table", "score", "calibrate",
                  "load_recording", "export"):
         assert callable(getattr(rlgsim, name))
+
+
+def test_format_version_2_details_and_version_1_still_read(short, tmp_path):
+    """The timeline's JSON details are 'details' (format 2); a version-1 file with 'attrs'
+    reads to the same segments, tree and calibration windows."""
+    import shutil
+
+    import h5py
+
+    from rlgsim.ground.dataset_format import FORMAT_VERSION, open_dataset
+    _, path = short
+    with h5py.File(path, "r") as f:
+        assert int(f.attrs["rlgsim_format_version"]) == FORMAT_VERSION == 2
+        assert "details" in f["timeline"] and "attrs" not in f["timeline"]
+    old = tmp_path / "v1.h5"
+    shutil.copy(path, old)
+    with h5py.File(old, "r+") as f:
+        f["timeline"].move("details", "attrs")
+        f.attrs["rlgsim_format_version"] = 1
+    with open_dataset(path) as a, open_dataset(old) as b:
+        assert b.version == 1 and a.segments() == b.segments() and len(a.segments()) > 0
+    t_old, t_new = rlgsim.open_tree(old, load=True), rlgsim.open_tree(path, load=True)
+    np.testing.assert_array_equal(t_old["timeline"]["details"].values,
+                                  t_new["timeline"]["details"].values)

@@ -38,8 +38,13 @@ from rlgsim.ground.errors import UserInputError
 #: Root attribute :data:`FORMAT_ATTR` of every rlgsim dataset holds this marker.
 FORMAT = "rlgsim dataset"
 #: Layout version written today; readers refuse newer versions. Bump it when the layout
-#: changes incompatibly.
-FORMAT_VERSION = 1
+#: changes incompatibly. Version 2: the timeline's JSON segment details are the variable
+#: ``details`` (version 1 called it ``attrs``, which clashes with xarray's ``.attrs``; still
+#: read, :data:`SEGMENT_DETAILS_V1`).
+FORMAT_VERSION = 2
+#: The timeline variable holding each segment's JSON details (and its version-1 name).
+SEGMENT_DETAILS = "details"
+SEGMENT_DETAILS_V1 = "attrs"
 FORMAT_ATTR = "rlgsim_format"
 VERSION_ATTR = "rlgsim_format_version"
 
@@ -60,7 +65,7 @@ SAMPLE = "sample"          #: IMU sample axis (no stored coordinate)
 #: declares them; optional ones (accelerometers, UHFO, per-sample truth) are listed too.
 #: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_imu.py checks it).
 VARIABLES: dict[str, tuple[str, ...]] = {
-    TIMELINE: ("segment", "t0", "t1", "track", "label", "attrs", "breakpoint", "setpoint_time",
+    TIMELINE: ("segment", "t0", "t1", "track", "label", "details", "breakpoint", "setpoint_time",
                "setpoint"),
     THERMAL: ("time", "chamber_setpoint", "chamber_air", "power_on", "node", "node_temperature",
               "capacitance", "capacitance_factor", "ambient_conductance",
@@ -270,7 +275,8 @@ class Dataset:
         (the JSON details decoded), in file order; only ``track``'s when given."""
         t0, t1 = self.read(TIMELINE, "t0"), self.read(TIMELINE, "t1")
         tracks, labels = self.read(TIMELINE, "track"), self.read(TIMELINE, "label")
-        details = self.read(TIMELINE, "attrs")
+        details = self.read(TIMELINE, SEGMENT_DETAILS if self.has(TIMELINE, SEGMENT_DETAILS)
+                            else SEGMENT_DETAILS_V1)          # version-1 files
         return [dict(t0=float(a), t1=float(b), track=str(tr), label=str(lb),
                      attrs=json.loads(str(at)))
                 for a, b, tr, lb, at in zip(t0, t1, tracks, labels, details)
