@@ -399,6 +399,28 @@ class Anomalies:
                            probe_held=state.probe_held, probe_last=state.probe_last)
         return out, valid, ev, new
 
+    def lost_frames(self, valid: np.ndarray, k0_sample: int, rate_hz: float,
+                    pulses: np.ndarray, channels: Sequence[str]) -> tuple[np.ndarray, Events]:
+        """The same lost frames (``valid`` from :meth:`pulses`) for another instrument's
+        pulses (n, C), e.g. the accelerometers: their counts are lost too (zeroed here, one
+        ``imu_dropout`` event per run and channel with the lost counts)."""
+        out = np.array(pulses, dtype=np.int32, copy=True)
+        ev = Events()
+        if valid.all():
+            return out, ev
+        dt = 1.0 / float(rate_hz)
+        bad = np.flatnonzero(~valid)
+        breaks = np.flatnonzero(np.diff(bad) > 1)
+        starts = np.concatenate(([bad[0]], bad[breaks + 1]))
+        stops = np.concatenate((bad[breaks] + 1, [bad[-1] + 1]))
+        for s0, s1 in zip(starts.tolist(), stops.tolist()):
+            lost = out[s0:s1].astype(np.int64).sum(axis=0)
+            for c, ch in enumerate(channels):
+                ev.add((k0_sample + s0 + 1) * dt, (k0_sample + s1) * dt, ch, "imu_dropout",
+                       float(lost[c]), "pulses")
+            out[s0:s1] = 0
+        return out, ev
+
     # ----------------------------------------------------------------- probes
 
     def probes(self, state: AnomalyState, b: int, k0_step: int, step_s: float,
@@ -495,3 +517,143 @@ class Anomalies:
                            probe_until=until, probe_kind=kind, probe_held=held,
                            probe_last=last)
         return out, ev, new
+
+
+# --------------------------------------------------------------------------- in a run
+
+#: Dataset group of the event record.
+GROUP = "anomalies"
+GROUP_DESCRIPTION = ("truth: every sensor anomaly of the run (mode hops, pulse spikes, IMU "
+                     "frame dropouts, probe glitches, stuck readings, probe dropouts), one row "
+                     "per event")
+
+
+class AnomalyRun:
+    """The anomalies of one simulated run, shared by the stages that apply them (probes, IMU)
+    and :class:`AnomalyStage`, which writes the event record. One per timeline (the simulator
+    builds one timeline per run); the stages run in a fixed order within every block, so the
+    shared state and the event order are deterministic. Built by :meth:`of`."""
+
+    def __init__(self, scenario, model: AnomalyModel) -> None:
+        device = scenario.device
+        gyro = (getattr(device, "parts", {}) or {}).get("gyro")
+        probes = device.thermal.probes
+        self.model = model
+        self.bound = Anomalies(model, node_names=device.thermal.network.node_names,
+                               gyro_axes=tuple(gyro.axes) if gyro is not None else (),
+                               gyro_blocks=tuple(gyro.blocks) if gyro is not None else (),
+                               probe_names=tuple(probes.names) if probes is not None else (),
+                               seed=scenario.seed, unit=scenario.unit, source=device.source)
+        self.state: AnomalyState | None = None
+        self.pending = Events()
+
+    @classmethod
+    def of(cls, scenario, timeline) -> "AnomalyRun | None":
+        """The run's anomalies (None when the device preset has no active ``[anomalies]``)."""
+        model = (getattr(scenario.device, "parts", {}) or {}).get("anomalies")
+        if model is None or not model.active:
+            return None
+        run = getattr(timeline, "_rlgsim_anomalies", None)
+        if run is None:
+            run = cls(scenario, model)
+            timeline._rlgsim_anomalies = run
+        return run
+
+    def _state(self, start_c: np.ndarray) -> AnomalyState:
+        if self.state is None:
+            self.state = self.bound.initial_state(np.asarray(start_c, dtype=float))
+        return self.state
+
+    # ---- applied by the stages -------------------------------------------------------------
+    def probe_readings(self, b: int, trace, readings: np.ndarray) -> np.ndarray:
+        """The logged probe readings of block ``b`` (``trace`` the block's ThermalTrace)."""
+        st = self._state(trace.start_c)
+        k0 = int(round(float(trace.t_s[0]) / trace.step_s)) - 1
+        out, ev, self.state = self.bound.probes(st, b, k0, trace.step_s, readings)
+        self.pending.extend(ev)
+        return out
+
+    def gyro_bias_offset(self, trace) -> np.ndarray:
+        """Mode-hop bias offsets (m, G) [rad/s] of the block (zeros without mode hops)."""
+        st = self._state(trace.start_c)
+        off, ev, self.state = self.bound.mode_hops(st, np.asarray(trace.t_s),
+                                                   np.asarray(trace.nodes_c))
+        self.pending.extend(ev)
+        return off
+
+    def gyro_pulses(self, b: int, k0_sample: int, rate_hz: float, pulses: np.ndarray,
+                    start_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The logged gyro pulses and the frame validity flags of block ``b``."""
+        st = self._state(start_c)
+        out, valid, ev, self.state = self.bound.pulses(st, b, k0_sample, rate_hz, pulses)
+        self.pending.extend(ev)
+        return out, valid
+
+    def other_pulses(self, valid: np.ndarray, k0_sample: int, rate_hz: float,
+                     pulses: np.ndarray, channels: Sequence[str]) -> np.ndarray:
+        """Another instrument's pulses with the lost frames removed (accelerometers)."""
+        out, ev = self.bound.lost_frames(valid, k0_sample, rate_hz, pulses, channels)
+        self.pending.extend(ev)
+        return out
+
+    def take_events(self) -> Events:
+        ev, self.pending = self.pending, Events()
+        return ev
+
+
+class AnomalyStage:
+    """Writes the event record (group ``anomalies``); the last stage of a block, so it sees
+    every event the probe and IMU stages produced in that block. Dimension ``event``: time of
+    the event [s], end [s], channel, kind, size and its units (docs/sensors.md)."""
+
+    group = GROUP
+    description = GROUP_DESCRIPTION
+    needs_motion = False
+
+    def __init__(self, run: AnomalyRun) -> None:
+        self.run = run
+
+    @classmethod
+    def create(cls, scenario, timeline) -> "AnomalyStage | None":
+        run = AnomalyRun.of(scenario, timeline)
+        return None if run is None else cls(run)
+
+    def declare(self, g) -> None:
+        g.coordinate("event", growing=True, dtype=np.int64, units="1",
+                     description="event index in order of time")
+        g.variable("time", ("event",), units="s",
+                   description="start of the event: end of the first affected sample or "
+                               "thermal step, s since the start of the run")
+        g.variable("end", ("event",), units="s",
+                   description="end of the event (= time for single-sample events)")
+        g.variable("channel", ("event",), dtype=str,
+                   description="gyro axis or probe name the event affects")
+        g.variable("kind", ("event",), dtype=str,
+                   description="mode_hop_up, mode_hop_down, pulse_spike, imu_dropout, "
+                               "probe_glitch, probe_stuck or probe_dropout")
+        g.variable("size", ("event",), units="see size_units",
+                   description="bias step [deg/h], extra or lost pulses, replaced minus true "
+                               "reading [degC] or duration [s]")
+        g.variable("size_units", ("event",), dtype=str, description="unit of size")
+
+    def initial_state(self) -> int:
+        return 0                                  # events written so far
+
+    def block(self, state: int, b: int, trace, motion) -> tuple[dict, int]:
+        ev = self.run.take_events().arrays()
+        n = len(ev["time_s"])
+        if n == 0:
+            return {}, state
+        rows = {"event": {"event": np.arange(state, state + n, dtype=np.int64),
+                          "time": ev["time_s"], "end": ev["end_s"],
+                          "channel": np.asarray(ev["channel"], dtype=object),
+                          "kind": np.asarray(ev["kind"], dtype=object), "size": ev["size"],
+                          "size_units": np.asarray(ev["units"], dtype=object)}}
+        return rows, state + n
+
+
+def declare_sample_valid(g) -> None:
+    """The ``imu`` group's frame-validity flag (declared only when IMU dropouts are on)."""
+    g.variable("sample_valid", ("sample",), units="1", dtype=np.int8,
+               description="1 if the IMU frame reached the log, 0 if it was lost (its pulses "
+                           "are 0 here; the lost counts are in the anomalies group)")

@@ -233,3 +233,17 @@ def test_bad_keys_are_one_line_errors(table, key):
 def test_unknown_mode_hop_node_is_an_error():
     with pytest.raises(UserInputError, match="mode_hop.nodes.*'Q'"):
         bound({"mode_hop": {**HOP, "nodes": ["Q"]}})
+
+
+def test_lost_frames_remove_the_same_samples_from_another_instrument():
+    an = bound({"imu_dropouts": {"rate_per_h": 60.0, "mean_samples": 50.0}})
+    gin, gout, valid, ev = pulse_run(an, 3)
+    acc = np.random.default_rng(9).integers(-50, 50, size=(len(valid), 2)).astype(np.int32)
+    out, aev = an.lost_frames(valid, 0, 100.0, acc, ("ax", "ay"))
+    assert np.all(out[~valid] == 0) and np.array_equal(out[valid], acc[valid])
+    a = aev.arrays()
+    lost = a["size"].sum()
+    assert out.astype(np.int64).sum() + lost == acc.astype(np.int64).sum()
+    assert set(a["channel"]) == {"ax", "ay"}
+    # the runs are the gyro's runs (per block there may be more gyro events: block ends)
+    assert len(a["time_s"]) // 2 <= (ev["kind"] == "imu_dropout").sum()
