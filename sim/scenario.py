@@ -21,6 +21,7 @@ import numpy as np
 
 from rlgsim.sim import presets
 from rlgsim.sim.accelerometer import AccelerometerModel
+from rlgsim.sim.anomalies import AnomalyModel
 from rlgsim.sim.chamber import ChamberProgram
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
                                get_quantity, get_str, get_table, unit_keys)
@@ -51,6 +52,7 @@ DEVICE_TABLES: dict[str, TableValidator | None] = {
     "uhfo": UhfoModel.from_config,
     "noise": NoiseModel.from_config,
     "tolerance": Tolerance.from_config,
+    "anomalies": AnomalyModel.from_config,          # optional sensor anomalies (sim/anomalies.py)
 }
 
 #: Keys of a device preset's ``[device]`` table.

@@ -189,6 +189,8 @@ class ProbeStage(Stage):
         self.seed = scenario.seed
         self.unit = scenario.unit
         self.step = timeline.step_s
+        from rlgsim.sim.anomalies import AnomalyRun
+        self.anomalies = AnomalyRun.of(scenario, timeline)     # None unless [anomalies]
 
     @classmethod
     def create(cls, scenario, timeline: Timeline) -> "ProbeStage | None":
@@ -207,6 +209,8 @@ class ProbeStage(Stage):
             state = self.probes.initial_state(trace.start_c)
         rng = generator(self.seed, self.unit, "probes", "noise", b)
         readings, state = self.probes.read(state, trace.nodes_c, trace.step_s, rng)
+        if self.anomalies is not None:                         # glitches, stuck, dropouts
+            readings = self.anomalies.probe_readings(b, trace, readings)
         return {"time": {"time": trace.t_s, "temperature": readings}}, state
 
 
@@ -217,7 +221,16 @@ def _imu_stage(scenario, timeline: Timeline) -> Stage | None:
     return ImuStage.create(scenario, timeline)
 
 
-STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu_stage]
+def _anomaly_stage(scenario, timeline: Timeline) -> Stage | None:
+    """The event record of the sensor anomalies (:class:`rlgsim.sim.anomalies.AnomalyStage`;
+    None unless the device preset has an active ``[anomalies]`` table). Last: it writes the
+    events the stages before it produced in the block."""
+    from rlgsim.sim.anomalies import AnomalyStage
+    return AnomalyStage.create(scenario, timeline)
+
+
+STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu_stage,
+                                                         _anomaly_stage]
 
 
 # --------------------------------------------------------------------------- the run
