@@ -45,10 +45,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlgsim.estimators.model_export import ExportedCompensator
+from rlgsim.estimators.model_export import ExportedCompensator, export_compensator
 from rlgsim.estimators.terms import term_label
 
-__all__ = ["CSource", "c_identifier", "generate_c", "write_c"]
+__all__ = ["CSource", "c_identifier", "generate_c", "save_compensator", "write_c"]
 
 #: Numbers per line in the constant tables.
 _PER_LINE = 4
@@ -265,3 +265,17 @@ def write_c(model: ExportedCompensator, directory: str | pathlib.Path,
     c_path.write_text(src.c, encoding="ascii")
     h_path.write_text(src.h, encoding="ascii")
     return c_path, h_path
+
+
+def save_compensator(model, X_train, directory: str | pathlib.Path, *, name: str,
+                     stem: str | None = None, **metadata) -> dict[str, pathlib.Path]:
+    """Export a fitted compensator into ``directory`` as ``<stem>.json``, ``<stem>.c`` and
+    ``<stem>.h`` (``stem`` default: a C identifier made from ``name``, also the C function's
+    name); returns ``{"json": ..., "c": ..., "h": ...}``. ``metadata``: the keyword arguments
+    of :func:`~rlgsim.estimators.model_export.export_compensator` (``input_units``,
+    ``target``, ``target_unit`` ...)."""
+    exported = export_compensator(model, X_train, name=name, **metadata)
+    stem = c_identifier(stem or name)
+    c_path, h_path = write_c(exported, directory, stem)
+    return {"json": exported.to_json(pathlib.Path(directory) / f"{stem}.json"), "c": c_path,
+            "h": h_path}

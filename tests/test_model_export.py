@@ -107,10 +107,10 @@ def test_json_round_trip_predicts_like_the_fitted_model(fitted, kind, tmp_path):
         by_name = loaded.predict(Columns.from_array(Xq, NAMES))
     np.testing.assert_array_equal(got, exported.predict(Xq))
     np.testing.assert_array_equal(by_name, got)
-    if kind not in ("rvr", "hho_rvr", "pso_svr"):
+    if kind != "pso_svr":
         np.testing.assert_array_equal(got, ref)           # same operations: bit-identical
-    else:                                                 # summation order may differ
-        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
+    else:       # libsvm's exp is the C library's, numpy's its own: 1 ulp here and there
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * np.max(np.abs(ref)))
     # the file holds what the issue asks for
     doc = json.loads(path.read_text(encoding="utf-8"))
     assert doc["library_version"] and doc["kind"] == loaded.kind_
@@ -249,7 +249,8 @@ def test_c_matches_python_on_1000_inputs(fitted, kind, via_json, tmp_path):
     py = models[kind].predict(Xq)
     c, flags = call(Xq)
     assert not flags.any()
-    rel = np.max(np.abs(c - py) / np.abs(py))
+    # relative to each prediction, floored at 1e-6 of the largest (a value crossing zero)
+    rel = np.max(np.abs(c - py) / np.maximum(np.abs(py), 1e-6 * np.max(np.abs(py))))
     MAX_REL[f"{kind}/{'json' if via_json else 'fitted'}"] = float(rel)
     assert rel <= 1e-9, f"{kind}: C differs from Python by {rel:.2e} relative"
 
@@ -311,7 +312,7 @@ def test_models_that_kept_no_term_export_as_constants(kind, tmp_path):
 
 
 def test_save_compensator_writes_json_c_and_h(fitted, tmp_path):
-    from rlgsim.estimators.model_export import save_compensator
+    from rlgsim.estimators.c_codegen import save_compensator
     X, _, models = fitted
     paths = save_compensator(models["rbf_modified"], X, tmp_path / "models",
                              name="Modified RBFNN (T, dT/dt, U)", input_units=UNITS,

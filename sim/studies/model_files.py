@@ -1,7 +1,7 @@
 """A study's fitted compensators as files: ``models/<compensator>.json``, ``.c`` and ``.h`` in the
 report folder (``[study] export_models = true`` or ``rlgsim study --export-models``).
 
-Each file set is written by :func:`rlgsim.estimators.model_export.save_compensator`: the JSON
+Each file set is written by :func:`rlgsim.estimators.c_codegen.save_compensator`: the JSON
 (coefficients, inputs with units, standardisation, training range, kind, rlgsim version) loads
 back with :func:`rlgsim.estimators.model_export.load_json`; the C function is self-contained
 for the gyro's microprocessor (docs/compensator_export.md). A recipe hands its fitted models
@@ -52,8 +52,8 @@ def write_models(models: Sequence[FittedModel], folder: str | pathlib.Path
     """Write every model into ``folder`` (created); returns one record per model for the
     report: compensator, kind, the three file names relative to the report folder, or a note
     why there is none. File stems are C identifiers made from the names, made unique."""
-    from rlgsim.estimators.c_codegen import c_identifier
-    from rlgsim.estimators.model_export import KINDS, save_compensator
+    from rlgsim.estimators.c_codegen import c_identifier, save_compensator
+    from rlgsim.estimators.model_export import KINDS
     folder = pathlib.Path(folder)
     exportable = set(KINDS.values())
     used: set[str] = set()
