@@ -59,7 +59,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
-from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_list, get_str, get_table
+from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_list, get_str,
+                               get_table)
 from rlgsim.sim.rng import generator
 
 KINDS = ("mode_hop", "pulse_spikes", "imu_dropouts", "probe_glitches", "probe_stuck",
@@ -85,6 +86,11 @@ class ModeHop:
     range_modes: float                # R [mode spacings], > 1
     reference_c: float                # T_ref [°C]: the actuator is centred here for k = 0
     bias_step_deg_per_h: float        # Δb per mode [°/h]
+    # unit-to-unit spread (Monte Carlo units ≥ 1): 1σ relative spreads of κ and Δb, and a
+    # uniformly drawn lock point (the cavity length modulo λ differs from unit to unit)
+    modes_per_k_rel: float = 0.0
+    bias_step_rel: float = 0.0
+    phase_per_unit: bool = True
 
     @property
     def hysteresis_k(self) -> float:
@@ -118,7 +124,8 @@ class AnomalyModel:
         if "mode_hop" in table:
             t, c = get_table(table, "mode_hop", ctx), ctx.child("mode_hop")
             check_known_keys(t, ("nodes", "modes_per_k", "range_modes", "reference_c",
-                                 "bias_step_deg_per_h", "source"), c)
+                                 "bias_step_deg_per_h", "source", "modes_per_k_rel",
+                                 "bias_step_rel", "phase_per_unit"), c)
             get_str(t, "source", c, "")
             nodes = get_list(t, "nodes", c, min_len=1)
             for i, nd in enumerate(nodes):
@@ -132,7 +139,10 @@ class AnomalyModel:
                                       max=1000.0),
                 reference_c=get_float(t, "reference_c", c, 20.0, min=-100.0, max=200.0),
                 bias_step_deg_per_h=get_float(t, "bias_step_deg_per_h", c, min=-100.0,
-                                              max=100.0))
+                                              max=100.0),
+                modes_per_k_rel=get_float(t, "modes_per_k_rel", c, 0.0, min=0.0, max=1.0),
+                bias_step_rel=get_float(t, "bias_step_rel", c, 0.0, min=0.0, max=10.0),
+                phase_per_unit=get_bool(t, "phase_per_unit", c, True))
 
         def section(key: str, keys: tuple[str, ...]) -> tuple[dict, Ctx] | None:
             if key not in table:
@@ -250,7 +260,10 @@ class Anomalies:
         self.probe_names = tuple(probe_names)
         self.seed, self.unit = int(seed), int(unit)
         self.hop_nodes: list[np.ndarray] = []
+        #: the mode-hop parameters of each gyro (the model's, or a drawn unit's: realise_unit)
+        self.hops: list[ModeHop] = []
         if model.mode_hop is not None:
+            self.hops = [model.mode_hop] * len(self.gyro_axes)
             if len(gyro_blocks) != len(self.gyro_axes):
                 raise ValueError("one gyro block per gyro axis is needed for mode hops")
             names = list(node_names)
@@ -267,15 +280,31 @@ class Anomalies:
                     idx.append(names.index(full))
                 self.hop_nodes.append(np.array(idx, dtype=np.int64))
 
+    def realise_unit(self, rng: np.random.Generator) -> None:
+        """Draw one unit's mode-hop parameters per gyro (Monte Carlo units ≥ 1): κ and Δb
+        with their relative spreads, and — with ``phase_per_unit`` — the lock point: the
+        cavity length of a unit modulo one wavelength is arbitrary, so the temperatures at
+        which it hops are shifted by a uniform fraction of a mode spacing. Draw order per
+        gyro: N(0,1) for κ, N(0,1) for Δb, U(0,1) for the phase."""
+        import dataclasses
+        out = []
+        for mh in self.hops:
+            z1, z2, u = rng.standard_normal(), rng.standard_normal(), rng.random()
+            kappa = mh.modes_per_k * math.exp(mh.modes_per_k_rel * z1)
+            ref = mh.reference_c + ((u - 0.5) / kappa if mh.phase_per_unit else 0.0)
+            out.append(dataclasses.replace(
+                mh, modes_per_k=kappa, reference_c=ref,
+                bias_step_deg_per_h=mh.bias_step_deg_per_h * (1.0 + mh.bias_step_rel * z2)))
+        self.hops = out
+
     # ----------------------------------------------------------------- states
 
     def initial_state(self, start_c: np.ndarray) -> AnomalyState:
         """The state before block 0; ``start_c`` (n,) node temperatures at t = 0."""
         mode = None
-        mh = self.model.mode_hop
-        if mh is not None:
+        if self.hops:
             x = np.array([mh.modes_per_k * (np.mean(start_c[i]) - mh.reference_c)
-                          for i in self.hop_nodes])
+                          for mh, i in zip(self.hops, self.hop_nodes)])
             mode = np.rint(x).astype(np.int64)
         P = len(self.probe_names)
         return AnomalyState(mode=mode, probe_until=np.full(P, -1, dtype=np.int64),
@@ -292,14 +321,15 @@ class Anomalies:
         m = len(t_s)
         G = len(self.gyro_axes)
         ev = Events()
-        mh = self.model.mode_hop
-        if mh is None or m == 0:
+        if not self.hops or m == 0:
             return np.zeros((m, G)), ev, state
-        half = 0.5 * mh.range_modes
-        step = mh.bias_step_deg_per_h
         mode = state.mode.copy()
         k_all = np.empty((m, G), dtype=np.int64)
+        steps = np.array([mh.bias_step_deg_per_h for mh in self.hops])
         for gi, idx in enumerate(self.hop_nodes):
+            mh = self.hops[gi]
+            half = 0.5 * mh.range_modes
+            step = mh.bias_step_deg_per_h
             x = mh.modes_per_k * (nodes_c[:, idx].mean(axis=1) - mh.reference_c)
             k = int(mode[gi])
             j = 0
@@ -319,7 +349,7 @@ class Anomalies:
                 k = new
                 j = jj
             mode[gi] = k
-        offset = k_all.astype(float) * deg_per_h_to_rad_per_s(step)
+        offset = k_all.astype(float) * deg_per_h_to_rad_per_s(steps)[None, :]
         return offset, ev, AnomalyState(mode=mode, imu_lost_left=state.imu_lost_left,
                                         probe_until=state.probe_until,
                                         probe_kind=state.probe_kind,
@@ -328,10 +358,10 @@ class Anomalies:
 
     def mode_offset(self, state: AnomalyState) -> np.ndarray:
         """The current bias offset of every gyro [rad/s] (from the carried mode)."""
-        mh = self.model.mode_hop
-        if mh is None:
+        if not self.hops:
             return np.zeros(len(self.gyro_axes))
-        return state.mode.astype(float) * deg_per_h_to_rad_per_s(mh.bias_step_deg_per_h)
+        return state.mode.astype(float) * deg_per_h_to_rad_per_s(
+            np.array([mh.bias_step_deg_per_h for mh in self.hops]))
 
     # ----------------------------------------------------------------- pulses
 
@@ -544,6 +574,9 @@ class AnomalyRun:
                                gyro_blocks=tuple(gyro.blocks) if gyro is not None else (),
                                probe_names=tuple(probes.names) if probes is not None else (),
                                seed=scenario.seed, unit=scenario.unit, source=device.source)
+        if model.mode_hop is not None and int(scenario.unit) >= 1:   # a drawn Monte Carlo unit
+            self.bound.realise_unit(generator(scenario.realisation_seed, scenario.unit,
+                                              "realisation", "anomalies", 0))
         self.state: AnomalyState | None = None
         self.pending = Events()
 

@@ -247,3 +247,21 @@ def test_lost_frames_remove_the_same_samples_from_another_instrument():
     assert set(a["channel"]) == {"ax", "ay"}
     # the runs are the gyro's runs (per block there may be more gyro events: block ends)
     assert len(a["time_s"]) // 2 <= (ev["kind"] == "imu_dropout").sum()
+
+
+def test_a_drawn_unit_shifts_its_hop_temperatures_within_one_mode_spacing():
+    hop = {**HOP, "modes_per_k_rel": 0.1, "bias_step_rel": 0.2}
+    temps = []
+    for seed in range(40):
+        an = bound({"mode_hop": hop})
+        an.realise_unit(np.random.default_rng(seed))
+        mh = an.hops[0]
+        temps.append(mh.reference_c + (0 + mh.range_modes / 2) / mh.modes_per_k)
+        assert abs(mh.reference_c - 20.0) <= 0.5 / mh.modes_per_k
+    again = bound({"mode_hop": hop})
+    again.realise_unit(np.random.default_rng(39))
+    assert again.hops[0] == mh                           # the same draw for the same stream
+    # the first up-hop temperature spreads over about one mode spacing (1/κ = 12.5 K)
+    assert 5.0 < np.ptp(temps) < 25.0
+    nominal = bound({"mode_hop": HOP})
+    assert nominal.hops[0].reference_c == 20.0           # unit 0: the design as written
