@@ -120,6 +120,7 @@ class ThermalPart:
 
     def declare(self, g: GroupWriter) -> None:
         declare_thermal(g, self.nominal, self.network)
+        self.integrator.declare_extras(g)     # heaters, boundaries: only when the preset has them
 
     def initial_state(self) -> Any:
         ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
@@ -132,6 +133,7 @@ class ThermalPart:
         setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
         power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
         states, new_state = self.integrator.propagate(state, setpoint, power)
+        self._extra_rows = self.integrator.extra_rows()
         trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
                              air_c=np.asarray(states[:, 0]), power=power,
                              nodes_c=np.asarray(states[:, 1:]), start_c=np.asarray(state[1:]))
@@ -140,7 +142,8 @@ class ThermalPart:
     def rows(self, trace: ThermalTrace) -> dict[str, dict[str, np.ndarray]]:
         return {"time": {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
                          "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8),
-                         "node_temperature": trace.nodes_c}}
+                         "node_temperature": trace.nodes_c,
+                         **getattr(self, "_extra_rows", {})}}
 
 
 def realised_network(scenario):

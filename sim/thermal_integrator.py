@@ -231,6 +231,8 @@ class ThermalIntegrator:
             self._nl_n = len(inv)
         #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
         self.last_heater_power_w = np.zeros((0, len(self.heaters)))
+        #: further boundaries' temperatures [°C] (m, nb) at the ends of the last call's steps
+        self.last_boundary_c = np.zeros((0, len(self.boundaries)))
         if tau > 0:
             self._air_mu = float(E[0, 1, 1])
             self._air_s = float(E[0, 1, 2])
@@ -295,6 +297,35 @@ class ThermalIntegrator:
                 out[r0:r1] = res[: r1 - r0]
         return out
 
+    # ----------------------------------------------------------------- dataset record
+
+    def declare_extras(self, g: Any) -> None:
+        """Declare, in the ``thermal`` group, the records of the optional parts this network
+        has (nothing for a network without them, so such datasets keep their layout):
+        ``heater_power`` (time, heater) [W] held over the step ending at time, and
+        ``boundary_temperature`` (time, boundary) [°C] at time."""
+        if self.heaters:
+            g.coordinate("heater", [h.name for h in self.heaters],
+                         description="controlled heater of the network")
+            g.variable("heater_power", ("time", "heater"), units="W",
+                       description="power of the controlled heater, held over the step "
+                                   "ending at time")
+        if self.boundaries:
+            g.coordinate("boundary", [b.name for b in self.boundaries],
+                         description="further boundary of the network (prescribed "
+                                     "temperature)")
+            g.variable("boundary_temperature", ("time", "boundary"), units="degC",
+                       description="temperature of the further boundary at time")
+
+    def extra_rows(self) -> dict[str, np.ndarray]:
+        """The rows of :meth:`declare_extras` for the last :meth:`propagate` call."""
+        out: dict[str, np.ndarray] = {}
+        if self.heaters:
+            out["heater_power"] = self.last_heater_power_w.copy()
+        if self.boundaries:
+            out["boundary_temperature"] = self.last_boundary_c.copy()
+        return out
+
     # ----------------------------------------------------------------- propagation
 
     def propagate(self, state: Any, setpoint_c: Any, power_on: Any, t0_s: float | None = None
@@ -340,6 +371,7 @@ class ThermalIntegrator:
                 hstate = np.zeros(len(self.heaters))     # controllers start from rest
             hstate = np.array(hstate, dtype=float)
         self.last_heater_power_w = np.zeros((max(m, 0), len(self.heaters)))
+        self.last_boundary_c = np.zeros((max(m, 0), len(self.boundaries)))
         if m == 0:
             return np.empty((0, 1 + n)), ThermalState(x0, w0, chamber, k_start * self.step_s,
                                                       hstate)
@@ -359,6 +391,7 @@ class ThermalIntegrator:
             if self.boundaries:
                 tk = self.step_s * np.arange(k_start + k0, k_start + k1 + 1, dtype=float)
                 bk = self.network.boundary_temperatures_c(tk)          # (len, nb)
+                self.last_boundary_c[k0:k1] = bk[1:]
             air, w, hstate = self._advance(air, w, sk, u[k0:k1], states[k0:k1], bk, hstate,
                                            self.last_heater_power_w[k0:k1])
         return states, ThermalState(states[-1], w, chamber, (k_start + m) * self.step_s,
