@@ -24,6 +24,7 @@ import warnings
 from numbers import Integral, Real
 
 import numpy as np
+from joblib import delayed
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.compose import TransformedTargetRegressor
 from sklearn.exceptions import ConvergenceWarning
@@ -40,7 +41,6 @@ from rlgsim.estimators.optimize import harris_hawks, particle_swarm
 from rlgsim.estimators.rvr import RVR, basis_centres, rbf_from_sqdist, scale_width, sparse_bayes_fit
 
 OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
-_MAX_CACHED_CELLS = 20_000_000      # squared-distance cells PSO-SVR caches (160 MB of float64)
 
 
 class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
@@ -88,13 +88,17 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
         result = OPTIMIZERS[self.optimizer](
             fitness, [(-1.0, 1.0)] * len(names), self.n_agents, self.max_iter, self.max_evals,
             random_state=np.random.default_rng(opt_seed))
-        best_log = lo + (result.x + 1.0) * 0.5 * (hi - lo)
+        best_log = self._snap(lo + (result.x + 1.0) * 0.5 * (hi - lo))
         self.best_params_ = {n: float(10.0 ** v) for n, v in zip(names, best_log)}
         self.best_score_ = float(result.fun)
         self.optimize_result_ = result
         self.n_iter_ = result.nit
         self.estimator_ = self._refit(X, y, self.best_params_)
         return self
+
+    def _snap(self, log_params: np.ndarray) -> np.ndarray:
+        """The point the fitness actually evaluated for the optimiser's best position."""
+        return log_params
 
     def predict(self, X):
         """Predictions of the refitted model (units of y)."""
@@ -236,6 +240,41 @@ class HHORVR(OptimizerTunedRegressor):
         return self.estimator_.predict(X, return_std=return_std)
 
 
+def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, C: float,
+                 gamma: float, eps: float) -> tuple[float, int]:
+    """Squared validation error summed over the splits of one (C, gamma, epsilon) point
+    (standardised units) and how many of its fits stopped at ``max_iter``."""
+    sse, capped = 0.0, 0
+    for tr, te in splits:
+        svr = SVR(kernel="rbf", C=C, gamma=gamma, epsilon=eps, max_iter=max_iter,
+                  cache_size=500)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            svr.fit(Xs[tr], ys[tr])
+        if max_iter > 0 and np.max(svr.n_iter_) >= max_iter:
+            capped += 1
+        sse += float(np.sum((svr.predict(Xs[te]) - ys[te]) ** 2))
+    return sse, capped
+
+
+def _n_jobs(n_jobs, n_rows: int) -> int:
+    """Worker processes for the fitness: ``None`` = the cores (at most 8), 1 for fewer than 500
+    rows or inside a worker process (a Monte Carlo unit or another pool: no nested pools)."""
+    import multiprocessing
+    import os
+    if n_jobs is None:
+        if multiprocessing.parent_process() is not None or n_rows < 500:
+            return 1
+        return max(1, min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                          else (os.cpu_count() or 1)))
+    return max(1, int(n_jobs))
+
+
+def _parallel(n_jobs: int):
+    from joblib import Parallel
+    return Parallel(n_jobs=n_jobs, backend="loky")
+
+
 class PSOSVR(OptimizerTunedRegressor):
     """epsilon-SVR (scikit-learn, RBF kernel) with C and gamma (and optionally epsilon) tuned
     by particle swarm optimisation on a validation RMSE (paper 003 §3.3).
@@ -259,6 +298,17 @@ class PSOSVR(OptimizerTunedRegressor):
         Corners of the box with large C·gamma can take minutes to converge; capped, they are
         scored as fitted. The final refit is never capped. Search cost is libsvm's: ~0.5 s
         per capped fit at 1600 training points (see benchmarks/estimators_optimizers.py).
+    resolution : float or None, default 0.02
+        Resolution of the search in decades of every tuned parameter (0.02 decade = 4.7 %):
+        positions that round to the same grid point share one validation (cached), and the
+        point evaluated is the grid point. A converging swarm revisits the same few cells
+        (30 x 100 on 2000 points: about a third of the evaluations are distinct), and no SVR
+        hyper-parameter matters to a few per cent. ``None`` evaluates every position exactly.
+    n_jobs : int or None
+        Processes that validate the distinct new points of a swarm iteration in parallel
+        (joblib); ``None``: the available cores (at most 8) for problems of 500 rows or more,
+        1 below that (process start-up would dominate) and inside a worker process (a Monte
+        Carlo unit: no nested pools). Results do not depend on it.
     random_state : seed for the optimiser and shuffled splits.
 
     Attributes
@@ -266,6 +316,8 @@ class PSOSVR(OptimizerTunedRegressor):
     best_params_ : {"C", "gamma", "epsilon"} of the standardised problem.
     best_score_ : validation RMSE at the best point (units of y).
     n_capped_fits_ : search fits (per fold) stopped by ``search_max_iter``.
+    n_fits_ : distinct grid points validated (cache misses); ``optimize_result_.nfev``
+        counts fitness evaluations as the optimiser sees them.
     estimator_ : ``TransformedTargetRegressor(Pipeline(StandardScaler, SVR), StandardScaler)``
         refitted on all data.
     """
@@ -276,6 +328,7 @@ class PSOSVR(OptimizerTunedRegressor):
                  tune_epsilon: bool = False, epsilon_bounds=(1e-3, 1.0), optimizer: str = "pso",
                  n_agents: int = 30, max_iter: int | None = 100, max_evals: int | None = None,
                  validation=0.2, shuffle: bool = False, search_max_iter: int = 100_000,
+                 resolution: float | None = 0.02, n_jobs: int | None = None,
                  random_state=None):
         self.C_bounds = C_bounds
         self.gamma_bounds = gamma_bounds
@@ -289,6 +342,8 @@ class PSOSVR(OptimizerTunedRegressor):
         self.validation = validation
         self.shuffle = shuffle
         self.search_max_iter = search_max_iter
+        self.resolution = resolution
+        self.n_jobs = n_jobs
         self.random_state = random_state
 
     def _check_params(self) -> None:
@@ -302,6 +357,8 @@ class PSOSVR(OptimizerTunedRegressor):
         m = self.search_max_iter
         if isinstance(m, bool) or not isinstance(m, Integral) or (m < 1 and m != -1):
             raise ValueError(f"search_max_iter must be an integer >= 1 or -1, got {m!r}")
+        check_positive(self.resolution, "resolution", allow_none=True)
+        check_positive(self.n_jobs, "n_jobs", integer=True, allow_none=True)
 
     def _search_space(self, X, y):
         names = ["C", "gamma"]
@@ -320,40 +377,32 @@ class PSOSVR(OptimizerTunedRegressor):
         ys = (y - y_mean) / y_std
         n_test = sum(te.size for _, te in splits)
         tune_eps = self.tune_epsilon
+        res = self.resolution
+        max_iter = int(self.search_max_iter)
+        n_jobs = _n_jobs(self.n_jobs, X.shape[0])
+        data = (Xs, ys, tuple(splits), max_iter)
         self.n_capped_fits_ = 0
-        # Cache the squared distances of every split (train x train, test x train) across all
-        # evaluations and hand libsvm the precomputed kernel exp(-gamma D2) — 2-3x faster per
-        # fit than libsvm's own RBF evaluations — unless the blocks would exceed ~160 MB.
-        n_cells = sum(tr.size * (tr.size + te.size) for tr, te in splits)
-        cached = None
-        if n_cells <= _MAX_CACHED_CELLS:
-            cached = [(squared_distances(Xs[tr], Xs[tr]), squared_distances(Xs[te], Xs[tr]))
-                      for tr, te in splits]
+        cache: dict = {}
 
-        def one(logp: np.ndarray) -> float:
-            C, gamma = 10.0 ** logp[0], 10.0 ** logp[1]
+        def params_of(logp: np.ndarray) -> tuple[float, float, float]:
             eps = 10.0 ** logp[2] if tune_eps else float(self.epsilon)
-            sse = 0.0
-            for k, (tr, te) in enumerate(splits):
-                kernel = "rbf" if cached is None else "precomputed"
-                svr = SVR(kernel=kernel, C=C, gamma=gamma, epsilon=eps,
-                          max_iter=int(self.search_max_iter), cache_size=500)
-                if cached is None:
-                    A_tr, A_te = Xs[tr], Xs[te]
-                else:
-                    A_tr = np.exp(cached[k][0] * -gamma)
-                    A_te = np.exp(cached[k][1] * -gamma)
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", ConvergenceWarning)
-                    svr.fit(A_tr, ys[tr])
-                if self.search_max_iter > 0 and np.max(svr.n_iter_) >= self.search_max_iter:
-                    self.n_capped_fits_ += 1
-                sse += float(np.sum((svr.predict(A_te) - ys[te]) ** 2))
-            self.n_fits_ += 1
-            return float(np.sqrt(sse / n_test)) * y_std
+            return 10.0 ** logp[0], 10.0 ** logp[1], eps
 
         def fitness(L: np.ndarray) -> np.ndarray:
-            return np.array([one(p) for p in L])
+            keys = [tuple(np.rint(p / res).astype(np.int64)) if res is not None else
+                    tuple(p) for p in L]
+            todo = list(dict.fromkeys(k for k in keys if k not in cache))
+            points = [params_of(np.asarray(k, float) * res if res is not None else
+                                np.asarray(k, float)) for k in todo]
+            if n_jobs > 1 and len(points) > 1:
+                out = _parallel(n_jobs)(delayed(_holdout_sse)(*data, *p) for p in points)
+            else:
+                out = [_holdout_sse(*data, *p) for p in points]
+            for k, (sse, capped) in zip(todo, out):
+                cache[k] = float(np.sqrt(sse / n_test)) * y_std
+                self.n_capped_fits_ += capped
+                self.n_fits_ += 1
+            return np.array([cache[k] for k in keys])
 
         return fitness
 
@@ -364,6 +413,11 @@ class PSOSVR(OptimizerTunedRegressor):
         model = TransformedTargetRegressor(regressor=make_pipeline(StandardScaler(), svr),
                                            transformer=StandardScaler())
         return model.fit(X, y)
+
+    def _snap(self, log_params):
+        if self.resolution is None:
+            return log_params
+        return np.rint(log_params / self.resolution) * self.resolution
 
     def fit(self, X, y):
         super().fit(X, y)
