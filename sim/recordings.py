@@ -13,9 +13,9 @@ import os
 import pathlib
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.ground.recording import is_recording, load_recording
+from rlgsim.ground.recording import DATA_SUFFIXES, is_recording, load_recording
 
-__all__ = ["programme_segments", "calibration_source", "info"]
+__all__ = ["programme_segments", "calibration_source", "info", "recording_path"]
 
 
 def programme_segments(ref: str | os.PathLike) -> list[dict]:
@@ -62,3 +62,18 @@ def info(path: str | os.PathLike) -> str:
         return load_recording(path).summary()
     from rlgsim.sim.dataset import summary
     return summary(path)
+
+
+def recording_path(ref: str, base_dir: pathlib.Path | None, source: str) -> pathlib.Path | None:
+    """The recording a study's run reference names (relative to the study file's folder
+    ``base_dir``, else as given), or None when it names a scenario. A reference ending like a
+    table file that does not exist is an error naming the study file ``source``."""
+    p = pathlib.Path(ref)
+    cands = ([base_dir / p] if base_dir is not None and not p.is_absolute() else []) + [p]
+    for c in cands:
+        if c.is_file() and c.suffix.lower() in (*DATA_SUFFIXES, ".toml") and is_recording(c):
+            return c
+    if p.suffix.lower() in DATA_SUFFIXES:
+        raise UserInputError(f"{source}: run {ref!r}: no such recording (looked for "
+                             f"{', '.join(str(c) for c in cands)})")
+    return None

@@ -202,6 +202,16 @@ def _input_files(study: Study, report: Report) -> None:
     report.heading("Scenario and preset files", 2)
     shown: set[str] = set()
     for ref in scenario_refs(study.tables):
+        from rlgsim.sim.recordings import recording_path
+        rec = recording_path(ref, study.base_dir, str(study.source))
+        if rec is not None:                    # a recording: its sidecar (docs/recordings.md)
+            from rlgsim.ground.recording import sidecar_path
+            side = rec if rec.suffix.lower() == ".toml" else sidecar_path(rec)
+            if ("recording", str(side)) not in shown:
+                shown.add(("recording", str(side)))
+                report.verbatim(side.read_text(encoding="utf-8"),
+                                title=f"recording {rec.name}: sidecar {side}", language="toml")
+            continue
         sc = scenario_for(study, ref)
         for kind, name, source, text in (
                 ("scenario", sc.name, sc.source, sc.text),

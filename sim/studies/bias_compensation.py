@@ -57,7 +57,7 @@ from rlgsim.sim.studies.fitting import Fitted, fit_all
 from rlgsim.sim.studies.report_text import (before_check, definitions, device_coefficients_section,
                                              fmt, truth_score_tables)
 from rlgsim.sim.studies.runs import LoadedRun, RunSeries, load_experiment, worth_showing
-from rlgsim.sim.studies.scoring import score_run, series_stability
+from rlgsim.sim.studies.scoring import has_truth, score_run, series_stability
 from rlgsim.sim.studies.study_tables import FeatureSpec, RunSpec, parse_experiment, parse_metrics
 
 TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
@@ -171,13 +171,10 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
 
     rep.heading("Runs, seeds and software", 2)
     rep.bullets([f"rlgsim {software_version()}; recipe bias_compensation; unit {unit}"]
-                + [f"{'train' if s in config.train else 'test'} run {s.label}: scenario "
-                   f"{runs[s.key].scenario.name}, seed {runs[s.key].series.seed}, device_seed "
-                   f"{runs[s.key].series.device_seed}, {runs[s.key].series.y.size} windows of "
+                + [f"{'train' if s in config.train else 'test'} run {s.label}: "
+                   f"{_origin(runs[s.key])}, {runs[s.key].series.y.size} windows of "
                    f"{config.window_s:g} s, raw bias stability "
-                   f"{_raw_stability(runs[s.key].series, config):.5f} °/h, dataset "
-                   f"{runs[s.key].series.path.name}"
-                   f" ({'reused' if runs[s.key].reused else 'simulated'})"
+                   f"{_raw_stability(runs[s.key].series, config):.5f} °/h"
                    for s in dict.fromkeys(config.train + config.test)]
                 + [f"Earth-rate projection on the gyro axis: {rs_test.earth_deg_per_h:.4f} °/h "
                    f"(subtracted from the output: 'bias = output − Earth-rate projection')",
@@ -188,6 +185,17 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
 
     rep.heading("Definitions", 2)
     rep.bullets(definitions())
+    truth = has_truth(rs_test)
+    recorded = [s.label for s in dict.fromkeys(config.train + config.test)
+                if runs[s.key].scenario is None]
+    if recorded:
+        rep.paragraph(f"Recorded runs (docs/recordings.md): {', '.join(recorded)}. A recording "
+                      f"has no ground truth, so "
+                      + ("the truth-based scores (rmse_true, mae_true, r2_true, resid_std_true, "
+                         "law_resid_std, the oracle) are absent (—) and the rankings are judged "
+                         "by the paper's score only; every paper-style table is computed as "
+                         "for a simulated run." if not truth else
+                         "only the simulated test run is scored against the truth."))
 
     # -- correlation (paper 001 Table 1)
     rep.heading("Correlation of the bias with the inputs (paper 001 Table 1)", 2)
@@ -241,7 +249,11 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
                                           "does not define it."))
 
     # -- truth-based scores
-    truth_score_tables(rep, per_test)
+    if truth:
+        truth_score_tables(rep, per_test)
+    else:
+        rep.heading("Truth-based scores", 2)
+        rep.paragraph("Absent: the test run is a recording, which has no ground truth.")
     hyp = [{"compensator": f.spec.name, "kind": f.spec.kind, "fit time s": fmt(f.fit_s),
             **{k: fmt(v) for k, v in f.hyper.items()}} for f in fitted]
     cols = []
@@ -277,8 +289,18 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         _run_figures(rep, config, fitted, runs[spec.key].series, predictions[spec.label],
                      per_test[spec.label], ytr, spec.label, multi)
 
-    device_coefficients_section(rep, rs_test.coefficients)
+    if rs_test.coefficients:
+        device_coefficients_section(rep, rs_test.coefficients)
     return rep
+
+
+def _origin(run: LoadedRun) -> str:
+    """Where a run's data come from: its scenario and seeds and dataset, or its recording."""
+    if run.scenario is None:
+        return f"recording {run.series.path.name} (no truth)"
+    return (f"scenario {run.scenario.name}, seed {run.series.seed}, device_seed "
+            f"{run.series.device_seed}, dataset {run.series.path.name} "
+            f"({'reused' if run.reused else 'simulated'})")
 
 
 def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSeries,
@@ -336,7 +358,8 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
     rate = 1.0 / config.window_s
     for name, series, style in ([("raw", rs.y, dict(color="0.5"))]
                                 + [(n, rs.y - preds[n], {}) for n in best]
-                                + [(ORACLE, rs.y - preds[ORACLE], dict(color="k", ls="--"))]):
+                                + ([(ORACLE, rs.y - preds[ORACLE], dict(color="k", ls="--"))]
+                                   if has_truth(rs) else [])):
         if series.size < 8:
             continue
         ad = M.allan_deviation(series, rate, "octave")
@@ -370,6 +393,9 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
     out = []
     floor = sc[ORACLE]["stability_after"]
     raw = sc[RAW]["stability_after"]
+    truth = bool(np.isfinite(floor))
+    if not truth:                     # a recorded test run: judged by the paper's score only
+        floor = 0.0
 
     def best(kind: str, n_inputs: int | None = None) -> Fitted | None:
         cands = [f for f in fitted if f.spec.kind == kind
@@ -380,10 +406,13 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
         return sc[f.spec.name][key]
 
     out.append(f"Reference points: raw bias stability {raw:.5f} °/h; the oracle (true "
-               f"temperature law removed) reaches {floor:.5f} °/h — the flicker, random walk and "
-               f"white noise that no input-driven model can remove. Differences between "
+               f"temperature law removed) reaches {floor:.5f} °/h — the flicker, random walk "
+               f"and white noise that no input-driven model can remove. Differences between "
                f"compensators that are small against (raw − floor) = {raw - floor:.5f} °/h are "
-               f"within what one realisation of that noise decides.")
+               f"within what one realisation of that noise decides." if truth else
+               f"Reference point: raw bias stability {raw:.5f} °/h. The test run is a "
+               f"recording: no oracle floor, no truth; margins below are in % of the raw "
+               f"bias stability.")
     ladder = [("ir_lssvm", "IR-LSSVM"), ("lssvm", "LSSVM"), ("stepwise", "stepwise"),
               ("polynomial", "LS")]
     have = [(k, lab, best(k)) for k, lab in ladder if best(k) is not None]
@@ -399,9 +428,9 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
                 f"{a:.5f} °/h vs {l2} {f2.spec.name!r} {b:.5f} °/h — "
                 f"{'a tie' if tie else 'holds' if holds else 'does NOT hold'} by bias "
                 f"stability (margin "
-                f"{margin:.1f} % of raw − floor); by the truth "
-                f"(std of ŷ − b) {ta:.5f} vs {tb:.5f} °/h, "
-                f"{'holds' if truth_holds else 'does not hold'}.")
+                f"{margin:.1f} % of raw − floor)"
+                + (f"; by the truth (std of ŷ − b) {ta:.5f} vs {tb:.5f} °/h, "
+                   f"{'holds' if truth_holds else 'does not hold'}." if truth else "."))
         if not tie and margin < 5 and not (k1 == "ir_lssvm" and k2 == "lssvm"):
             text += (" The margin is small enough for another realisation of the noise to "
                      "reverse it; a Monte Carlo over units tells how often it holds.")
@@ -413,7 +442,7 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
                      f"{abs(a - b) / max(raw - floor, 1e-12) * 100:.1f} % of raw − floor).")
         elif tie:
             text += " A tie is not the paper's strict ranking, nor its reversal."
-        elif not holds:
+        elif not holds and truth:
             la, lb = s(f1, "law_resid_std"), s(f2, "law_resid_std")
             text += (f" Why: by the truth, {l2}'s learnt law is "
                      f"{'closer to' if lb < la else 'as far from'} the true temperature law "
@@ -440,7 +469,7 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
         text = (f"Paper: UHFO is the strongest single input (LS: U 40.5 % > T 35.5 % > dT/dt "
                 f"8.0 %). Ours, LS cubic bias stability after (°/h): {listing} — "
                 f"{'holds' if strongest == 'U' else 'does NOT hold'} (strongest: "
-                f"{strongest}; by the truth: {truth_order[0][0]}).")
+                f"{strongest}" + (f"; by the truth: {truth_order[0][0]})." if truth else ")."))
         if strongest != "U":
             text += (" Why: in the simulated TRPLG the UHFO follows the discharge temperature "
                      "and its rate, plus a slow wander no thermometer sees; the bias law has a "
@@ -468,8 +497,9 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int) -> l
         out.append(f"Paper: UHFO improves the composite LS-SVM models (all inputs 61.19 % vs "
                    f"T, dT/dt 59.35 %). Ours: best with U {fu.spec.name!r} {s(fu):.5f} °/h vs "
                    f"best without U {fn.spec.name!r} {s(fn):.5f} °/h — "
-                   f"{'holds' if holds else 'does NOT hold'}; by the truth "
-                   f"{s(fu, 'resid_std_true'):.5f} vs {s(fn, 'resid_std_true'):.5f} °/h.")
+                   f"{'holds' if holds else 'does NOT hold'}"
+                   + (f"; by the truth {s(fu, 'resid_std_true'):.5f} vs "
+                      f"{s(fn, 'resid_std_true'):.5f} °/h." if truth else "."))
     off = []
     ratios = [sc[f.spec.name]["stability_after"] / f.spec.published["stability_deg_per_h"]
               for f in fitted if f.spec.published.get("stability_deg_per_h")]

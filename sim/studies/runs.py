@@ -75,7 +75,11 @@ def simulated_dataset(scenario, path: pathlib.Path, *, progress: bool
 def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int,
                 progress: bool) -> tuple[pathlib.Path, Any, bool]:
     """Simulate ``spec`` into ``workdir/data/<label>.h5`` unless a matching file is there.
-    Returns (path, scenario, reused)."""
+    Returns (path, scenario, reused); a recording is returned as it is, without a scenario."""
+    from rlgsim.sim.recordings import recording_path
+    rec = recording_path(spec.ref, study.base_dir, str(study.source))
+    if rec is not None:
+        return rec, None, True
     scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
     if spec.seed is not None:
         scenario = dataclasses.replace(scenario, seed=spec.seed)
@@ -239,8 +243,13 @@ def load_runs(study: Study, specs: tuple[RunSpec, ...], features: FeatureSpec,
         if spec.key in out:
             continue
         path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
-        out[spec.key] = LoadedRun(read_run(path, features, spec.label, spec.ctx, spec.skip_s),
-                                  scenario, reused)
+        if scenario is None:                      # a recording: no truth, NaN truth series
+            from rlgsim.sim.studies.recording_runs import recording_series
+            series = RunSeries(**recording_series(path, features, spec.label, spec.ctx,
+                                                  spec.skip_s))
+        else:
+            series = read_run(path, features, spec.label, spec.ctx, spec.skip_s)
+        out[spec.key] = LoadedRun(series, scenario, reused)
     return out
 
 
@@ -268,7 +277,7 @@ def load_experiment(study: Study, train: tuple[RunSpec, ...], test: tuple[RunSpe
     series = [runs[s.key].series for s in train]
     X, y = stack(series)
     return Experiment(runs=runs, train=series, X=X, y=y, t_data=t_data,
-                      random_state=random_state_for(runs[train[0].key].scenario.seed, unit))
+                      random_state=random_state_for(runs[train[0].key].series.seed, unit))
 
 
 def stack(runs: list[RunSeries]):

@@ -47,8 +47,17 @@ def score_run(rs: RunSeries, fitted: list[Fitted], y_train: np.ndarray, features
              ORACLE: rs.true_bias - rs.true_random}
     before = bias_stability(rs.y - (0.0 if baseline == RAW else preds[baseline]), rate,
                             cluster_s, ddof)
-    return preds, {name: scores(rs.y, p, rs.true_bias, rs.true_random, features.window_s,
-                                cluster_s, ddof, before) for name, p in preds.items()}
+    out = {name: scores(rs.y, p, rs.true_bias, rs.true_random, features.window_s, cluster_s,
+                        ddof, before) for name, p in preds.items() if name != ORACLE
+           or has_truth(rs)}
+    if not has_truth(rs):                # a recording: no oracle, every score NaN
+        out[ORACLE] = {k: float("nan") for k in next(iter(out.values()))}
+    return preds, out
+
+
+def has_truth(rs: RunSeries) -> bool:
+    """Whether the run carries the truth (a simulated dataset; a recording does not)."""
+    return bool(rs.true_bias.size) and bool(np.all(np.isfinite(rs.true_bias)))
 
 
 # ------------------------------------------------------------------------------ scoring
@@ -60,10 +69,13 @@ def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, windo
     after = M.bias_stability(y - y_hat, rate, cluster_s, ddof)
     out = {"stability_before": before, "stability_after": after,
            "improvement_pct": M.improvement_percent(before, after),
-           "improvement_factor": before / after if after > 0 else float("inf"),
-           "rmse_true": M.rmse(b, y_hat), "mae_true": M.mae(b, y_hat),
-           "r2_true": M.r2(b, y_hat),
-           "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
-           "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))}
+           "improvement_factor": before / after if after > 0 else float("inf")}
+    if not (b.size and np.all(np.isfinite(b))):      # a recording: truth-based scores absent
+        return {**out, **{k: float("nan") for k in ("rmse_true", "mae_true", "r2_true",
+                                                    "resid_std_true", "law_resid_std")}}
+    out.update({"rmse_true": M.rmse(b, y_hat), "mae_true": M.mae(b, y_hat),
+                "r2_true": M.r2(b, y_hat),
+                "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
+                "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))})
     return out
 

@@ -194,6 +194,12 @@ def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: Fea
     fctx, dctx = study.ctx("features"), study.ctx("data")
     seen: set[str] = set()
     for run in runs:
+        from rlgsim.sim.recordings import recording_path
+        rec = recording_path(run.ref, study.base_dir, str(study.source))
+        if rec is not None:                       # a recording (docs/recordings.md)
+            from rlgsim.sim.studies.recording_runs import check_recording_run
+            check_recording_run(study, rec, spec)
+            continue
         scenario = scenario_for(study, run.ref, ctx=run.ctx)
         acq = scenario.acquisition
         for rate in (acq.sample_rate_hz, 1.0 / acq.thermal_step_s):
@@ -226,6 +232,14 @@ def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: Fea
 
 
 def check_scenarios(study: Study, runs: tuple[RunSpec, ...]) -> None:
-    """Every run's scenario must exist and parse (message names the study key)."""
+    """Every run's scenario must exist and parse (message names the study key); a recording
+    (docs/recordings.md) is a run of the bias_compensation recipe only."""
+    from rlgsim.sim.recordings import recording_path
     for spec in runs:
+        if recording_path(spec.ref, study.base_dir, str(study.source)) is not None:
+            if study.recipe != "bias_compensation":
+                raise spec.ctx.error("", f"run {spec.ref!r} is a recording; recordings are runs "
+                                         f"of the bias_compensation recipe (studies demo, "
+                                         f"paper001), not yet of {study.recipe}")
+            continue
         scenario_for(study, spec.ref, ctx=spec.ctx)

@@ -108,7 +108,6 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
         t_slow, temps = rec.probes()
         names = rec.probe_names
         f_slow = rec.sidecar.temperature_rate_hz or f
-        slow_first = int(rec.slow_rows[0]) if rec.slow_rows is not None else 0
         extra = {}
         uh = [k for k, (kind, _, g) in rec.kinds.items() if kind == "uhfo"
               and (g.get("axis") in (None, axis))]
@@ -117,7 +116,6 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
         power = rec.slow("power_on")[1] if "power_on" in rec.columns else None
         bad = rec.dropout[:n_win * m_s].reshape(n_win, m_s).any(axis=1)
         truth = None
-        del slow_first, t_slow
     else:
         tree = open_tree(source)
         try:

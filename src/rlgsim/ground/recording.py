@@ -700,7 +700,8 @@ def load_recording(path: str | os.PathLike) -> Recording:
     back = np.flatnonzero(step <= 0)
     if back.size:
         i = int(back[0]) + 1
-        raise UserInputError(f"{where('time_s', i)}: time {float(t[i])!r} s after {float(t[i - 1])!r} s; time "
+        raise UserInputError(f"{where('time_s', i)}: time {float(t[i])!r} s after "
+                             f"{float(t[i - 1])!r} s; time "
                              f"must increase strictly from row to row")
     off = np.flatnonzero(np.abs(step - dt) > 1e-3 * dt + 1e-9 * np.abs(t[1:]))
     if off.size:

@@ -182,7 +182,8 @@ def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
             for i, ax in enumerate(gyro_axes):
                 slow[f"uhfo_{ax}_v"] = u[:, i].astype(np.float64)
         if "turntable" in f:
-            for var, col in (("outer_angle", "outer_angle_deg"), ("inner_angle", "inner_angle_deg")):
+            for var, col in (("outer_angle", "outer_angle_deg"),
+                             ("inner_angle", "inner_angle_deg")):
                 if var in f["turntable"]:
                     slow[col] = f["turntable"][var][()].astype(np.float64)
         n_thermal = max((len(v) for v in slow.values()), default=0)
