@@ -568,6 +568,10 @@ class AnomalyRun:
         device = scenario.device
         gyro = (getattr(device, "parts", {}) or {}).get("gyro")
         probes = device.thermal.probes
+        if model.mode_hop is not None and gyro is None:
+            from rlgsim.ground.errors import UserInputError
+            raise UserInputError(f"{device.source}: anomalies.mode_hop: the device has no "
+                                 f"[gyro] table whose mode could hop")
         self.model = model
         self.bound = Anomalies(model, node_names=device.thermal.network.node_names,
                                gyro_axes=tuple(gyro.axes) if gyro is not None else (),
