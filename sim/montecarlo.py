@@ -143,6 +143,30 @@ def scan_units(out_dir: pathlib.Path, *, report: bool = False) -> dict[int, Unit
     return records
 
 
+#: Temporary files of :func:`rlgsim.sim.report.write_atomic`: ``.<name>.tmp<pid>``.
+_TEMPORARY = re.compile(r"\..+\.tmp(\d+)")
+
+
+def remove_stale_temporaries(folder: pathlib.Path) -> None:
+    """Delete the temporary files a killed coordinator left in ``folder`` (those whose process
+    is gone); a live process's are kept."""
+    from rlgsim.ground.lifeline import process_alive
+    try:
+        entries = list(pathlib.Path(folder).iterdir())
+    except OSError:
+        return
+    for p in entries:
+        match = _TEMPORARY.fullmatch(p.name)
+        if match is None or int(match.group(1)) == os.getpid():
+            continue
+        if not process_alive(int(match.group(1))):
+            try:
+                if p.is_file() and not p.is_symlink():
+                    p.unlink()
+            except OSError:
+                pass
+
+
 #: A unit record is a few kB; anything much larger is not one (never read it whole).
 _MAX_RECORD_BYTES = 64 << 20
 
@@ -244,6 +268,8 @@ def run_campaign(fn: Callable[[Any, int], dict], payload: Any, n_units: int,
     out_dir.mkdir(parents=True, exist_ok=True)
     if identity is not None:
         check_manifest(out_dir, identity)
+    remove_stale_temporaries(out_dir)
+    remove_stale_temporaries(out_dir / UNIT_DIR)
     done = set(scan_units(out_dir, report=True))
     todo = [u for u in range(n_units) if u not in done]
     bar = Progress(n_units, n_units - len(todo), progress)

@@ -148,3 +148,18 @@ def test_cli_on_a_damaged_folder_exit_2_one_line(tmp_path):
                         "-o", str(out), "--quiet"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
     assert r.stderr.startswith("rlgsim: error: ") and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_temporaries_of_a_dead_coordinator_are_removed(tmp_path):
+    import subprocess as sp
+    out, ref = _campaign(tmp_path, 3)
+    dead = sp.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = [out / f".results.csv.tmp{dead.pid}",
+             out / "units" / f".unit_000001.json.tmp{dead.pid}"]
+    live = out / "units" / f".unit_000002.json.tmp{os.getppid()}"
+    for p in (*stale, live):
+        p.write_text("partial")
+    records = run_campaign(toy_unit, PAYLOAD, 3, out, progress=False, identity=IDENTITY)
+    assert results_csv(records) == ref
+    assert not any(p.exists() for p in stale) and live.exists()

@@ -99,6 +99,22 @@ def process_pool(max_workers: int | None = None, mp_context=None, initializer=No
     return pool
 
 
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and has not finished (a zombie has): used to tell the
+    temporary files of a live run from those a killed run left behind."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:                                          # e.g. another user's process
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rsplit(b")", 1)[-1].split()[0] != b"Z"
+    except (OSError, IndexError):
+        return True
+
+
 def release(pool: cf.Executor) -> None:
     """Close the lifeline pipe of a pool made by :func:`process_pool` (after its shutdown)."""
     for conn in _LIFELINES.pop(id(pool), ()):
