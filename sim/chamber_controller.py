@@ -10,10 +10,16 @@ air is the output of a closed loop, as in a climatic chamber:
       dT_a/dt = q(t) + d(t) − (T_a − T_lab)/τ_loss                                     (C1)
 
   ``q`` [K/s] the net conditioning (heater > 0, refrigeration < 0) expressed as the rate it
-  gives the empty working space, limited to ``[−q_cool, +q_heat]``
-  (``max_cooling_c_per_min``, ``max_heating_c_per_min``). The rate the chamber can really
-  reach is therefore ``q_heat − (T_a − T_lab)/τ_loss`` heating and
-  ``q_cool + (T_a − T_lab)/τ_loss`` cooling — lower near the hot and cold extremes.
+  gives the empty working space, limited to ``[−q_cool(T_a), +q_heat]``
+  (``max_cooling_c_per_min``, ``max_heating_c_per_min``). The refrigeration capacity falls
+  as the evaporating temperature drops, taken linear in the air temperature:
+  ``q_cool(T_a) = q_cool · clip((T_a − T_0)/(T_lab − T_0), 0, 1)`` (full capacity at and above
+  the laboratory temperature), with ``T_0`` such that at the lowest temperature the chamber
+  can hold, ``min_temperature_c`` (its datasheet range: about −40 … −55 °C for single-stage,
+  −70 °C for cascade refrigeration), the remaining capacity just balances the insulation
+  loss. The rate the chamber can really reach is therefore ``q_heat − (T_a − T_lab)/τ_loss``
+  heating and ``q_cool(T_a) + (T_a − T_lab)/τ_loss`` cooling — lower near the hot and cold
+  extremes, and zero at ``min_temperature_c``.
 * **Refrigeration cycling** ``d(t) = D sin(2π t/P)`` [K/s]: the periodic part of the
   conditioning that the controller cannot reject (compressor / hot-gas-bypass / expansion-valve
   cycling). ``D`` is not a user key: it is computed so that the closed loop's air fluctuation at
@@ -71,7 +77,7 @@ DERIVATIVE_FILTER_N = 10.0
 
 KEYS = ("sensor_tau_s", "sample_s", "kp_per_s", "ti_s", "td_s", "max_heating_c_per_min",
         "max_cooling_c_per_min", "loss_tau_s", "lab_c", "ripple_amplitude_c",
-        "ripple_period_s")
+        "ripple_period_s", "min_temperature_c")
 
 #: Defaults (docs/thermal.md §1.4 says where each comes from).
 DEFAULTS = {
@@ -83,6 +89,7 @@ DEFAULTS = {
     "lab_c": 23.0,                   # laboratory temperature
     "ripple_amplitude_c": 0.3,       # datasheet "temperature fluctuation" ±0.1…±0.5 K
     "ripple_period_s": 600.0,        # refrigeration cycling period (assumed)
+    "min_temperature_c": -70.0,      # lowest temperature of a cascade refrigeration system
 }
 
 
@@ -101,6 +108,7 @@ class ChamberController:
     lab_c: float = DEFAULTS["lab_c"]
     ripple_amplitude_c: float = DEFAULTS["ripple_amplitude_c"]
     ripple_period_s: float = DEFAULTS["ripple_period_s"]
+    min_temperature_c: float = DEFAULTS["min_temperature_c"]
 
     @classmethod
     def from_config(cls, table: Mapping[str, Any], ctx: Ctx) -> "ChamberController":
@@ -129,7 +137,18 @@ class ChamberController:
                                              DEFAULTS["ripple_amplitude_c"], min=0.0, max=10.0)
         kw["ripple_period_s"] = get_float(table, "ripple_period_s", ctx,
                                           DEFAULTS["ripple_period_s"], min=10.0, max=86400.0)
-        return cls(**kw)
+        kw["min_temperature_c"] = get_float(table, "min_temperature_c", ctx,
+                                            DEFAULTS["min_temperature_c"], min=-200.0,
+                                            max=kw["lab_c"] - 1.0)
+        c = cls(**kw)
+        need = (c.lab_c - c.min_temperature_c) / (c.loss_tau_s * c.max_cooling_c_per_min / 60.0)
+        if need >= 1.0:
+            raise ctx.error("min_temperature_c",
+                            f"value {c.min_temperature_c:g} not reachable: holding it takes "
+                            f"{need * c.max_cooling_c_per_min:.3g} K/min of cooling against "
+                            f"the insulation loss (loss_tau_s), more than "
+                            f"max_cooling_c_per_min = {c.max_cooling_c_per_min:g}")
+        return c
 
 
 class ChamberLoop:
@@ -154,6 +173,12 @@ class ChamberLoop:
         self.td = c.td_s
         self.q_heat = c.max_heating_c_per_min / 60.0
         self.q_cool = c.max_cooling_c_per_min / 60.0
+        # refrigeration capacity zero at T_0: q_cool (T_min − T_0)/(T_lab − T_0) = loss(T_min)
+        need = (c.lab_c - c.min_temperature_c) / (c.loss_tau_s * self.q_cool)
+        if need >= 1.0:
+            raise ValueError("the refrigeration cannot hold min_temperature_c against the "
+                             "insulation loss")
+        self.t_zero_c = (c.min_temperature_c - need * c.lab_c) / (1.0 - need)
         self.omega = 2.0 * math.pi / c.ripple_period_s
         N = DERIVATIVE_FILTER_N
         self.d_a = self.td / (self.td + N * h) if self.td > 0 else 0.0
@@ -264,7 +289,9 @@ class ChamberLoop:
             r_all = r_all.tolist()
         ta, ts, i, d, yp, oc, os_ = (float(v) for v in state)
         kp, i_e, i_aw, d_a, d_b = self.kp, self.i_e, self.i_aw, self.d_a, self.d_b
-        qh, qc = self.q_heat, -self.q_cool
+        qh, qc0 = self.q_heat, self.q_cool
+        tmin = self.t_zero_c
+        span = self.controller.lab_c - tmin
         paa, pas, psa, pss = self._paa, self._pas, self._psa, self._pss
         pac, pas_, psc, pss_ = self._pac, self._pas_, self._psc, self._pss_
         pau, psu, pal, psl = self._pau, self._psu, self._pal, self._psl
@@ -275,6 +302,8 @@ class ChamberLoop:
             d = d_a * d - d_b * (y - yp)
             e = r - y
             v = kp * e + i + d
+            f = (ta - tmin) / span                  # refrigeration capacity left at T_a
+            qc = -qc0 * (1.0 if f >= 1.0 else (f if f > 0.0 else 0.0))
             u = qh if v > qh else (qc if v < qc else v)
             ta, ts = (paa * ta + pas * ts + pau * u + pac * oc + pas_ * os_ + pal,
                       psa * ta + pss * ts + psu * u + psc * oc + pss_ * os_ + psl)

@@ -42,7 +42,8 @@ def reference_loop(c: ChamberController, loop: ChamberLoop, x0, setpoint, t_end:
             d = td / (td + N * h) * d - kp * td * N / (td + N * h) * (y - yp)
         e = setpoint(t) - y
         v = kp * e + i + d
-        u = min(qh, max(-qc, v))
+        f = min(1.0, max(0.0, (ta - loop.t_zero_c) / (c.lab_c - loop.t_zero_c)))
+        u = min(qh, max(-qc * f, v))
 
         def f(tt, z):
             dz = np.empty_like(z)
@@ -170,6 +171,8 @@ def test_chamber_program_reads_the_controller_table():
     ({"sensor_tau_s": -1.0}, "chamber.controller.sensor_tau_s"),
     ({"max_heating_c_per_min": 0.0}, "chamber.controller.max_heating_c_per_min"),
     ({"ripple_period_s": "long"}, "chamber.controller.ripple_period_s"),
+    ({"min_temperature_c": -150.0, "max_cooling_c_per_min": 2.0},
+     "chamber.controller.min_temperature_c"),
 ])
 def test_bad_controller_keys_are_one_line_errors(edit, key):
     with pytest.raises(UserInputError) as e:
@@ -185,3 +188,22 @@ def test_air_tau_with_a_controller_is_an_error():
         ChamberProgram.from_config(t, Ctx("s.toml", "chamber"))
     with pytest.raises(UserInputError, match="chamber.controller"):
         ChamberProgram.from_config({"start_c": 20.0, "controller": 3}, Ctx("s.toml", "chamber"))
+
+
+def test_cooling_capacity_falls_towards_the_lowest_temperature():
+    """A step to −90 °C: the refrigeration runs out of capacity as the air cools; the air
+    settles where the remaining capacity equals the insulation loss (above −70 °C)."""
+    c = ChamberController(ripple_amplitude_c=0.0, min_temperature_c=-70.0)
+    loop = ChamberLoop(c, 1.0)
+    x0 = loop.initial_state(20.0)
+    prog = lambda t: float(np.interp(t, [0, 100, 101, 3000], [20, 20, -90, -90]))  # noqa
+    sp = np.array([prog(t) for t in np.arange(0, 3001.0)])
+    air, _ = loop.run(x0, sp)
+    ref, _ = reference_loop(c, loop, x0, prog, 3000.0)
+    np.testing.assert_allclose(air, ref, atol=1e-7)
+    # the lowest temperature it can hold is the datasheet's min_temperature_c
+    long, _ = loop.run(x0, np.concatenate([sp, np.full(60000, -90.0)]))
+    assert long[-1] == pytest.approx(-70.0, abs=0.01)
+    # cooling slows down as the capacity falls: the rate at −20 °C exceeds the rate at −55 °C
+    rate = -np.gradient(air) * 60.0
+    assert rate[np.argmin(np.abs(air + 20))] > 1.5 * rate[np.argmin(np.abs(air + 55))]
