@@ -373,7 +373,6 @@ def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSerie
                "and after compensation (allantools).")
 
 
-
 def _raw_stability(rs: RunSeries, config: Config) -> float:
     return series_stability(rs.y, config.window_s, config.cluster_s, config.ddof)
 

@@ -49,7 +49,6 @@ KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
 #: Kinds whose fitted model prints an equation (rlgsim.estimators.term_model).
 EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
 
-
 #: The reference compensators every test run is scored with (reserved names).
 ORACLE = "truth: temperature law"
 RAW = "raw"
@@ -57,6 +56,8 @@ RAW = "raw"
 
 @dataclass(frozen=True)
 class CompensatorSpec:
+    """One validated ``[[compensator]]`` table (``ctx`` names it in messages)."""
+
     name: str
     kind: str
     inputs: tuple[str, ...]
@@ -68,8 +69,8 @@ class CompensatorSpec:
     base_dir: pathlib.Path | None = None      # where a "file.py" estimator is looked up
 
 
-
 def estimator_class(kind: str):
+    """The estimator class of a built-in ``kind`` (imported on first use)."""
     module, cls, _ = KINDS[kind]
     return getattr(importlib.import_module(module), cls)
 
@@ -131,7 +132,6 @@ def load_custom_estimator(ref: str, base_dir: pathlib.Path | None, ctx: Ctx):
     return cls
 
 
-
 def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
                       published_keys: tuple[str, ...], *, min_inputs: int = 1,
                       base_dir: pathlib.Path | None = None) -> CompensatorSpec:
@@ -182,7 +182,6 @@ def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
                                published=published)
 
 
-
 def parse_compensators(data: dict, ctx: Ctx, features: list[str],
                        published_keys: tuple[str, ...], *, min_inputs: int = 1,
                        base_dir: pathlib.Path | None = None) -> tuple[CompensatorSpec, ...]:
@@ -200,7 +199,6 @@ def parse_compensators(data: dict, ctx: Ctx, features: list[str],
     return comps
 
 
-
 def make_estimator(spec: CompensatorSpec, random_state: int):
     """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
     cls = spec_class(spec)
@@ -209,4 +207,3 @@ def make_estimator(spec: CompensatorSpec, random_state: int):
     if "random_state" in cls().get_params() and "random_state" not in params:
         params["random_state"] = random_state
     return cls(**params)
-

@@ -109,7 +109,6 @@ def _parse_environments(data: dict, ctx: Ctx, names: list[str]) -> tuple[Environ
     return envs
 
 
-
 def parse_config(study: Study) -> Config:
     """Validate the recipe's tables into a :class:`Config`;
     :class:`~rlgsim.ground.errors.UserInputError` naming file/key/value."""

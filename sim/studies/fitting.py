@@ -97,4 +97,3 @@ def fit_all(specs, X, y: np.ndarray, random_state: int, *, progress: bool,
 def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
     """A fitted compensator's prediction ŷ on a run's windows [°/h]."""
     return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
-

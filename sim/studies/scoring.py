@@ -78,4 +78,3 @@ def scores(y: np.ndarray, y_hat: np.ndarray, b: np.ndarray, r: np.ndarray, windo
                 "resid_std_true": float(np.std(y_hat - b, ddof=ddof)),
                 "law_resid_std": float(np.std(y_hat - (b - r), ddof=ddof))})
     return out
-

@@ -183,7 +183,6 @@ def parse_features(data: dict, ctx: Ctx, window_s: float, gyro: str | None) -> F
     return spec
 
 
-
 def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: FeatureSpec
                                ) -> None:
     """Before anything is simulated: the window must hold a whole number of samples and thermal
@@ -228,7 +227,6 @@ def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: Fea
                                      f"({', '.join(axes)}); say which one")
         if spec.uhfo and device.parts.get("uhfo") is None:
             raise fctx.error("uhfo", f"device {device.name!r} logs no UHFO")
-
 
 
 def check_scenarios(study: Study, runs: tuple[RunSpec, ...]) -> None:
