@@ -70,7 +70,8 @@ _NATURAL_KEYS = ("h_ref_w_per_m2_k", "reference_dt_k", "area_cm2", "exponent")
 _CONDUCTION_KEYS = ("material", "conductivity_w_per_m_k", "area_cm2", "length_mm")
 _CONVECTION_KEYS = ("h_w_per_m2_k", "area_cm2", "face")
 _RADIATION_KEYS = ("emissivity", "area_cm2")
-_TOLERANCE_KEYS = ("capacitance_rel", "conductance_rel", "ambient_conductance_rel", "power_rel")
+_TOLERANCE_KEYS = ("capacitance_rel", "conductance_rel", "ambient_conductance_rel", "power_rel",
+                   "heater_setpoint_k")
 _TEMPLATE_KEYS = ("description", "ports", "nodes", "links")
 _INSTANCE_KEYS = ("template", "ports", "description", "power_factors",
                   "capacitance_factors", "link_factors", "source")
@@ -153,6 +154,7 @@ class Tolerance:
     conductance_rel: float = 0.0
     ambient_conductance_rel: float = 0.0
     power_rel: float = 0.0
+    heater_setpoint_k: float = 0.0      # 1σ offset of a heater's set point [K] (sensor, trim)
 
 
 @dataclass(frozen=True)
@@ -502,6 +504,13 @@ class ThermalNetwork:
             nz = np.nonzero(Gb > 0)
             Gb[nz] *= np.exp(tol.ambient_conductance_rel * rng.standard_normal(nz[0].size))
             extra["boundary_conductance_w_per_k"] = Gb
+        if self.heaters:
+            # after every other draw: per heater a power-limit factor and a set-point offset
+            z = rng.standard_normal((len(self.heaters), 2))
+            extra["heaters"] = tuple(
+                replace(h, max_power_w=h.max_power_w * math.exp(tol.power_rel * z[i, 0]),
+                        setpoint_c=h.setpoint_c + tol.heater_setpoint_k * z[i, 1])
+                for i, h in enumerate(self.heaters))
         if self.nonlinear_links:
             Gb_new = extra.get("boundary_conductance_w_per_k", self.boundary_conductance_w_per_k)
             links = []
@@ -764,7 +773,8 @@ class _Builder:
     @staticmethod
     def _tolerance(table: Mapping[str, Any], ctx: Ctx) -> Tolerance:
         check_known_keys(table, _TOLERANCE_KEYS, ctx)
-        return Tolerance(**{k: get_float(table, k, ctx, 0.0, min=0.0, max=1.0)
+        return Tolerance(**{k: get_float(table, k, ctx, 0.0, min=0.0,
+                                         max=10.0 if k == "heater_setpoint_k" else 1.0)
                             for k in _TOLERANCE_KEYS})
 
     def _material(self, spec: Mapping[str, Any], key: str, ctx: Ctx) -> Material:

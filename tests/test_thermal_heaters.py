@@ -170,3 +170,20 @@ def test_bad_heater_keys_are_one_line_errors(edit, key):
     with pytest.raises(UserInputError) as e:
         build(preset(**edit))
     assert key in str(e.value) and "h.toml" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_drawn_unit_draws_its_heater_limit_and_set_point():
+    t = preset()
+    t["tolerance"] = {"power_rel": 0.1, "heater_setpoint_k": 0.5, "capacitance_rel": 0.05}
+    net = build(t)
+    units = [net.realise(np.random.default_rng(s)) for s in range(200)]
+    sp = np.array([u.heaters[0].setpoint_c for u in units])
+    pm = np.array([u.heaters[0].max_power_w for u in units])
+    assert abs(sp.mean() - 40.0) < 0.15 and 0.4 < sp.std() < 0.6
+    assert 0.07 < np.std(np.log(pm / 15.0)) < 0.13
+    # the other draws are those of the same network without heaters
+    t2 = preset()
+    t2["tolerance"] = t["tolerance"]
+    del t2["heaters"]
+    plain = build(t2).realise(np.random.default_rng(0))
+    assert np.array_equal(plain.capacitance_j_per_k, units[0].capacitance_j_per_k)
