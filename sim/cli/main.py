@@ -77,6 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     add_study(sub)                         # rlgsim study (sim/cli/study.py)
     from rlgsim.sim.cli.export import add_subparser as add_export
     add_export(sub)                        # rlgsim export (sim/cli/export.py)
+    from rlgsim.sim.cli.identify import add_subparser as add_identify
+    add_identify(sub)                      # rlgsim identify (sim/cli/identify.py)
     return p
 
 
@@ -164,7 +166,7 @@ def _main(argv: Sequence[str] | None) -> int:
             return args.handler(args)
         elif args.command == "list":
             _list()
-        elif args.command in ("calibrate", "study", "export"):
+        elif args.command in ("calibrate", "study", "export", "identify"):
             return args.handler(args)
         return 0
     except UserInputError as exc:

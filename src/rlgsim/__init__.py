@@ -43,6 +43,8 @@ _PUBLIC = {
     # recordings (docs/recordings.md)
     "load_recording": "rlgsim.ground.recording:load_recording",
     "export": "rlgsim.ground.recording_export:export",
+    # the digital twin (docs/identify.md)
+    "identify": "rlgsim.sim.identify:identify",
 }
 
 __all__ = ["__version__", *_PUBLIC]

@@ -1,0 +1,123 @@
+"""The identification report (report.md / report.html with figures, through
+:class:`rlgsim.sim.report.Report`): what was fitted, how well, what was refused and why."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rlgsim.sim.report import Report, Table
+
+__all__ = ["build_report"]
+
+
+def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
+    rep.table(Table.from_records(f"{title}: selection by BIC", [
+        {"step": i, "term": t, "BIC": round(b, 2)} for i, (t, b) in enumerate(sel.steps)],
+        note="each step adds the term that lowers the BIC most (a '-' removes one); the "
+             "candidates were " + ", ".join(sel.candidates)))
+    rep.table(Table.from_records(f"{title}: coefficients", [
+        {"parameter": n, "estimate": float(v), "standard error": float(s),
+         "unit": unit if n in ("intercept",) else ""}
+        for n, v, s in zip(sel.fit.names, sel.fit.x, sel.fit.se)],
+        note=f"standard errors from the Jacobian, inflated ×{sel.fit.inflation:.2f} for the "
+             f"residual autocorrelation (lag-one ρ = {sel.fit.rho:.2f})"))
+
+
+def build_report(result, device_name: str, thermal_name: str) -> Report:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d, th, laws = result.data, result.thermal, result.laws
+    rep = Report(f"Digital twin of {d.source}")
+    rep.paragraph(
+        f"Identified from `{d.source}` ({d.duration_s / 3600:.2f} h, probes every {d.step_s:g} s, "
+        f"gyro `{d.gyro_axis}` at {d.sample_rate_hz:g} Hz, {len(d.windows)} windows of "
+        f"{d.window_s:g} s) with the device template `{device_name}` and the thermal template "
+        f"`{thermal_name}` in {result.seconds:.1f} s. Files: `thermal.toml`, `device.toml`, "
+        f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
+        f"`rlgsim run {result.scenario_path.name}`).")
+    if d.has_motion:
+        rep.paragraph("The recording has turntable motion; the scale factor is not identified "
+                      "(kept from the template).")
+    rep.heading("Thermal network")
+    rows = []
+    for p in th.params:
+        if p.name in th.multipliers:
+            m = th.multipliers[p.name]
+            rows.append({"parameter": p.name, "what": p.description, "multiplier": m,
+                         "standard error": th.rel_se[p.name] * m, "status": "fitted"})
+        else:
+            rows.append({"parameter": p.name, "what": p.description, "multiplier": 1.0,
+                         "standard error": None,
+                         "status": "kept at the template: " + th.refused.get(p.name, "")})
+    rep.table(Table.from_records("Thermal multipliers (× template)", rows,
+                                 note="a multiplier scales the template's design values of "
+                                      "that group; refused parameters keep the template"))
+    if th.fit is not None:
+        names = th.fit.names
+        c = th.fit.corr
+        pairs = [{"a": names[i], "b": names[j], "correlation": float(c[i, j])}
+                 for i in range(len(names)) for j in range(i + 1, len(names))
+                 if abs(c[i, j]) > 0.8]
+        rep.table(Table.from_records("Strongest correlations of the fitted multipliers",
+                                     pairs or [{"a": "-", "b": "-", "correlation": None}],
+                                     note="pairs with |r| > 0.8; above 0.99 a parameter is "
+                                          "refused"))
+        rep.paragraph(f"Standard errors inflated ×{th.fit.inflation:.2f} for the residual "
+                      f"autocorrelation (lag-one ρ = {th.fit.rho:.3f}); {th.fit.nfev} "
+                      f"evaluations of the network over the whole recording.")
+    rep.table(Table.from_records("Probe residual RMS [°C]", [
+        {"probe": n, "template": th.rms_template_c[n], "fitted twin": th.rms_fitted_c[n]}
+        for n in th.probe_names]))
+    fig, ax = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    t_h = d.t_s / 3600
+    ax[0].plot(t_h, d.air_c, color="0.6", lw=0.8, label="chamber air")
+    for j in range(min(3, len(th.probe_names))):
+        ax[0].plot(t_h, d.probes_c[:, j], lw=0.8, label=f"{th.probe_names[j]} recorded")
+        ax[0].plot(t_h, th.probe_fit_c[:, j], "--", lw=0.8, label=f"{th.probe_names[j]} twin")
+        ax[1].plot(t_h, d.probes_c[:, j] - th.probe_fit_c[:, j], lw=0.6,
+                   label=th.probe_names[j])
+    ax[0].set_ylabel("°C")
+    ax[0].legend(fontsize=7, ncol=2)
+    ax[1].set_ylabel("recorded − twin [°C]")
+    ax[1].set_xlabel("time [h]")
+    rep.figure(fig, "probes", "Probes: recorded and twin; residuals")
+    rep.heading("Bias law")
+    rep.paragraph(
+        f"Law node `{laws.bias_node}`, t_ref {laws.t_ref_c:g} °C. Chosen terms: "
+        f"{', '.join(laws.bias.terms) or 'none (constant)'}. Window residual RMS "
+        f"{laws.bias_rms_deg_per_h:.5f} °/h against a raw window standard deviation of "
+        f"{laws.raw_std_deg_per_h:.5f} °/h.")
+    _law_tables(rep, laws.bias, "Bias law", "°/h")
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    tw = np.asarray(d.windows["time_s"]) / 3600
+    y = np.asarray(d.windows["bias_deg_per_h"])
+    ax.plot(tw, y, ".", ms=3, label="recorded (100 s windows)")
+    ax.plot(tw, y + laws.bias.fit.residual, lw=1, label="twin law")
+    ax.set_xlabel("time [h]")
+    ax.set_ylabel("bias [°/h]")
+    ax.legend(fontsize=8)
+    rep.figure(fig, "bias_law", "Window bias and the fitted law")
+    if laws.uhfo is not None:
+        rep.heading("UHFO law")
+        rep.paragraph(f"Node `{laws.uhfo_node}`; U₀ = {laws.u0_v:.4f} V. Discharge wander and "
+                      f"read-out noise from the residual: " + ", ".join(
+                          f"{k} {v:.4g} ± {s:.2g}" for k, (v, s) in laws.uhfo_noise.items()))
+        _law_tables(rep, laws.uhfo, "UHFO law", "V")
+    rep.heading("Noise")
+    if laws.noise is None:
+        rep.paragraph("The record is too short for an Allan fit; the template's noise is kept.")
+    else:
+        rep.table(Table.from_records("Noise from the Allan deviation of the law residual",
+                                     laws.noise.rows(),
+                                     note="95 % intervals; a lower end of 0 means the term is "
+                                          "not resolved"))
+        fig, ax = plt.subplots(figsize=(6, 4))
+        ax.loglog(laws.noise.taus_s, laws.noise.adev_deg_per_h, "o", ms=3, label="residual")
+        ax.loglog(laws.noise.taus_s, laws.noise.model_deg_per_h, label="fitted model")
+        ax.set_xlabel("τ [s]")
+        ax.set_ylabel("Allan deviation [°/h]")
+        ax.legend(fontsize=8)
+        rep.figure(fig, "allan", "Allan deviation of the law residual and the fitted noise")
+    return rep

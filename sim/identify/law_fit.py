@@ -1,0 +1,223 @@
+"""Temperature laws and noise of the twin: given the twin's thermal state (node temperatures of
+the fitted network driven by the recorded chamber air), fit the terms of the simulator's law
+family (:mod:`rlgsim.sim.temperature_laws`) to the recorded gyro bias and UHFO, choosing the
+terms by BIC, then the noise levels from the Allan deviation of what the law leaves.
+
+Bias law (100 s windows of :func:`rlgsim.api.window_table`, Earth rate removed). Candidate
+terms, each evaluated per thermal step on the twin and averaged over the windows exactly as the
+simulator's per-step law is averaged by the windows:
+
+- ``c1``, ``c2``, ``c3``: powers of ``x = T − t_ref`` of the law's node (the template's ``node``
+  and ``t_ref_c``);
+- ``knee``: ``tanh((T − knee_c)/knee_width)``, ``step``: ``1/(1 + exp(−(T − step_c)/step_width))``
+  — centres on a grid over the recorded range (and the template's), polished, and kept inside
+  the range the recording covers (a sigmoid centred outside it is a constant there);
+- ``rate``: the backward-difference rate of ``T`` in °C/min;
+- ``gradient[a-b]``: ``T_a − T_b`` for the template's gradient pairs and for the law node against
+  every other probed node of the block;
+- ``uhfo``: ``U − U_0`` with the recorded UHFO and the fitted UHFO law's ``U_0``.
+
+UHFO law (when the recording has UHFO): the same family on the discharge-side node of the
+template's ``[uhfo]`` (``c1``–``c3``, ``rate``) fitted to the window means of the recorded UHFO;
+what it leaves is the discharge wander, a Gauss–Markov process whose standard deviation and
+correlation time come from the window residual (lag-one correlation ρ over a window: τ =
+−window/ln ρ), and the read-out noise from the first differences of the 1 s residual.
+
+Noise: the gyro rate per sample minus the fitted law (per thermal step, held over its samples),
+powered samples only, into :func:`rlgsim.estimators.identify.allan_noise.fit_allan`.
+
+Selection and uncertainties: :func:`rlgsim.estimators.identify.term_selection.select_terms`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rlgsim.estimators.features import window_average
+from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
+from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
+from rlgsim.sim.identify.recording_data import RecordingData
+
+__all__ = ["LawFit", "fit_laws", "law_prediction"]
+
+
+@dataclass
+class LawFit:
+    """Fitted bias law (``bias``), UHFO law (``uhfo`` or None) with ``u0_v`` and the wander /
+    read-out estimates ``uhfo_noise`` {key: (value, se)}; the noise fit; the bias law's window
+    RMS residual; node names used."""
+
+    bias: SelectedLaw
+    bias_node: str
+    t_ref_c: float
+    uhfo: SelectedLaw | None
+    uhfo_node: str | None
+    uhfo_t_ref_c: float
+    u0_v: float
+    uhfo_noise: dict[str, tuple[float, float]]
+    noise: NoiseFit | None
+    bias_rms_deg_per_h: float
+    raw_std_deg_per_h: float
+    per_step_bias_deg_per_h: np.ndarray
+    gradient_pairs: dict[str, tuple[str, str]]
+
+
+def _node(block: str, name: str, names: tuple[str, ...]) -> int:
+    full = f"{block}.{name}" if block else name
+    if full in names:
+        return names.index(full)
+    return names.index(name)
+
+
+def _rate_c_per_min(T: np.ndarray, step_s: float) -> np.ndarray:
+    prev = np.concatenate(([T[0]], T[:-1]))
+    return (T - prev) * (60.0 / step_s)
+
+
+def _window_rows(rec: RecordingData) -> np.ndarray:
+    return np.rint(np.asarray(rec.windows["time_s"], dtype=float) / rec.window_s).astype(int) - 1
+
+
+def _candidates(T: np.ndarray, t_ref: float, step_s: float, win, law: dict,
+                extra: dict[str, np.ndarray], nonlinear: bool = True) -> list[Term]:
+    """Window-averaged candidate terms; ``win(per_step) -> window values``."""
+    x = T - t_ref
+    terms = [Term("c1", lambda th, v=win(x): v), Term("c2", lambda th, v=win(x ** 2): v),
+             Term("c3", lambda th, v=win(x ** 3): v),
+             Term("rate", lambda th, v=win(_rate_c_per_min(T, step_s)): v)]
+    for name, series in extra.items():
+        terms.append(Term(name, lambda th, v=win(series): v))
+    if not nonlinear:
+        return terms
+    lo, hi = float(np.percentile(T, 2)), float(np.percentile(T, 98))
+    span = max(hi - lo, 1e-3)
+    centres = list(np.linspace(lo + 0.05 * span, hi - 0.05 * span, 31))
+    for key in ("knee", "step"):
+        c0 = law.get(f"{key}_c")
+        w0 = float(law.get(f"{key}_width_k", 5.0 if key == "knee" else 1.5))
+        cs = ([float(c0)] if c0 is not None and lo < float(c0) < hi else []) + centres
+        widths = sorted(w for w in {w0, 1.0, 3.0, 8.0, 20.0} if w < span / 2)
+        grid = [np.array([c, w]) for c in cs for w in widths]
+        if key == "knee":
+            def f(th, T=T):
+                return win(np.tanh((T - th[0]) / th[1]))
+        else:
+            def f(th, T=T):
+                return win(1.0 / (1.0 + np.exp(-np.clip((T - th[0]) / th[1], -60, 60))))
+        terms.append(Term(key, f, ("center_c", "width_k"), grid,
+                          lower=(lo, 0.2), upper=(hi, span / 2)))
+    return terms
+
+
+def law_prediction(sel: SelectedLaw, candidates_per_step: dict) -> np.ndarray:
+    """Per-step value of a selected law from per-step term functions
+    ``{term: f(theta) -> (m,)}``."""
+    x = sel.fit.x
+    names = sel.fit.names
+    out = np.full(next(iter(candidates_per_step.values()))(np.zeros(2)).shape, x[0])
+    for t in sel.terms:
+        th = np.array([x[names.index(n)] for n in names if n.startswith(f"{t}.")])
+        out = out + x[names.index(t)] * candidates_per_step[t](th)
+    return out
+
+
+def _per_step(T, t_ref, step_s, extra):
+    x = T - t_ref
+    f = {"c1": lambda th: x, "c2": lambda th: x ** 2, "c3": lambda th: x ** 3,
+         "rate": lambda th: _rate_c_per_min(T, step_s),
+         "knee": lambda th: np.tanh((T - th[0]) / th[1]),
+         "step": lambda th: 1.0 / (1.0 + np.exp(-np.clip((T - th[0]) / th[1], -60, 60)))}
+    for k, v in extra.items():
+        f[k] = (lambda th, v=v: v)
+    return f
+
+
+def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+             device: dict) -> LawFit:
+    """Fit the bias law, the UHFO law and the noise (module docstring). ``device`` is the
+    device template dict, ``nodes_c`` (m, n) the twin's node temperatures on the recording's
+    temperature grid."""
+    gyro = device.get("gyro", {})
+    block = (gyro.get("blocks") or [""])[0]
+    law = dict(gyro.get("bias", {}))
+    bias_node = str(law.get("node", gyro.get("node", "A")))
+    t_ref = float(law.get("t_ref_c", gyro.get("t_ref_c", 20.0)))
+    step = rec.step_s
+    f_slow = 1.0 / step
+    rows = _window_rows(rec)
+
+    def win(v: np.ndarray) -> np.ndarray:
+        return np.asarray(window_average(np.asarray(v, dtype=float), f_slow,
+                                         rec.window_s))[rows]
+
+    # ------------------------------------------------------------------ UHFO law
+    uhfo_sel = None
+    u0 = 0.0
+    uhfo_node = None
+    utab = dict(device.get("uhfo", {}))
+    uhfo_noise: dict[str, tuple[float, float]] = {}
+    u_t_ref = float(utab.get("t_ref_c", t_ref))
+    if rec.uhfo_v is not None:
+        uhfo_node = str(utab.get("node", "discharge"))
+        Tu = nodes_c[:, _node(block, uhfo_node, node_names)]
+        uw = win(rec.uhfo_v)
+        ucands = _candidates(Tu, u_t_ref, step, win, {}, {}, nonlinear=False)
+        uhfo_sel = select_terms(uw, ucands)
+        u0 = uhfo_sel.value("intercept")
+        upred = law_prediction(uhfo_sel, _per_step(Tu, u_t_ref, step, {}))
+        res_step = rec.uhfo_v - upred
+        powered = rec.power > 0.5
+        r_w = uw - win(upred)
+        r_w = r_w - r_w.mean()
+        rho = float(np.dot(r_w[1:], r_w[:-1]) / max(np.dot(r_w, r_w), 1e-300))
+        lsb = float(utab.get("lsb_v", 0.0))
+        d = np.diff(res_step[powered])
+        noise_v = float(np.sqrt(max(np.var(d) / 2.0 - lsb ** 2 / 12.0, 0.0)))
+        wander = float(np.std(r_w))
+        tau = float(-rec.window_s / np.log(rho)) if 0 < rho < 1 else float("inf")
+        n_eff = max(rec.duration_s / (2.0 * tau), 1.0) if np.isfinite(tau) else 1.0
+        uhfo_noise = {"wander_v": (wander, wander / np.sqrt(2.0 * n_eff)),
+                      "wander_tau_s": (tau, tau * np.sqrt(2.0 / n_eff)),
+                      "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
+    # ------------------------------------------------------------------ bias law
+    T = nodes_c[:, _node(block, bias_node, node_names)]
+    extra: dict[str, np.ndarray] = {}
+    pairs: dict[str, tuple[str, str]] = {}
+    probed = [n.split(".", 1)[1] for n in rec.probe_names if block and n.startswith(f"{block}.")]
+    cand_pairs = [(str(g["a"]), str(g["b"])) for g in law.get("gradients", [])]
+    cand_pairs += [(bias_node, o) for o in probed if o != bias_node]
+    for a, b in cand_pairs:
+        key = f"gradient[{a}-{b}]"
+        if key in extra or f"gradient[{b}-{a}]" in extra:
+            continue
+        try:
+            ia, ib = _node(block, a, node_names), _node(block, b, node_names)
+        except ValueError:
+            continue
+        extra[key] = nodes_c[:, ia] - nodes_c[:, ib]
+        pairs[key] = (a, b)
+    if rec.uhfo_v is not None:
+        extra["uhfo"] = rec.uhfo_v - u0
+    y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
+    bias_sel = select_terms(y, _candidates(T, t_ref, step, win, law, extra))
+    per_step = law_prediction(bias_sel, _per_step(T, t_ref, step, extra))
+    rms = float(np.sqrt(np.mean(bias_sel.fit.residual ** 2)))
+    # ------------------------------------------------------------------ noise
+    noise = None
+    f = rec.sample_rate_hz
+    per = int(round(f * step))
+    rate = rec.rate_deg_per_h
+    n_steps = min(per_step.size, rate.size // per)
+    powered = np.repeat(rec.power[:n_steps] > 0.5, per)
+    resid = rate[:n_steps * per] - np.repeat(per_step[:n_steps], per)
+    resid = resid[powered]
+    try:
+        noise = fit_allan(resid, f)
+    except ValueError:
+        noise = None
+    return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
+                  uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
+                  noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
+                  per_step_bias_deg_per_h=per_step, gradient_pairs=pairs)

@@ -1,0 +1,150 @@
+"""What identification reads from a recording or an rlgsim dataset, checked once: the probe
+temperatures and the chamber air on the temperature grid, the power state, the UHFO, the gyro
+rate at its sample rate, and the 100 s bias windows (:func:`rlgsim.api.window_table`, which
+removes the Earth rate). Every other module of :mod:`rlgsim.sim.identify` works on
+:class:`RecordingData` only.
+
+A recording that cannot support an identification is refused here with one
+:class:`~rlgsim.ground.errors.UserInputError` line saying what is needed (:data:`NEEDS`).
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from rlgsim.ground.errors import UserInputError
+
+__all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K"]
+
+#: what an identification needs, quoted in every refusal
+NEEDS = ("identification needs at least 2 h of powered data with probe temperatures, the "
+         "chamber air (chamber_air_c) and the gyro output, through a chamber programme that "
+         "moves the air by at least 5 K")
+MIN_DURATION_S = 2 * 3600.0
+MIN_SPAN_K = 5.0
+
+
+@dataclass(frozen=True)
+class RecordingData:
+    """One run as identification sees it (times in s from the start, temperatures in °C).
+
+    ``t_s`` (m,) the temperature grid (ends of steps of ``step_s``), ``probes_c`` (m, p) with
+    NaN where a reading is missing, ``air_c`` (m,), ``power`` (m,) 0/1, ``uhfo_v`` (m,) or None,
+    ``rate_deg_per_h`` (N,) the gyro rate per sample at ``sample_rate_hz`` (Earth rate not
+    removed; only its fluctuations are used), ``windows`` the 100 s window table."""
+
+    source: str
+    step_s: float
+    t_s: np.ndarray
+    probe_names: tuple[str, ...]
+    probes_c: np.ndarray
+    air_c: np.ndarray
+    power: np.ndarray
+    uhfo_v: np.ndarray | None
+    gyro_axis: str
+    sample_rate_hz: float
+    rate_deg_per_h: np.ndarray
+    windows: object
+    window_s: float
+    has_motion: bool
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1]) if self.t_s.size else 0.0
+
+
+def _refuse(source: str, what: str) -> UserInputError:
+    return UserInputError(f"{source}: {what}; {NEEDS}")
+
+
+def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
+                   window_s: float = 100.0) -> RecordingData:
+    """Read and check a recording (table + sidecar) or an rlgsim dataset."""
+    from rlgsim.api import open_tree, window_table
+    from rlgsim.ground.recording import is_recording, load_recording
+    source = os.fspath(path)
+    p = pathlib.Path(source)
+    if not p.exists():
+        raise UserInputError(f"{source}: no such file")
+    tree = open_tree(source, load=True)
+    try:
+        if "probes" not in tree.children or tree["probes"].sizes.get("probe", 0) == 0:
+            raise _refuse(source, "no probe temperatures (probe_<name>_c columns)")
+        if "thermal" not in tree.children or "chamber_air" not in tree["thermal"]:
+            raise _refuse(source, "no chamber air temperature (chamber_air_c)")
+        pr = tree["probes"]
+        names = tuple(str(n) for n in pr["probe"].values)
+        temps = np.asarray(pr["temperature"].transpose("time", "probe").values, dtype=float)
+        t = np.asarray(pr["time"].values, dtype=float)
+        th = tree["thermal"]
+        air = np.asarray(th["chamber_air"].values, dtype=float)
+        power = (np.asarray(th["power_on"].values, dtype=float) if "power_on" in th
+                 else np.ones_like(air))
+        imu = tree["imu"] if "imu" in tree.children else None
+        if imu is None or "gyro" not in imu.coords or imu.sizes.get("gyro", 0) == 0:
+            raise _refuse(source, "no gyro output (gyro_<axis>_pulses or a rate column)")
+        axes = [str(a) for a in imu["gyro"].values]
+        if gyro is None:
+            if len(axes) != 1:
+                raise UserInputError(f"{source}: several gyros ({', '.join(axes)}); say which "
+                                     f"one to identify (gyro=)")
+            gyro = axes[0]
+        elif gyro not in axes:
+            raise UserInputError(f"{source}: gyro {gyro!r} not allowed; the gyro axes are "
+                                 f"{', '.join(axes)}")
+        gi = axes.index(gyro)
+        f = float(imu.attrs.get("sample_rate_hz", tree.attrs.get("sample_rate_hz")))
+        uhfo = None
+        if "uhfo" in imu:
+            u = imu["uhfo"]
+            uhfo = np.asarray(u[:, gi].values if u.ndim == 2 else u.values, dtype=float)
+        motion = False
+        if "turntable" in tree.children:
+            tt = tree["turntable"]
+            for key in ("outer_angle", "inner_angle"):
+                if key in tt:
+                    a = np.asarray(tt[key].values, dtype=float)
+                    motion |= bool(np.nanmax(a) - np.nanmin(a) > 1e-9) if a.size else False
+        if is_recording(source):
+            rec = load_recording(source)
+            rate = np.asarray(rec.gyro_rate_deg_per_h()[:, rec.gyro_axes.index(gyro)],
+                              dtype=float)
+        else:
+            pulses = np.asarray(imu["gyro_pulses"][:, gi].values, dtype=np.float64)
+            import tomllib
+            dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
+            k = float(dev.get("gyro", {}).get("scale_factor_pulses_per_arcsec", 2.14))
+            rate = pulses * f / k                   # arcsec/s, which is °/h
+    finally:
+        tree.close()
+    if t.size < 2:
+        raise _refuse(source, f"only {t.size} temperature sample(s)")
+    step = float(np.median(np.diff(t)))
+    if not np.allclose(np.diff(t), step, rtol=1e-6, atol=1e-9) or abs(t[0] - step) > 1e-6 * step:
+        raise UserInputError(f"{source}: the temperature samples must be regular from the "
+                             f"start (one every {step:g} s, the first at {step:g} s); {NEEDS}")
+    if not np.all(np.isfinite(air)):
+        raise _refuse(source, "the chamber air has missing values")
+    powered = power > 0.5
+    if t[-1] < MIN_DURATION_S or powered.sum() * step < MIN_DURATION_S:
+        raise _refuse(source, f"too short: {powered.sum() * step / 3600:.2f} h powered of "
+                              f"{t[-1] / 3600:.2f} h")
+    span = float(np.ptp(air))
+    if span < MIN_SPAN_K:
+        raise _refuse(source, f"no temperature excitation: the chamber air spans only "
+                              f"{span:.2f} K")
+    good = np.isfinite(temps).mean(axis=0)
+    if np.all(good < 0.5):
+        raise _refuse(source, "the probes hold no usable readings")
+    windows = window_table(source, window_s, gyro=gyro)
+    if len(windows) < 20:
+        raise _refuse(source, f"only {len(windows)} complete powered {window_s:g} s windows "
+                              f"of the gyro")
+    return RecordingData(source=source, step_s=step, t_s=t, probe_names=names, probes_c=temps,
+                         air_c=air, power=powered.astype(float), uhfo_v=uhfo, gyro_axis=gyro,
+                         sample_rate_hz=f, rate_deg_per_h=rate, windows=windows,
+                         window_s=window_s, has_motion=motion)

@@ -1,0 +1,373 @@
+"""Thermal grey-box identification: the template's network with a few physically meaningful
+multipliers fitted so the twin's probes follow the recorded ones, given the recorded chamber
+air and power state.
+
+Parameters (derived from the template's structure, each a multiplier ``m = exp(x)`` of design
+values, so a parameter is always positive and ``x`` is its relative change):
+
+==========================================  ===================================================
+``<template>.capacity``                     every node capacity of every instance of a template
+                                            (the gyro block's glass, discharge, ballasts, board)
+``<template>.power``                        its heat sources (discharge, ballasts, pre-amplifier)
+``<template>.internal_conductance``         links between its own nodes (the glass web, bonds)
+``<template>.<port>_conductance``           its links to a port (``air``: its faces to the
+                                            cabinet; ``mount``: the dither mount and standoffs)
+``<node>.capacity``, ``<node>.power``       a top-level node (housing, electronics)
+``chamber_air_conductance``                 every link to the chamber air (the convection and
+                                            radiation of the housing, a mounting flange)
+``internal_conductance``                    the other top-level links
+``probe_lag.<group or point>``              the lag ``tau_s`` of a probe group or point
+==========================================  ===================================================
+
+The network topology is the template's; the multipliers are written back into the preset in
+its own vocabulary (instance ``capacitance_factors`` / ``power_factors`` / ``link_factors``,
+scaled masses, volumes, areas and conductances of top-level nodes and links, probe ``tau_s``),
+so the fitted preset is an ordinary thermal preset that :func:`ThermalNetwork.from_config`
+reads — the same text the fit evaluated.
+
+Model of a recording: :class:`~rlgsim.sim.thermal_integrator.ThermalIntegrator` with the
+recorded chamber air as its input (``air_tau_s = 0``: the air *is* the input, piecewise linear
+between its samples, the integrator's exact first-order hold) and the recorded power state
+(held over each step), from the equilibrium at the first air sample; the probe lags of
+:class:`~rlgsim.sim.thermometers.ProbeSet` without noise or quantisation. Residuals are
+twin − recorded probe readings (missing readings carry zero weight). Fit:
+:func:`rlgsim.estimators.identify.lsq_stats.fit` on the log-multipliers; identifiability:
+:func:`rlgsim.estimators.identify.lsq_stats.screen` first at the template (Jacobian at ``x = 0``),
+then at the solution; a refused parameter keeps the template's value and the reason is
+reported.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable
+
+import numpy as np
+
+from rlgsim.estimators.identify.lsq_stats import LsqFit, fit, screen
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.config import Ctx
+from rlgsim.sim.thermal import ThermalNetwork
+from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.thermometers import ProbeSet
+
+__all__ = ["ThermalParam", "ThermalFit", "thermal_parameters", "apply_multipliers",
+           "twin_response", "fit_thermal", "CHAMBER_AIR"]
+
+CHAMBER_AIR = "chamber_air"
+_AREA_PARTS = ("conduction", "convection", "radiation", "radiation_exact", "natural_convection")
+#: log-multiplier bounds: a factor of 10 either way of the design
+_BOUND = math.log(10.0)
+#: most residuals used per fit (probes × time, decimated in time beyond this)
+MAX_RESIDUALS = 150_000
+
+
+@dataclass(frozen=True)
+class ThermalParam:
+    """One multiplier: ``name``, ``description`` and ``edit(data, m, note)`` that scales the
+    design values in a preset dict in place (``note(path, old, new)`` records each change)."""
+
+    name: str
+    description: str
+    edit: Callable[[dict, float, Callable], None]
+
+
+def _link_key(link: dict) -> str:
+    a, b = link["between"]
+    return f"{a}--{b}"
+
+
+def _scale_link(link: dict, m: float, path: tuple, note) -> None:
+    if "conductance_w_per_k" in link:
+        old = float(link["conductance_w_per_k"])
+        link["conductance_w_per_k"] = old * m
+        note(path + ("conductance_w_per_k",), old, old * m)
+    for part in _AREA_PARTS:
+        if isinstance(link.get(part), dict) and "area_cm2" in link[part]:
+            old = float(link[part]["area_cm2"])
+            link[part]["area_cm2"] = old * m
+            note(path + (part, "area_cm2"), old, old * m)
+
+
+def _instance_factor(inst: dict, table: str, key: str, m: float, path: tuple, note,
+                     alt: str | None = None) -> None:
+    facs = inst.setdefault(table, {})
+    if alt is not None and alt in facs and key not in facs:
+        key = alt
+    old = float(facs.get(key, 1.0))
+    facs[key] = old * m
+    note(path + (table, key), old, old * m)
+
+
+def thermal_parameters(data: dict, probe_names: tuple[str, ...] | None = None
+                       ) -> list[ThermalParam]:
+    """The candidate multipliers of a thermal preset dict (``[thermal]`` and ``[probes]``).
+    With ``probe_names`` only the lags of probes in that list are candidates."""
+    th = data["thermal"]
+    templates = th.get("templates", {})
+    instances = th.get("instances", {})
+    boundaries = set(th.get("boundaries", {}))
+    out: list[ThermalParam] = []
+    used = []
+    for inst in instances.values():
+        if inst["template"] not in used:
+            used.append(inst["template"])
+    for tname in used:
+        tmpl = templates[tname]
+        nodes = tmpl.get("nodes", {})
+        ports = list(tmpl.get("ports", []))
+        links = tmpl.get("links", [])
+        insts = [n for n, i in instances.items() if i["template"] == tname]
+
+        def inst_edit(kind: str, keys: list[tuple[str, str | None]], tname=tname, insts=insts):
+            def edit(d: dict, m: float, note) -> None:
+                for iname in insts:
+                    inst = d["thermal"]["instances"][iname]
+                    for key, alt in keys:
+                        _instance_factor(inst, kind, key, m, ("thermal", "instances", iname),
+                                         note, alt)
+            return edit
+
+        out.append(ThermalParam(f"{tname}.capacity",
+                                f"heat capacity of every node of {tname}",
+                                inst_edit("capacitance_factors", [(n, None) for n in nodes])))
+        powered = [n for n, s in nodes.items() if float(s.get("power_w", 0.0)) > 0]
+        if powered:
+            out.append(ThermalParam(f"{tname}.power", f"heat sources of {tname} "
+                                    f"({', '.join(powered)})",
+                                    inst_edit("power_factors", [(n, None) for n in powered])))
+        groups: dict[str, list[tuple[str, str]]] = {}
+        for ln in links:
+            a, b = ln["between"]
+            if a in nodes and b in nodes:
+                g = "internal_conductance"
+            elif CHAMBER_AIR in (a, b):
+                g = "chamber_air_conductance"
+            else:
+                port = a if a in ports else b
+                g = f"{port}_conductance"
+            groups.setdefault(g, []).append((f"{a}--{b}", f"{b}--{a}"))
+        for g, keys in groups.items():
+            what = {"internal_conductance": f"links between the nodes of {tname}",
+                    "chamber_air_conductance": f"links of {tname} to the chamber air"}.get(
+                        g, f"links of {tname} to its port '{g[:-len('_conductance')]}'")
+            out.append(ThermalParam(f"{tname}.{g}", what, inst_edit("link_factors", keys)))
+    for nname, spec in th.get("nodes", {}).items():
+        def cap_edit(d: dict, m: float, note, nname=nname) -> None:
+            s = d["thermal"]["nodes"][nname]
+            for key in ("capacitance_j_per_k", "volume_cm3", "mass_kg"):
+                if key in s:
+                    old = float(s[key])
+                    s[key] = old * m
+                    note(("thermal", "nodes", nname, key), old, old * m)
+        out.append(ThermalParam(f"{nname}.capacity", f"heat capacity of {nname}", cap_edit))
+        if float(spec.get("power_w", 0.0)) > 0:
+            def pow_edit(d: dict, m: float, note, nname=nname) -> None:
+                s = d["thermal"]["nodes"][nname]
+                old = float(s["power_w"])
+                s["power_w"] = old * m
+                note(("thermal", "nodes", nname, "power_w"), old, old * m)
+            out.append(ThermalParam(f"{nname}.power", f"heat source of {nname}", pow_edit))
+    tgroups: dict[str, list[int]] = {}
+    for i, ln in enumerate(th.get("links", [])):
+        a, b = ln["between"]
+        if CHAMBER_AIR in (a, b):
+            g = "chamber_air_conductance"
+        elif a in boundaries or b in boundaries:
+            g = f"{a if a in boundaries else b}_conductance"
+        else:
+            g = "internal_conductance"
+        tgroups.setdefault(g, []).append(i)
+    for g, idx in tgroups.items():
+        def link_edit(d: dict, m: float, note, idx=idx) -> None:
+            for i in idx:
+                _scale_link(d["thermal"]["links"][i], m, ("thermal", "links", i), note)
+        what = {"chamber_air_conductance": "top-level links to the chamber air",
+                "internal_conductance": "top-level links between nodes"}.get(
+                    g, f"links to the boundary {g[:-len('_conductance')]}")
+        out.append(ThermalParam(g, what, link_edit))
+    pr = data.get("probes", {})
+    default_tau = float(pr.get("defaults", {}).get("tau_s", 0.0))
+    inst_of = {t: [n for n, i in instances.items() if i["template"] == t] for t in used}
+    for gi, grp in enumerate(pr.get("groups", [])):
+        tau = float(grp.get("tau_s", default_tau))
+        members = [f"{inst}.{n}" for inst in grp.get("instances", inst_of.get(grp["template"], []))
+                   for n in grp.get("nodes", [])]
+        if tau <= 0 or (probe_names is not None and not set(members) & set(probe_names)):
+            continue
+
+        def lag_edit(d: dict, m: float, note, gi=gi, tau=tau) -> None:
+            g = d["probes"]["groups"][gi]
+            g["tau_s"] = tau * m
+            note(("probes", "groups", gi, "tau_s"), tau, tau * m)
+        out.append(ThermalParam(f"probe_lag.{grp['template']}[{gi}]",
+                                f"lag of the probes {', '.join(grp.get('nodes', []))} on "
+                                f"{grp['template']}", lag_edit))
+    for pname, spec in pr.get("points", {}).items():
+        tau = float(spec.get("tau_s", default_tau))
+        if tau <= 0 or (probe_names is not None and pname not in probe_names):
+            continue
+
+        def pt_edit(d: dict, m: float, note, pname=pname, tau=tau) -> None:
+            d["probes"]["points"][pname]["tau_s"] = tau * m
+            note(("probes", "points", pname, "tau_s"), tau, tau * m)
+        out.append(ThermalParam(f"probe_lag.{pname}", f"lag of the probe {pname}", pt_edit))
+    return out
+
+
+def apply_multipliers(data: dict, params: list[ThermalParam], mult: dict[str, float]
+                      ) -> tuple[dict, dict[tuple, tuple[str, float, float]]]:
+    """A deep copy of ``data`` with every multiplier applied; and the changes
+    ``{path: (parameter, old, new)}``."""
+    d = copy.deepcopy(data)
+    changes: dict[tuple, tuple[str, float, float]] = {}
+    for p in params:
+        m = float(mult.get(p.name, 1.0))
+        if m == 1.0:
+            continue
+
+        def note(path, old, new, name=p.name):
+            changes[path] = (name, old, new)
+        p.edit(d, m, note)
+    return d, changes
+
+
+def build(data: dict, source: str = "twin") -> tuple[ThermalNetwork, ProbeSet]:
+    """Network and probes of a preset dict."""
+    ctx = Ctx(source, "")
+    net = ThermalNetwork.from_config(data["thermal"], ctx.child("thermal"))
+    probes = ProbeSet.from_config(data["probes"], net, ctx.child("probes"))
+    return net, probes
+
+
+def twin_response(network: ThermalNetwork, probes: ProbeSet, air_c: np.ndarray,
+                  power: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Node temperatures (m, n) and noise-free probe readings (m, p) of ``network`` driven by
+    the chamber air samples ``air_c`` (m,) at the ends of the steps and the power (m,) held
+    over each step, from the equilibrium at ``air_c[0]``."""
+    integ = ThermalIntegrator(network, step_s, 0.0)
+    st = integ.initial_state(float(air_c[0]), bool(power[0] > 0.5))
+    setpoint = np.concatenate(([air_c[0]], air_c))
+    states, _ = integ.propagate(st, setpoint, power)
+    nodes = np.asarray(states[:, 1:])
+    quiet = replace(probes, noise_sigma_c=np.zeros(probes.n_probes),
+                    resolution_c=np.zeros(probes.n_probes))
+    ps = quiet.initial_state(np.asarray(st)[1:])
+    reading, _ = quiet.read(ps, nodes, step_s, np.random.default_rng(0))
+    return nodes, reading
+
+
+@dataclass
+class ThermalFit:
+    """Result: ``fitted`` preset dict and its ``changes``; the fitted parameters (``fit``,
+    log-multipliers) and ``multipliers`` with relative standard errors; ``refused``
+    {parameter: reason}; per-probe RMS of the twin at the template and after the fit;
+    the twin's ``nodes_c`` and ``network``/``probes``."""
+
+    params: list[ThermalParam]
+    fit: LsqFit | None
+    multipliers: dict[str, float]
+    rel_se: dict[str, float]
+    refused: dict[str, str]
+    probe_names: tuple[str, ...]
+    rms_template_c: dict[str, float]
+    rms_fitted_c: dict[str, float]
+    fitted: dict
+    changes: dict
+    network: ThermalNetwork
+    probes: ProbeSet
+    nodes_c: np.ndarray
+    probe_fit_c: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+
+def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
+                probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str = "",
+                max_corr: float = 0.99) -> ThermalFit:
+    """Fit the multipliers of ``template`` (a thermal preset dict) to the recorded probes
+    ``probes_c`` (m, p) named ``probe_names`` (module docstring)."""
+    net0, pr0 = build(template, "thermal template")
+    unknown = [n for n in probe_names if n not in pr0.names]
+    if unknown:
+        raise UserInputError(f"{source}: probe {unknown[0]!r} of the recording is not a probe "
+                             f"of the thermal template (its probes: {', '.join(pr0.names)}); "
+                             f"name the probes as the template does or give another "
+                             f"--thermal-template")
+    cols = np.array([pr0.names.index(n) for n in probe_names])
+    m = air_c.size
+    stride = max(1, int(math.ceil(m * len(probe_names) / MAX_RESIDUALS)))
+    rows = np.arange(stride - 1, m, stride)
+    obs = probes_c[rows]
+    mask = np.isfinite(obs)
+    obs0 = np.where(mask, obs, 0.0)
+    params = thermal_parameters(template, probe_names)
+    by = {p.name: p for p in params}
+
+    def model(mult: dict[str, float]):
+        d, _ = apply_multipliers(template, params, mult)
+        net, pr = build(d)
+        nodes, read = twin_response(net, pr, air_c, power, step_s)
+        return nodes, read[:, cols], net, pr, d
+
+    def residual_for(names: list[str]):
+        def fun(x: np.ndarray) -> np.ndarray:
+            _, read, *_ = model(dict(zip(names, np.exp(x))))
+            r = np.where(mask, read[rows] - obs0, 0.0)
+            return r.T.reshape(-1)               # probe-major: one series per probe
+        return fun
+
+    def jac_at(names: list[str], x: np.ndarray, h: float = 1e-4) -> np.ndarray:
+        fun = residual_for(names)
+        r0 = fun(x)
+        J = np.empty((r0.size, len(names)))
+        for j in range(len(names)):
+            xp = x.copy()
+            xp[j] += h
+            J[:, j] = (fun(xp) - r0) / h
+        return J
+
+    free = [p.name for p in params]
+    refused: dict[str, str] = {}
+    J = jac_at(free, np.zeros(len(free)))
+    while free:
+        s = screen(J, free, max_corr=max_corr)
+        if s is None:
+            break
+        i, why = s
+        refused[free[i]] = why + " (at the template)"
+        free.pop(i)
+        J = np.delete(J, i, axis=1)
+    res = None
+    x = np.zeros(len(free))
+    for _ in range(4):
+        if not free:
+            break
+        res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
+                  segments=len(probe_names), diff_step=1e-6)
+        s = screen(res.jac, free, max_corr=max_corr)
+        if s is None:
+            break
+        i, why = s
+        refused[free[i]] = why + " (at the fitted values)"
+        x = np.delete(res.x, i)
+        free.pop(i)
+    mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
+    rel_se = dict(zip(free, res.se)) if res is not None else {}
+    nodes, fitted_read, net, pr, fitted = model(mult)
+    _, template_read, *_ = model({})
+    fitted, changes = apply_multipliers(template, params, mult)
+
+    def rms(pred):
+        out = {}
+        for j, n in enumerate(probe_names):
+            d = pred[:, j] - probes_c[:, j]
+            d = d[np.isfinite(d)]
+            out[n] = float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan")
+        return out
+    del by
+    return ThermalFit(params=params, fit=res, multipliers=mult, rel_se=rel_se, refused=refused,
+                      probe_names=tuple(probe_names), rms_template_c=rms(template_read),
+                      rms_fitted_c=rms(fitted_read), fitted=fitted, changes=changes,
+                      network=net, probes=pr, nodes_c=nodes, probe_fit_c=fitted_read)
