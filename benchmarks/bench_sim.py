@@ -43,6 +43,33 @@ def scenario_text(hours: float | None, truth_samples: bool) -> str:
     return text
 
 
+def machine_limit(n_bytes: int, block_bytes: int = 8 * 2**20) -> float:
+    """Seconds this machine needs to draw ``n_bytes`` of standard normals (numpy's default
+    generator) and write those bytes with h5py into a growing chunked dataset — the floor under
+    any simulator that draws its noise and writes its output: the issue-16 "machine limit"."""
+    import h5py
+    import numpy as np
+    rng = np.random.default_rng(0)
+    per = block_bytes // 8
+    n_vals = n_bytes // 8
+    tmp = tempfile.mkdtemp(prefix="rlgsim-limit-")
+    path = os.path.join(tmp, "limit.h5")
+    t0 = time.perf_counter()
+    with h5py.File(path, "w") as f:
+        ds = f.create_dataset("x", (0,), maxshape=(None,), dtype="f8", chunks=(per // 8,))
+        done = 0
+        while done < n_vals:
+            m = min(per, n_vals - done)
+            block = rng.standard_normal(m)
+            ds.resize((done + m,))
+            ds[done:done + m] = block
+            done += m
+    wall = time.perf_counter() - t0
+    os.unlink(path)
+    os.rmdir(tmp)
+    return wall
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=None, help="cut the run (default: all)")
@@ -76,6 +103,13 @@ def main(argv: list[str] | None = None) -> None:
     print(f"simulated/wall: {sc.duration_s / wall:,.0f}×")
     print(f"peak memory (max RSS): {peak_mb:.0f} MB")
     print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
+    # the machine limit, measured in the same run right after: normal draws + h5py writes of
+    # the same number of bytes as the file (target: the simulator at >= 0.8 of it)
+    limit = machine_limit(out.stat().st_size)
+    print(f"machine limit (standard normals + h5py writes of the file's {size_mb:.0f} MB): "
+          f"{limit:.2f} s = {epochs / limit / 1e6:.2f} million epochs/s")
+    print(f"simulator / limit: {limit / wall:.2f}  (target >= 0.80)")
+    print(f"load average after the limit: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if not args.keep:
         out.unlink(missing_ok=True)
         try:

@@ -10,6 +10,7 @@ and the warm figure is the fitting, scoring and report time. Printed with the ma
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import sys
 import tempfile
@@ -20,6 +21,10 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from _machine import machine  # noqa: E402
 from rlgsim.sim.study import list_studies, load_study, run_study  # noqa: E402
+
+
+#: Issue 16: every shipped study cold in at most a minute on 2 cores.
+TARGET_S = 60.0
 
 
 def time_study(name: str, warm: bool) -> tuple[float, float | None]:
@@ -43,8 +48,9 @@ def main(argv: list[str] | None = None) -> None:
     args = p.parse_args(argv)
     names = args.studies or [n for n, _ in list_studies()]
     print(f"machine: {machine()}")
-    print(f"{'study':<12} {'cold [s]':>10} {'warm [s]':>10}   (cold: simulate + fit + report; "
-          f"warm: datasets reused)")
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(f"{'study':<12} {'cold [s]':>10} {'warm [s]':>10} {'target':>8}   (cold: simulate + "
+          f"fit + report; warm: datasets reused; target: cold <= 60 s on 2 cores)")
     for name in names:
         try:
             cold, warm = time_study(name, not args.cold_only)
@@ -52,7 +58,9 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{name:<12} failed: {type(exc).__name__}: {exc}")
             continue
         warm_s = f"{warm:10.1f}" if warm is not None else f"{'—':>10}"
-        print(f"{name:<12} {cold:10.1f} {warm_s}", flush=True)
+        verdict = "met" if cold <= TARGET_S else "missed"
+        print(f"{name:<12} {cold:10.1f} {warm_s} {TARGET_S:6.0f} s {verdict}  (load "
+              f"{os.getloadavg()[0]:.2f})", flush=True)
 
 
 if __name__ == "__main__":
