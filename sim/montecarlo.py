@@ -74,8 +74,8 @@ def run_unit_safely(fn: Callable[[Any, int], dict], payload: Any, unit: int) -> 
         rows = [(str(c), str(m), float(v)) for c, m, v in out.get("rows", [])]
         params = {str(k): float(v) for k, v in out.get("params", {}).items()}
         return UnitRecord(unit, "ok", rows, params, seconds=time.perf_counter() - start)
-    except Exception as exc:  # noqa: BLE001 - a failing unit is data, not a crash
-        tb = traceback.format_exc(limit=4)
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a failing unit is data, not a crash
+        tb = traceback.format_exc(limit=4)      # (sys.exit in a user's compensator included)
         return UnitRecord(unit, "failed", error=f"{type(exc).__name__}: {exc}\n{tb}",
                           seconds=time.perf_counter() - start)
 

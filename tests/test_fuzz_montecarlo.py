@@ -163,3 +163,16 @@ def test_temporaries_of_a_dead_coordinator_are_removed(tmp_path):
     records = run_campaign(toy_unit, PAYLOAD, 3, out, progress=False, identity=IDENTITY)
     assert results_csv(records) == ref
     assert not any(p.exists() for p in stale) and live.exists()
+
+
+def _exits(payload, unit):
+    import sys as _sys
+    if unit == 1:
+        _sys.exit(0)
+    return toy_unit(payload, unit)
+
+
+def test_a_unit_calling_sys_exit_is_a_failed_unit(tmp_path):
+    records = run_campaign(_exits, PAYLOAD, 3, tmp_path / "mc", progress=False, workers=1)
+    assert [r.status for r in records] == ["ok", "failed", "ok"]
+    assert records[1].error.startswith("SystemExit")
