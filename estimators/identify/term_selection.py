@@ -1,21 +1,22 @@
-"""Which terms of a law does the recording support? Forward selection by the Bayesian
+"""Which terms of a law does the recording support? Best-subset selection by the Bayesian
 information criterion, then a joint refinement with uncertainties.
 
 A law is ``y ≈ β₀ + Σ_t β_t·f_t(θ_t)``: each candidate term ``t`` is one feature column that may
 depend on a few nonlinear parameters ``θ_t`` (a knee's centre and width, a step's), with a grid
-of starting values. Selection (Schwarz 1978):
+of starting values. Criterion (Schwarz 1978):
 
     BIC = n·ln(SSR/n) + k·ln n,     k = 1 + (number of terms) + (nonlinear parameters)
 
-(An effective sample size from the residual autocorrelation was tried and rejected: the
-residual of an incomplete law is smooth, so it shrinks n until no missing term can enter.)
-
-Starting from the intercept, the candidate whose addition lowers the BIC most is added (each
-nonlinear candidate at the best θ of its grid, polished with the linear coefficients profiled
-out), until no addition lowers it; then every term
-whose removal lowers the BIC is removed (one backward pass). The linear fits of the selection
-are :class:`statsmodels.regression.linear_model.OLS`; the nonlinear parameters count in ``k``,
-so a knee is only chosen when it pays for its centre and width.
+Linear terms: every subset of up to ``max_linear`` candidates is fitted (least squares) and the
+one of lowest BIC kept — not forward selection, because the thermal features of a gyro are
+strongly collinear (a temperature rate, the gradients a ramp drives, the UHFO that follows
+both) and a greedy first step then locks in a stand-in for the true term. Nonlinear terms are
+added one at a time on top (each at the best θ of its grid, polished with the linear
+coefficients profiled out — variable projection, Golub & Pereyra 1973), the linear subset
+re-chosen after each, while the BIC falls. The nonlinear parameters count in ``k``, so a knee
+is only chosen when it pays for its centre and width. (An effective sample size from the
+residual autocorrelation was tried in the BIC and rejected: the residual of an incomplete law
+is smooth, so it shrinks n until no missing term can enter.)
 
 Refinement: every coefficient and every nonlinear parameter of the chosen terms are fitted
 together by :func:`rlgsim.estimators.identify.lsq_stats.fit`, whose standard errors are
@@ -24,13 +25,11 @@ inflated for the residual autocorrelation (window series of a gyro bias carry fl
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-import warnings
-
 import numpy as np
-import statsmodels.api as sm
 from scipy.optimize import least_squares
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit
@@ -58,17 +57,15 @@ class Term:
 
 @dataclass(frozen=True)
 class SelectedLaw:
-    """The chosen ``terms`` (names, in selection order), the refined ``fit`` (parameters
-    ``intercept``, ``<term>``, ``<term>.<theta>``), the selection ``steps`` (term, BIC after)
-    and ``bic``."""
+    """The chosen ``terms``, the refined ``fit`` (parameters ``intercept``, ``<term>``,
+    ``<term>.<theta>``), the selection ``steps`` (best linear subset of each size and each
+    added nonlinear term, with its BIC) and the final ``bic``."""
 
     terms: tuple[str, ...]
     fit: LsqFit
     steps: tuple[tuple[str, float], ...]
     bic: float
     candidates: tuple[str, ...]
-    n_eff: float = 0.0
-    rho: float = 0.0
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
@@ -77,89 +74,97 @@ class SelectedLaw:
         return float(self.fit.se[self.fit.names.index(name)])
 
 
-def _ols_bic(y: np.ndarray, cols: list[np.ndarray], k_extra: int, n_eff: float) -> float:
-    X = np.column_stack([np.ones_like(y), *cols]) if cols else np.ones((y.size, 1))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = sm.OLS(y, X).fit()
+def _bic(y: np.ndarray, X: np.ndarray, k_extra: int) -> float:
+    """BIC of the least-squares fit of ``y`` on the columns of ``X`` (intercept included)."""
+    beta = np.linalg.lstsq(X, y, rcond=None)[0]
+    r = y - X @ beta
     n = y.size
-    ssr = max(float(res.ssr), 1e-300)
-    return n_eff * np.log(ssr / n) + (X.shape[1] + k_extra) * np.log(n_eff)
+    ssr = max(float(r @ r), 1e-300)
+    return n * np.log(ssr / n) + (X.shape[1] + k_extra) * np.log(n)
 
 
-def _refine_theta(y: np.ndarray, cols: list[np.ndarray], t: Term, best: tuple,
-                  k_extra: int, n_eff: float) -> tuple:
-    """Polish the nonlinear parameters of the candidate ``best`` from its grid point with the
-    linear coefficients profiled out (variable projection, Golub & Pereyra 1973)."""
-    base = np.column_stack([np.ones_like(y), *cols])
-
+def _refine_theta(y: np.ndarray, base: np.ndarray, t: Term, th0: np.ndarray) -> np.ndarray:
+    """Polish the nonlinear parameters of candidate ``t`` from ``th0`` with the linear
+    coefficients profiled out (variable projection, Golub & Pereyra 1973)."""
     def resid(th: np.ndarray) -> np.ndarray:
-        col = np.asarray(t.feature(th), dtype=float)
-        X = np.column_stack([base, col])
+        X = np.column_stack([base, np.asarray(t.feature(th), dtype=float)])
         return y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
     lo, hi = np.asarray(t.lower, dtype=float), np.asarray(t.upper, dtype=float)
-    th0 = np.clip(best[3], lo + 1e-9, hi - 1e-9)
+    th0 = np.clip(th0, lo + 1e-9 * (1 + np.abs(lo)), hi - 1e-9 * (1 + np.abs(hi)))
     try:
-        res = least_squares(resid, th0, bounds=(lo, hi), method="trf", x_scale="jac",
-                            max_nfev=60)
+        return least_squares(resid, th0, bounds=(lo, hi), method="trf", x_scale="jac",
+                             max_nfev=60).x
     except ValueError:
-        return best
-    col = np.asarray(t.feature(res.x), dtype=float)
-    b = _ols_bic(y, cols + [col], k_extra + t.k, n_eff)
-    return (b, best[1], col, np.asarray(res.x)) if b < best[0] else best
+        return th0
 
 
-def select_terms(y: np.ndarray, candidates: Sequence[Term], *, refine: bool = True
+def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int = 6
                  ) -> SelectedLaw:
     """Choose terms by BIC (module docstring) and refine them jointly."""
     y = np.asarray(y, dtype=float)
     if y.ndim != 1 or y.size < 3 or not np.all(np.isfinite(y)):
         raise ValueError("select_terms needs a finite 1-D target with at least 3 values")
-    cols: dict[str, np.ndarray] = {}
-    theta: dict[str, np.ndarray] = {}
+    ones = np.ones_like(y)
+    lin = [t for t in candidates if not t.k]
+    nonlin = [t for t in candidates if t.k]
+    lcols = {t.name: np.asarray(t.feature(np.zeros(0)), dtype=float) for t in lin}
+    lin = [t for t in lin if np.all(np.isfinite(lcols[t.name])) and np.ptp(lcols[t.name]) > 0]
     by_name = {t.name: t for t in candidates}
-    chosen: list[str] = []
-    n_eff, rho = float(y.size), 0.0
-    bic = _ols_bic(y, [], 0, n_eff)
-    steps: list[tuple[str, float]] = [("intercept", float(bic))]
+    steps: list[tuple[str, float]] = []
 
-    def k_extra(names: list[str]) -> int:
-        return sum(by_name[n].k for n in names)
+    def best_subset(fixed: list[np.ndarray], k_extra: int) -> tuple[float, list[str]]:
+        base = np.column_stack([ones, *fixed])
+        best = (_bic(y, base, k_extra), [])
+        names = [t.name for t in lin]
+        for size in range(1, min(max_linear, len(names)) + 1):
+            best_k = None
+            for combo in itertools.combinations(names, size):
+                X = np.column_stack([base] + [lcols[c] for c in combo])
+                b = _bic(y, X, k_extra)
+                if best_k is None or b < best_k[0]:
+                    best_k = (b, list(combo))
+            steps.append((" + ".join(best_k[1]), float(best_k[0])))
+            if best_k[0] < best[0]:
+                best = best_k
+        return best
 
+    nl_chosen: list[str] = []
+    nl_cols: dict[str, np.ndarray] = {}
+    theta: dict[str, np.ndarray] = {}
+    bic, lin_chosen = best_subset([], 0)
     while True:
+        base = np.column_stack([ones] + [nl_cols[c] for c in nl_chosen]
+                               + [lcols[c] for c in lin_chosen])
+        k_now = sum(by_name[c].k for c in nl_chosen)
         best = None
-        for t in candidates:
-            if t.name in chosen:
+        for t in nonlin:
+            if t.name in nl_chosen:
                 continue
             for th in t.grid:
                 col = np.asarray(t.feature(np.asarray(th, dtype=float)), dtype=float)
                 if not np.all(np.isfinite(col)) or np.ptp(col) == 0:
                     continue
-                b = _ols_bic(y, [cols[c] for c in chosen] + [col], k_extra(chosen) + t.k, n_eff)
+                b = _bic(y, np.column_stack([base, col]), k_now + t.k)
                 if best is None or b < best[0]:
-                    best = (b, t.name, col, np.asarray(th, dtype=float))
-        if best is not None and by_name[best[1]].k:
-            best = _refine_theta(y, [cols[c] for c in chosen], by_name[best[1]], best,
-                                 k_extra(chosen), n_eff)
-        if best is None or best[0] >= bic:
+                    best = (b, t, np.asarray(th, dtype=float))
+        if best is None:
             break
-        bic, name, col, th = best
-        chosen.append(name)
-        cols[name], theta[name] = col, th
-        steps.append((name, float(bic)))
-    changed = True
-    while changed and chosen:                       # backward pass
-        changed = False
-        for name in list(chosen):
-            rest = [c for c in chosen if c != name]
-            b = _ols_bic(y, [cols[c] for c in rest], k_extra(rest), n_eff)
-            if b < bic:
-                bic = b
-                chosen = rest
-                steps.append((f"-{name}", float(b)))
-                changed = True
-                break
-
+        t = best[1]
+        th = _refine_theta(y, base, t, best[2])
+        col = np.asarray(t.feature(th), dtype=float)
+        b = _bic(y, np.column_stack([base, col]), k_now + t.k)
+        if min(b, best[0]) >= bic:
+            break
+        if best[0] < b:
+            th = best[2]
+            col = np.asarray(t.feature(th), dtype=float)
+        nl_chosen.append(t.name)
+        nl_cols[t.name], theta[t.name] = col, th
+        steps.append((f"+{t.name}", float(min(b, best[0]))))
+        bic, lin_chosen = best_subset([nl_cols[c] for c in nl_chosen],
+                                      sum(by_name[c].k for c in nl_chosen))
+    chosen = [c for c in (t.name for t in candidates) if c in lin_chosen or c in nl_chosen]
+    cols = {**lcols, **nl_cols}
     names = ["intercept"] + chosen
     X0 = np.column_stack([np.ones_like(y)] + [cols[c] for c in chosen])
     beta0 = np.linalg.lstsq(X0, y, rcond=None)[0]
@@ -168,6 +173,8 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, refine: bool = Tr
     hi = [np.inf] * len(x0)
     for c in chosen:
         t = by_name[c]
+        if not t.k:
+            continue
         names += [f"{c}.{tn}" for tn in t.theta_names]
         x0 += list(theta[c])
         lo += list(t.lower)
@@ -188,11 +195,10 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, refine: bool = Tr
             pred = pred + x[1 + i] * (t.feature(th) if t.k else cols[c])
         return pred - y
 
-    if not refine or not any(by_name[c].k for c in chosen):
+    if not any(by_name[c].k for c in chosen):
         # linear: one solve, statistics from the same machinery
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5)
     else:
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a))
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
-                       candidates=tuple(t.name for t in candidates), n_eff=float(n_eff),
-                       rho=float(rho))
+                       candidates=tuple(t.name for t in candidates))

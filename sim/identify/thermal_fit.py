@@ -29,7 +29,11 @@ Model of a recording: :class:`~rlgsim.sim.thermal_integrator.ThermalIntegrator` 
 recorded chamber air as its input (``air_tau_s = 0``: the air *is* the input, piecewise linear
 between its samples, the integrator's exact first-order hold) and the recorded power state
 (held over each step), from the equilibrium at the first air sample; the probe lags of
-:class:`~rlgsim.sim.thermometers.ProbeSet` without noise or quantisation. Residuals are
+:class:`~rlgsim.sim.thermometers.ProbeSet` without noise or quantisation. During the fit the
+network is integrated on a grid of at most 15,000 steps (every k-th recorded sample: the air
+is smooth, so its piecewise-linear hold stays exact to the millikelvin) and at most 30,000
+probe residuals are used (every j-th grid point): the probes' lags and the network's time
+constants make neighbouring seconds redundant. The final twin runs on the recorded grid. Residuals are
 twin − recorded probe readings (missing readings carry zero weight). Fit:
 :func:`rlgsim.estimators.identify.lsq_stats.fit` on the log-multipliers; identifiability:
 :func:`rlgsim.estimators.identify.lsq_stats.screen` first at the template (Jacobian at ``x = 0``),
@@ -61,7 +65,9 @@ _AREA_PARTS = ("conduction", "convection", "radiation", "radiation_exact", "natu
 #: log-multiplier bounds: a factor of 10 either way of the design
 _BOUND = math.log(10.0)
 #: most residuals used per fit (probes × time, decimated in time beyond this)
-MAX_RESIDUALS = 150_000
+MAX_RESIDUALS = 30_000
+#: most integration steps per evaluation during the fit (a coarser grid beyond this)
+MAX_FIT_STEPS = 15_000
 
 
 @dataclass(frozen=True)
@@ -296,19 +302,28 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
                              f"name the probes as the template does or give another "
                              f"--thermal-template")
     cols = np.array([pr0.names.index(n) for n in probe_names])
-    m = air_c.size
+    m_full = air_c.size
+    # the fit integrates on a coarser grid (every `coarse` recorded steps): the air is smooth
+    # and the first-order hold stays exact to the millikelvin; the final twin is on the full grid
+    coarse = max(1, int(math.ceil(m_full / MAX_FIT_STEPS)))
+    sel = np.arange(coarse - 1, m_full, coarse)
+    air_f, power_f, step_f = air_c[sel], power[sel], step_s * coarse
+    m = sel.size
     stride = max(1, int(math.ceil(m * len(probe_names) / MAX_RESIDUALS)))
     rows = np.arange(stride - 1, m, stride)
-    obs = probes_c[rows]
+    obs = probes_c[sel][rows]
     mask = np.isfinite(obs)
     obs0 = np.where(mask, obs, 0.0)
     params = thermal_parameters(template, probe_names)
     by = {p.name: p for p in params}
 
-    def model(mult: dict[str, float]):
+    def model(mult: dict[str, float], full: bool = False):
         d, _ = apply_multipliers(template, params, mult)
         net, pr = build(d)
-        nodes, read = twin_response(net, pr, air_c, power, step_s)
+        if full:
+            nodes, read = twin_response(net, pr, air_c, power, step_s)
+        else:
+            nodes, read = twin_response(net, pr, air_f, power_f, step_f)
         return nodes, read[:, cols], net, pr, d
 
     def residual_for(names: list[str]):
@@ -355,8 +370,8 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         free.pop(i)
     mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
     rel_se = dict(zip(free, res.se)) if res is not None else {}
-    nodes, fitted_read, net, pr, fitted = model(mult)
-    _, template_read, *_ = model({})
+    nodes, fitted_read, net, pr, fitted = model(mult, full=True)
+    _, template_read, *_ = model({}, full=True)
     fitted, changes = apply_multipliers(template, params, mult)
 
     def rms(pred):

@@ -21,6 +21,7 @@ import tomllib
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim import presets
@@ -231,9 +232,12 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     data = read_recording(source, gyro=gyro)
     dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
     name = name or f"{dev_name}_twin"
-    thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
-                          data.probes_c, source=source)
-    laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
+    # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
+    # slows down on a shared machine (same reason as the thermal integrator)
+    with threadpool_limits(limits=1, user_api="blas"):
+        thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
+                              data.probes_c, source=source)
+        laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
     out = pathlib.Path(out_dir)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"{out}: exists and is not a folder; -o needs a folder")
