@@ -72,6 +72,8 @@ def test_fifo_and_devices_as_scenario_or_device_are_refused(here, capsys):
     one_error(capsys, ["info", "pipe.toml"], "pipe.toml", "FIFO")
     one_error(capsys, ["info", "/dev/zero"], "character device")
     one_error(capsys, ["calibrate", "pipe.toml"], "FIFO")
+    (here / "data.h5").write_bytes(b"x")
+    one_error(capsys, ["calibrate", "data.h5", "--programme", "pipe.toml"], "pipe.toml", "FIFO")
     one_error(capsys, ["study", "./pipe.toml"], "FIFO")
     one_error(capsys, ["montecarlo", "./pipe.toml", "--units", "1"], "FIFO")
 

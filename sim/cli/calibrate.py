@@ -98,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
     from rlgsim.sim.cli.paths import input_file, output_file
     path = input_file(args.dataset, "an rlgsim dataset or a recording",
                       missing="no such dataset file")
+    if args.programme is not None and os.path.lexists(args.programme):
+        input_file(args.programme, "a programme CSV or a scenario .toml")
     out = check_writable(output_file(args.output or
                                      path.with_name(f"{path.stem}_calibration.csv"),
                                      inputs=[path, args.programme or ""]))
