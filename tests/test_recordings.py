@@ -389,3 +389,65 @@ def test_export_import_study_gives_the_datasets_paper_scores(tmp_path):
                 np.testing.assert_allclose(b[c], a[c], rtol=1e-9, err_msg=f"{name}: {c}")
             else:
                 assert list(a[c]) == list(b[c]), (name, c)
+
+
+def test_programme_from_the_scenario_equals_the_datasets(tmp_path):
+    """--programme SCENARIO rebuilds exactly the dataset's turntable and calibration segments
+    (and so does the exported programme CSV); calibrating with either gives the same table."""
+    from rlgsim.ground.dataset_format import open_dataset
+    from rlgsim.ground.programme import read_programme
+    from rlgsim.sim.recordings import programme_segments
+    scen = tmp_path / "tt.toml"
+    scen.write_text('name = "tt"\ndevice = "rlg_imu_000"\nseed = 3\nduration_min = 42\n'
+                    '[acquisition]\nsample_rate_hz = 10\n[chamber]\nstart_c = 20.0\n'
+                    '[[chamber.segments]]\ntype = "hold"\nduration_min = 42\n'
+                    '[turntable]\nprogram = "calibration19"\nrate_deg_s = 20.0\n')
+    h5 = tmp_path / "tt.h5"
+    assert main(["run", str(scen), "-o", str(h5), "-q"]) == 0
+    with open_dataset(h5) as ds:
+        want = [s for s in ds.segments() if s["track"] in ("turntable", "calibration")]
+    assert programme_segments(scen) == want
+    assert main(["export", str(h5), "-q"]) == 0
+    csv_segs = read_programme(tmp_path / "tt_recording_programme.csv")
+    key = lambda s: (s["track"], s["t0"])                                  # noqa: E731
+    for a, b in zip(sorted(csv_segs, key=key), sorted(want, key=key)):
+        assert (a["t0"], a["t1"], a["track"]) == (b["t0"], b["t1"], b["track"])
+        for k in ("kind", "axis", "rate_deg_s", "outer_deg", "inner_deg", "window"):
+            if a["track"] == "turntable":
+                assert a["attrs"][k] == b["attrs"][k], (k, a, b)
+    rec = tmp_path / "tt_recording.csv"
+    for prog, out in ((scen, "a.csv"), (tmp_path / "tt_recording_programme.csv", "b.csv")):
+        assert main(["calibrate", str(rec), "--programme", str(prog), "-o",
+                     str(tmp_path / out), "-q", "--workers", "1"]) == 0
+    a, b = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
+    assert list(a["status"]) == ["ok", "failed"]            # the second window is cut short
+    np.testing.assert_allclose(a["gyro_bias_z"], b["gyro_bias_z"], rtol=1e-6)
+
+
+def test_hdf5_and_parquet_tables_of_other_tools_with_column_mapping(tmp_path):
+    n = 200
+    t = np.arange(1, n + 1) / 10.0
+    temp = np.linspace(20, 25, n)
+    with h5py.File(tmp_path / "log.h5", "w") as f:
+        g = f.create_group("log")
+        g["Zeit"] = t
+        g["T1"] = temp
+        g["rate"] = np.full(n, 12.5)
+        g["comment"] = np.zeros(n)
+    (tmp_path / "log.toml").write_text(
+        '[recording]\nsample_rate_hz = 10\nhdf5_group = "/log"\nignore_columns = ["comment"]\n'
+        '[gyro]\naxes = ["z"]\n[columns]\nZeit = "time_s"\nT1 = "probe_A_c"\n'
+        'rate = "gyro_z_rate_deg_per_h"\n')
+    rec = load_recording(tmp_path / "log.h5")
+    np.testing.assert_array_equal(rec.time_s, t)
+    np.testing.assert_array_equal(rec.probes()[1][:, 0], temp)
+    np.testing.assert_allclose(rec.gyro_rate_deg_per_h()[:, 0], 12.5)
+    pd.DataFrame({"time_s": t, "gyro_z_rate_deg_per_h": np.full(n, 12.5),
+                  "probe_A_c": temp}).to_parquet(tmp_path / "log2.parquet")
+    (tmp_path / "log2.toml").write_text('[recording]\nsample_rate_hz = 10\n')
+    rec2 = load_recording(tmp_path / "log2.parquet")
+    np.testing.assert_array_equal(rec2.probes()[1][:, 0], temp)
+    # a sidecar given on its own names its table
+    (tmp_path / "alone.toml").write_text('[recording]\nsample_rate_hz = 10\n'
+                                         'data = "log2.parquet"\n')
+    np.testing.assert_array_equal(load_recording(tmp_path / "alone.toml").time_s, t)
