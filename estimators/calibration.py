@@ -56,6 +56,10 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.lifeline import process_pool
 from rlgsim.ground.units import ARCSEC, G0
 
+__all__ = ["PARAMETERS", "PAPER_PARAMETERS", "AXES", "CampaignError", "Parameter",
+           "engineering_values", "to_accelerometer_frame", "WindowSpec", "find_windows", "DatasetReader", "CampaignSettings", "filter_settings",
+           "calibrate_one", "CampaignResult", "unit_of", "open_reader", "run_campaign"]
+
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).
 DEFAULT_GYRO_SF_PULSE_PER_ARCSEC = 2.14
 DEFAULT_ACCEL_SF_PULSE_PER_S_PER_G = 5000.0

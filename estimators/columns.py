@@ -21,6 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 
+__all__ = ["Columns", "resolve_input_names", "select_inputs"]
+
 class Columns:
     """Ordered, immutable set of named 1-D float64 columns of equal length.
 

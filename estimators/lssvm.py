@@ -83,6 +83,10 @@ from rlgsim.estimators._validation import (check_folds, check_positive, standard
                                            validate_fit_input)
 from rlgsim.estimators.kernels import CHUNK_ROWS, kernel_expansion, rbf
 
+__all__ = ["blas_threads_for", "BorderedSolution", "cholesky_lower", "solve_bordered",
+           "inverse_cholesky_factor", "nystroem_map", "cv_residuals", "cholesky_cv_residuals",
+           "make_folds", "LSSVMOutput", "LSSVMRegressor"]
+
 #: ``solver="auto"`` uses the dense solver up to this many samples (an 8e8-byte kernel matrix),
 #: the Nyström (fixed-size) solver above it.
 MAX_DENSE_SAMPLES = 10_000

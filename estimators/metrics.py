@@ -33,6 +33,9 @@ from rlgsim.estimators._validation import check_min_samples
 from rlgsim.estimators.features import window_average
 
 
+__all__ = ["bias_stability", "AllanDeviation", "allan_deviation", "rmse", "mae", "r2",
+           "residual_variance", "improvement_percent"]
+
 def _series(x: ArrayLike, what: str, min_samples: int = 1) -> np.ndarray:
     """Finite float64 1-D series; ``ValueError`` naming ``what`` otherwise."""
     arr = check_array(x, ensure_2d=False, dtype=np.float64, input_name=what,

@@ -33,6 +33,8 @@ from rlgsim.estimators.term_model import TermRegressorMixin, ols, prepare_fit, s
 from rlgsim.estimators.terms import Powers, parse_term, polynomial_powers, term_label
 
 
+__all__ = ["ScoredModel", "resolve_candidates", "parse_terms", "MLRBICRegressor"]
+
 class ScoredModel(NamedTuple):
     """One visited model: its terms (labels, intercept implied) and its BIC."""
 

@@ -24,6 +24,8 @@ from rlgsim.estimators.term_model import TermRegressorMixin, prepare_fit
 from rlgsim.estimators.terms import design_matrix, polynomial_powers
 
 
+__all__ = ["PolynomialRegressor"]
+
 class PolynomialRegressor(TermRegressorMixin, RegressorMixin, BaseEstimator):
     """Ordinary least-squares polynomial of total degree ``degree`` in the inputs.
 

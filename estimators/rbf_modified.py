@@ -54,6 +54,8 @@ from rlgsim.estimators._validation import check_positive, standardisation, valid
 from rlgsim.estimators.rbf_common import ForwardOLS, GaussianNetworkOutput, gaussian_design
 
 
+__all__ = ["ModifiedRBFNetwork"]
+
 class ModifiedRBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
     """Kohonen + OLS RBF network (paper 002's modified RBFNN).
 

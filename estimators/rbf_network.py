@@ -39,6 +39,8 @@ from rlgsim.estimators._validation import check_positive, standardisation, valid
 from rlgsim.estimators.rbf_common import ForwardOLS, GaussianNetworkOutput, gaussian_design
 
 
+__all__ = ["RBFNetwork"]
+
 class RBFNetwork(GaussianNetworkOutput, RegressorMixin, BaseEstimator):
     """Gaussian RBF network grown like MATLAB ``newrb`` (paper 002's traditional RBFNN).
 

@@ -63,6 +63,8 @@ from rlgsim.estimators.lssvm import (BorderedSolution, LSSVMOutput, blas_threads
 from rlgsim.estimators.robust_weights import (SCALES, WEIGHT_FUNCTIONS, hampel_weights,
                                               robust_scale, weight_function)
 
+__all__ = ["IRLSResult", "weighted_lssvm", "irls_lssvm", "robust_cv_score", "RobustLSSVMRegressor"]
+
 #: Weights are floored here so that ``1/(gamma v)`` stays finite; a point at the floor (e.g. a
 #: Hampel weight of 0) has ``alpha_k`` ~ 1e-8 gamma e_k, i.e. it is excluded to 8 digits.
 MIN_WEIGHT = 1e-8

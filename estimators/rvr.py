@@ -52,6 +52,9 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 from rlgsim.estimators._validation import check_positive, validate_fit_input
 from rlgsim.estimators.kernels import gaussian, kernel_expansion, squared_distances
 
+__all__ = ["rbf_from_sqdist", "basis_centres", "scale_width", "SparseBayesFit",
+           "sparse_bayes_fit", "RVR"]
+
 try:  # the compiled Tipping-Faul core of fastrvm (see module docstring)
     from fastrvm import _sparsebayes_bindings as _sb
 except ImportError as exc:  # pragma: no cover - depends on the installed fastrvm build

@@ -36,6 +36,8 @@ from rlgsim.estimators.term_model import TermRegressorMixin, ols, prepare_fit, s
 from rlgsim.estimators.terms import term_label
 
 
+__all__ = ["Step", "StepwiseRegressor"]
+
 class Step(NamedTuple):
     """One stepwise move: ``action`` is "enter" or "remove"; ``p_value`` the term's p-value."""
 

@@ -35,6 +35,9 @@ from rlgsim.sim.thermometers import ProbeSet
 from rlgsim.sim.turntable import TurntableProgram
 from rlgsim.sim.uhfo import UhfoModel
 
+__all__ = ["ThermalPreset", "Device", "load_thermal_preset", "load_device", "Acquisition",
+           "PowerSchedule", "Scenario", "parse_scenario", "load_scenario"]
+
 #: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
 #: loader can check that steps and samples tile a block without importing the simulator).
 BLOCK_S = 600.0

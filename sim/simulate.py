@@ -57,6 +57,9 @@ from rlgsim.sim.rng import generator
 from rlgsim.sim.schedule import Timeline, build_timeline
 from rlgsim.sim.thermal_integrator import ThermalIntegrator
 
+__all__ = ["BLOCK_S", "STAGES", "ThermalTrace", "Stage", "ThermalPart", "realised_network",
+           "thermal_summary", "ProbeStage", "default_output", "simulate"]
+
 #: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
 BLOCK_S = 600.0
 

@@ -44,6 +44,9 @@ from rlgsim.sim import presets
 from rlgsim.sim.config import Ctx, check_known_keys, get_int, get_str, get_table
 from rlgsim.sim.report import Report, Table, output_folder
 
+__all__ = ["Study", "StudyResult", "parse_study", "load_study", "list_studies", "recipe_module",
+           "scenario_for", "scenario_refs", "run_study", "study_unit"]
+
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
 #: The recipes, each a module ``rlgsim.sim.studies.<name>`` (a new recipe adds its name here).
 RECIPES = ("bias_compensation", "environments", "gradient_selection", "paper000_system")

@@ -111,7 +111,15 @@ def test_public_modules_declare_all():
     import importlib
     for mod in ("rlgsim.api", "rlgsim.ground.recording", "rlgsim.ground.recording_export",
                 "rlgsim.ground.programme", "rlgsim.ground.datatree", "rlgsim.sim.recordings",
-                "rlgsim.sim.scenario_changes", "rlgsim.estimators.recording_calibration"):
+                "rlgsim.sim.scenario_changes", "rlgsim.estimators.recording_calibration",
+                "rlgsim.sim.scenario", "rlgsim.sim.simulate", "rlgsim.sim.study",
+                "rlgsim.ground.dataset_format", "rlgsim.ground.errors",
+                "rlgsim.estimators.polynomial", "rlgsim.estimators.stepwise",
+                "rlgsim.estimators.mlr", "rlgsim.estimators.lssvm",
+                "rlgsim.estimators.robust_lssvm", "rlgsim.estimators.rvr",
+                "rlgsim.estimators.rbf_network", "rlgsim.estimators.rbf_modified",
+                "rlgsim.estimators.metrics", "rlgsim.estimators.columns",
+                "rlgsim.estimators.calibration", "rlgsim.estimators.features"):
         m = importlib.import_module(mod)
         assert m.__all__ and all(hasattr(m, n) for n in m.__all__), mod
     for name in ("run", "open_tree", "with_changes", "window_table", "score", "calibrate",

@@ -35,6 +35,11 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 
+__all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_ATTR", "VERSION_ATTR", "SEGMENT_DETAILS",
+           "TIMELINE", "THERMAL", "PROBES", "IMU", "TURNTABLE", "TRUTH", "CALIBRATION", "TIME",
+           "SAMPLE", "VARIABLES", "MissingVariableError", "VariableInfo", "open_dataset",
+           "Dataset"]
+
 #: Root attribute :data:`FORMAT_ATTR` of every rlgsim dataset holds this marker.
 FORMAT = "rlgsim dataset"
 #: Layout version written today; readers refuse newer versions. Bump it when the layout

@@ -8,6 +8,8 @@ never shows a traceback for one.
 from __future__ import annotations
 
 
+__all__ = ["UserInputError", "location"]
+
 class UserInputError(Exception):
     """A user mistake, described in one line: where (file/key), the value, what is allowed."""
 
