@@ -149,3 +149,31 @@ def test_format_version_2_details_and_version_1_still_read(short, tmp_path):
     t_old, t_new = rlgsim.open_tree(old, load=True), rlgsim.open_tree(path, load=True)
     np.testing.assert_array_equal(t_old["timeline"]["details"].values,
                                   t_new["timeline"]["details"].values)
+
+
+def test_calibrate_api_uses_the_cli_filter_settings(tmp_path):
+    """rlgsim.calibrate and `rlgsim calibrate` give the same table: one derivation of the
+    filter settings from the device's noise levels (filter_settings)."""
+    from _turntable_pulses import random_truth, write_dataset
+    from rlgsim.estimators.calibration import (CampaignSettings, DatasetReader, _filter_settings,
+                                               filter_settings)
+    from rlgsim.sim.cli.main import main
+    from rlgsim.sim.turntable import TurntableProgram
+    prog = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
+    h5 = tmp_path / "run.h5"
+    write_dataset(h5, random_truth(np.random.default_rng(5)), prog, prog.duration_s,
+                  arw_deg_sqrt_h=0.003, vrw_ug_sqrt_hz=20.0, seed=2)
+    reader = DatasetReader(h5)
+    fs = filter_settings(reader.noise())
+    assert fs.arw_rad_per_sqrt_s[0] == pytest.approx(0.003 * np.pi / 180 / 60)
+    assert fs.vrw_m_per_s_per_sqrt_s[0] == pytest.approx(20.0 * 9.80665e-6)
+    np.testing.assert_array_equal(_filter_settings(reader, CampaignSettings()).arw_rad_per_sqrt_s,
+                                  fs.arw_rad_per_sqrt_s)
+    reader.close()
+    api = rlgsim.calibrate(h5)
+    assert main(["calibrate", str(h5), "-o", str(tmp_path / "cli.csv"), "-q", "--workers", "1",
+                 "--no-dataset"]) == 0
+    cli = pd.read_csv(tmp_path / "cli.csv")
+    assert list(api["status"]) == list(cli["status"]) == ["ok"]
+    for c in ("gyro_bias_x", "gyro_bias_y", "gyro_sf_z", "accel_bias_x", "gyro_bias_y_sigma"):
+        np.testing.assert_allclose(api[c].astype(float), cli[c], rtol=1e-6, err_msg=c)
