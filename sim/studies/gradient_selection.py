@@ -360,7 +360,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     rep.bullets(definitions())
 
     if corr is not None:
-        _correlation_section(rep, config, corr)
+        _correlation_section(rep, config, corr,
+                             runs[config.train[0].key].scenario.device.thermal.network)
     if listings:
         _selection_section(rep, listings)
     for pt in config.paper_tables:
@@ -386,7 +387,8 @@ def _matrix_records(points: tuple[str, ...], m: np.ndarray) -> list[dict[str, An
             for i, a in enumerate(points)]
 
 
-def _correlation_section(rep: Report, config: Config, corr: np.ndarray) -> None:
+def _correlation_section(rep: Report, config: Config, corr: np.ndarray,
+                         network=None) -> None:
     pts = config.points
     rep.heading("Correlation of the bias with the pairwise gradients (paper 003 Table 3)", 2)
     rep.table(Table.from_records("Ours: r(bias, T_row − T_column), train run(s)",
@@ -412,13 +414,71 @@ def _correlation_section(rep: Report, config: Config, corr: np.ndarray) -> None:
             f"Over all {len(pairs)} pairs the rank correlation of ours with the paper's |r| is "
             f"{_spearman(ours, theirs):+.2f}, and {int(np.sum(ours >= 0.9))} of ours vs "
             f"{int(np.sum(theirs >= 0.9))} of the paper's reach 0.90. Largest differences: "
-            + "; ".join(f"{p} ours {o:.3f} vs paper {t:.3f}" for _, p, o, t in far)
-            + ". Why: unit 0 is the nominal thermal design, whose block is left/right "
-              "symmetric, so the mirror pairs (B/C gain-arm corners, D/E anodes, F/H non-gain "
-              "sides) heat alike and their difference carries only probe noise; the paper's "
-              "block has the residual asymmetries it names (anode material, ballast "
-              "resistance). Monte Carlo units ≥ 1 draw an asymmetric network "
-              "(docs/montecarlo.md).")
+            + "; ".join(f"{p} ours {o:.3f} vs paper {t:.3f}" for _, p, o, t in far) + ".")
+        figs = table3_figures(pts, corr, pub)
+        rep.table(Table.from_records(
+            "Table 3 figures: ours against the paper",
+            [{"figure": name, "ours": fmt(o), "paper": fmt(t)} for name, o, t in figs],
+            csv_name="table3_figures.csv",
+            note="pattern: Pearson correlation of our |r| with the paper's over all pairs; "
+                 "mirror pairs: the left/right counterparts B−C (gain-arm corners), D−E "
+                 "(anodes), F−H (non-gain sides); A row: the gradients from the cathode "
+                 "region."))
+    if network is not None:
+        rep.paragraph(_asymmetry_text(pts, network))
+
+
+def table3_figures(points: tuple[str, ...], corr: np.ndarray, pub: np.ndarray
+                   ) -> list[tuple[str, float, float]]:
+    """(name, ours, paper) of the Table 3 figures: the pattern correlation (Pearson of |r| over
+    all pairs), each mirror pair present among ``points`` and the smallest |r| of the first
+    point's row (the cathode region A in paper 003)."""
+    iu = np.triu_indices(len(points), 1)
+    ours, theirs = np.abs(corr[iu]), np.abs(pub[iu])
+    out = [(f"pattern correlation over {len(ours)} pairs", float(np.corrcoef(ours, theirs)[0, 1]),
+            1.0)]
+    short = [_short(p) for p in points]
+    for a, b in MIRROR_PAIRS:
+        if a in short and b in short:
+            i, j = short.index(a), short.index(b)
+            out.append((f"mirror pair {a}−{b}", float(abs(corr[i, j])), float(abs(pub[i, j]))))
+    out.append((f"{short[0]} row, smallest |r|", float(np.abs(corr[0, 1:]).min()),
+                float(np.abs(pub[0, 1:]).min())))
+    return out
+
+
+#: Left/right counterparts of paper 003 Fig. 2 (gain-arm corners, anodes, non-gain sides).
+MIRROR_PAIRS = (("B", "C"), ("D", "E"), ("F", "H"))
+
+
+def _asymmetry_text(points: tuple[str, ...], network) -> str:
+    """What the nominal thermal design gives the mirror pairs and which excitations drive the
+    block, from the network itself."""
+    names = list(network.node_names)
+    warm = network.steady_state(20.0, True)
+    diffs = []
+    for a, b in MIRROR_PAIRS:
+        na = next((p for p in points if _short(p) == a), None)
+        nb = next((p for p in points if _short(p) == b), None)
+        if na in names and nb in names:
+            diffs.append((f"{a}−{b}", float(warm[names.index(na)] - warm[names.index(nb)])))
+    excit = ["the chamber air", "the device's own heat"]
+    excit += [f"the boundary '{b.name}'" for b in network.boundaries]
+    excit += [f"the controlled heater '{h.name}'" for h in network.heaters]
+    text = ("Why the mirror pairs look as they do: the nominal thermal design (unit 0) is "
+            "driven by " + ", ".join(excit) + ". ")
+    if diffs and max(abs(d) for _, d in diffs) < 1e-6:
+        text += ("Its block is left/right symmetric, so the mirror pairs heat alike and their "
+                 "difference carries only probe noise; the paper's block has the residual "
+                 "asymmetries it names (anode material, ballast resistance). Monte Carlo units "
+                 "≥ 1 draw an asymmetric network (docs/montecarlo.md).")
+    elif diffs:
+        text += ("Its block is not left/right symmetric (steady differences at 20 °C, powered: "
+                 + ", ".join(f"{n} {d:+.3f} K" for n, d in diffs)
+                 + "), and the arms see different parts of the boundary, so the mirror "
+                   "gradients move with the chamber programme and carry information of their "
+                   "own (docs/thermal.md §7 lists the mechanisms and what each one does).")
+    return text
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> float:
