@@ -10,8 +10,8 @@ The overlapping Allan variance of the rate (``allantools.oadev``, ``data_type="f
 random walk K), linear in the four coefficients, by non-negative weighted least squares
 (:func:`scipy.optimize.nnls`). The weight of each τ is 1/(σ²_model(τ)·√(2/edf)): the relative
 standard deviation of an Allan variance estimate is √(2/edf), with the equivalent degrees of
-freedom of ``allantools.edf_simple`` (white-FM, Howe, Allan & Barnes 1981), iterated twice with
-the model in place of the noisy estimate. Confidence intervals (95 %) come from the weighted
+freedom of ``allantools.edf_simple`` (white-FM, Howe, Allan & Barnes 1981) capped at the number
+of non-overlapping τ intervals, iterated with the model in place of the noisy estimate. Confidence intervals (95 %) come from the weighted
 covariance of the coefficients, mapped through the square root and clipped at zero; an interval
 whose lower end is zero means the recording does not resolve that term (e.g. a rate random
 walk in a short run). Correlations between the overlapping estimates at neighbouring τ are
@@ -71,7 +71,11 @@ def fit_allan(rate_deg_per_h: np.ndarray, rate_hz: float, *, max_tau_fraction: f
     if taus.size < 5:
         raise ValueError("the record is too short for an Allan fit (fewer than 5 τ values)")
     m = np.rint(taus * rate_hz).astype(int)
-    edf = np.array([max(float(allantools.edf_simple(y.size, int(mi), 0)), 1.0) for mi in m])
+    # conservative degrees of freedom: the number of non-overlapping τ intervals (the overlapping
+    # estimator's extra ones are strongly correlated between neighbouring τ, which the weighted
+    # fit does not model), never more than the white-FM value of allantools.edf_simple
+    edf = np.array([max(min(float(allantools.edf_simple(y.size, int(mi), 0)),
+                            y.size / mi - 1.0), 1.0) for mi in m])
     avar = adev ** 2
     X = np.column_stack([3.0 / taus ** 2, 1.0 / taus, np.full_like(taus, _B_FACTOR),
                          taus / 3.0])

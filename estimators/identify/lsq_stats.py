@@ -8,11 +8,12 @@ Covariance (Gauss–Newton, e.g. Seber & Wild, *Nonlinear Regression*, 1989, §2
 
 with ``J`` the Jacobian of the residuals at the solution. The formula assumes independent
 residuals. Real residuals of a thermal or bias model are correlated in time (a model error is
-slow, a quantised thermometer on a slow signal holds its error); with a first-order
-autoregressive residual of lag-one correlation ρ the variance of a mean grows by
-(1 + ρ)/(1 − ρ) (Bartlett 1946; the usual effective-sample-size correction), so the standard
-errors are multiplied by √((1 + ρ)/(1 − ρ)), ρ estimated from the residual series (per
-segment, e.g. per probe, then averaged; negative ρ is not used to shrink them).
+slow, a quantised thermometer on a slow signal holds its error for many minutes), so the
+standard errors reported are those of the sandwich covariance with a batch-means estimate of
+the scores' long-run covariance (:func:`batch_means_covariance`), never below the
+independent-residual value. (A first-order autoregressive inflation √((1 + ρ)/(1 − ρ)) was
+tried first and undercovered: a quantisation error held through a soak is not AR(1); ρ is
+still reported.)
 
 Identifiability: a parameter is refused when the Jacobian is rank-deficient along it (the
 smallest singular value of the column-scaled Jacobian below ``rcond`` times the largest, the
@@ -32,7 +33,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-__all__ = ["LsqFit", "fit", "covariance", "ar1_inflation", "screen"]
+__all__ = ["LsqFit", "fit", "covariance", "ar1_inflation", "batch_means_covariance", "screen"]
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,8 @@ def screen(jac: np.ndarray, names: Sequence[str], *, max_corr: float = 0.99,
 
 def fit(fun: Callable[[np.ndarray], np.ndarray], x0: Sequence[float], names: Sequence[str],
         *, bounds: tuple = (-np.inf, np.inf), segments: int = 1, diff_step: float | None = None,
-        max_nfev: int | None = None, x_scale: str | np.ndarray = "jac") -> LsqFit:
+        max_nfev: int | None = None, x_scale: str | np.ndarray = "jac", batches: int = 20
+        ) -> LsqFit:
     """Minimise ``Σ fun(x)²`` from ``x0`` and return estimates with inflated standard errors
     (``segments``: how many equal consecutive series the residual vector holds, for ρ)."""
     x0 = np.asarray(x0, dtype=float)
@@ -144,9 +146,41 @@ def fit(fun: Callable[[np.ndarray], np.ndarray], x0: Sequence[float], names: Seq
                         max_nfev=max_nfev, **kw)
     r = np.asarray(res.fun, dtype=float)
     J = np.asarray(res.jac, dtype=float)
-    cov, _ = covariance(J, r)
-    rho, infl = ar1_inflation(r, segments)
-    se = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * infl
+    cov0, _ = covariance(J, r)
+    rho, _ = ar1_inflation(r, segments)
+    cov = batch_means_covariance(J, r, segments, batches)
+    se0 = np.sqrt(np.clip(np.diag(cov0), 0.0, None))
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    # never below the independent-residual value (a sandwich from few batches can undershoot)
+    se = np.maximum(se, se0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        infl = float(np.nanmedian(np.where(se0 > 0, se / se0, np.nan))) if se.size else 1.0
     return LsqFit(names=tuple(names), x=np.asarray(res.x, dtype=float), se=se, corr=_corr(cov),
                   residual=r, rms=float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0, rho=rho,
-                  inflation=infl, n=r.size, p=x0.size, jac=J, nfev=int(res.nfev))
+                  inflation=infl if np.isfinite(infl) else 1.0, n=r.size, p=x0.size, jac=J,
+                  nfev=int(res.nfev))
+
+
+def batch_means_covariance(jac: np.ndarray, residual: np.ndarray, segments: int = 1,
+                           batches: int = 20) -> np.ndarray:
+    """Sandwich covariance ``A⁻¹ Ω A⁻¹`` (``A = JᵀJ``) with the long-run covariance Ω of the
+    scores ``s_t = J_t r_t`` estimated by batch means: each of the ``segments`` consecutive
+    series is cut into ``batches`` batches, Ω = Σ_b S_b S_bᵀ with S_b the score sum of batch
+    b (a heteroscedasticity- and autocorrelation-consistent estimate, e.g. Conley 1999; the
+    batch-means form of Newey & West 1987). Residual errors that persist over many samples —
+    a quantised thermometer on a slow signal, flicker noise in bias windows — are then counted
+    as the few independent pieces of information they are."""
+    J = np.asarray(jac, dtype=float)
+    r = np.asarray(residual, dtype=float)
+    n, p = J.shape
+    S = J * r[:, None]
+    L = n // segments
+    S = S[:L * segments].reshape(segments, L, p)
+    b = max(1, min(batches, L))
+    edges = np.linspace(0, L, b + 1).astype(int)
+    sums = np.add.reduceat(S, edges[:-1], axis=1).reshape(-1, p)
+    omega = sums.T @ sums
+    A = J.T @ J
+    Ainv = np.linalg.pinv(A)
+    dof = n / max(n - p, 1)
+    return Ainv @ omega @ Ainv * dof

@@ -360,7 +360,7 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         if not free:
             break
         res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
-                  segments=len(probe_names), diff_step=1e-6)
+                  segments=len(probe_names), diff_step=1e-6, batches=8)
         s = screen(res.jac, free, max_corr=max_corr)
         if s is None:
             break

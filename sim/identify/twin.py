@@ -229,8 +229,10 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     ``out_dir`` (module docstring, docs/identify.md)."""
     t0 = time.perf_counter()
     source = os.fspath(recording)
-    data = read_recording(source, gyro=gyro)
+    if not pathlib.Path(source).is_file():
+        raise UserInputError(f"{source}: no such file")
     dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
+    data = read_recording(source, gyro=gyro)
     name = name or f"{dev_name}_twin"
     # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
     # slows down on a shared machine (same reason as the thermal integrator)

@@ -1,0 +1,101 @@
+"""The identification maths (rlgsim.estimators.identify) against independent references:
+statsmodels OLS for standard errors and the BIC, known synthetic laws for the term selection,
+synthetic white noise and random walk for the Allan fit."""
+
+import numpy as np
+import pytest
+import statsmodels.api as sm
+
+from rlgsim.estimators.identify.allan_noise import fit_allan
+from rlgsim.estimators.identify.lsq_stats import ar1_inflation, fit, screen
+from rlgsim.estimators.identify.term_selection import Term, _bic, select_terms
+
+
+def test_standard_errors_equal_statsmodels_ols_for_a_linear_model():
+    rng = np.random.default_rng(3)
+    x = np.linspace(-1, 1, 400)
+    y = 0.3 + 1.7 * x - 0.4 * x ** 2 + 0.05 * rng.standard_normal(x.size)
+    X = np.column_stack([np.ones_like(x), x, x ** 2])
+    ref = sm.OLS(y, X).fit()
+    res = fit(lambda b: X @ b - y, np.zeros(3), ["a", "b", "c"])
+    np.testing.assert_allclose(res.x, ref.params, rtol=1e-7, atol=1e-10)
+    assert np.all(res.se >= ref.bse * (1 - 1e-9))
+    np.testing.assert_allclose(res.se, ref.bse, rtol=0.5)    # white residual: hardly inflated
+    plain = fit(lambda b: X @ b - y, np.zeros(3), ["a", "b", "c"], batches=len(y))
+    np.testing.assert_allclose(plain.se, ref.bse, rtol=0.2)
+
+
+def test_autocorrelated_residuals_inflate_the_standard_errors():
+    rng = np.random.default_rng(4)
+    e = np.zeros(5000)
+    for k in range(1, e.size):
+        e[k] = 0.9 * e[k - 1] + rng.standard_normal()
+    rho, factor = ar1_inflation(e)
+    assert rho == pytest.approx(0.9, abs=0.02)
+    assert factor == pytest.approx(np.sqrt(1.9 / 0.1), rel=0.1)
+
+
+def test_screen_refuses_duplicate_and_dead_parameters_and_says_why():
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal(200)
+    b = rng.standard_normal(200)
+    i, why = screen(np.column_stack([a, b, 2 * a + 1e-6 * rng.standard_normal(200)]),
+                    ["p", "q", "r"])
+    assert i in (0, 2) and ("correlation" in why or "rank-deficient" in why)
+    i, why = screen(np.column_stack([a, np.zeros(200)]), ["p", "dead"])
+    assert i == 1 and "do not respond" in why
+    assert screen(np.column_stack([a, b]), ["p", "q"]) is None
+
+
+def test_bic_differences_equal_statsmodels():
+    rng = np.random.default_rng(6)
+    x = rng.standard_normal(300)
+    y = 1 + 0.5 * x + rng.standard_normal(300)
+    X1 = np.column_stack([np.ones(300), x])
+    X2 = np.column_stack([X1, x ** 2])
+    ours = _bic(y, X2, 0) - _bic(y, X1, 0)
+    ref = sm.OLS(y, X2).fit().bic - sm.OLS(y, X1).fit().bic
+    assert ours == pytest.approx(ref, rel=1e-9, abs=1e-9)
+
+
+def test_selection_finds_the_true_terms_among_collinear_candidates():
+    rng = np.random.default_rng(7)
+    n = 600
+    T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
+    rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
+    grad = 0.8 * rate + 0.2 * rng.standard_normal(n)         # a stand-in for the rate
+    truth = 0.02 + 3e-4 * T - 0.01 * rate + 0.006 * np.tanh((T - 25.0) / 4.0)
+    y = truth + 2e-4 * rng.standard_normal(n)
+    cands = [Term("c1", lambda th: T), Term("c2", lambda th: T ** 2),
+             Term("c3", lambda th: T ** 3), Term("rate", lambda th: rate),
+             Term("gradient", lambda th: grad),
+             Term("knee", lambda th: np.tanh((T - th[0]) / th[1]), ("center_c", "width_k"),
+                  [np.array([c, w]) for c in np.linspace(-10, 50, 13) for w in (1.0, 5.0)],
+                  lower=(-20, 0.2), upper=(60, 40))]
+    sel = select_terms(y, cands)
+    assert set(sel.terms) == {"c1", "rate", "knee"}
+    for name, true in (("c1", 3e-4), ("rate", -0.01), ("knee", 0.006), ("knee.center_c", 25.0),
+                       ("knee.width_k", 4.0)):
+        assert abs(sel.value(name) - true) < 4 * sel.se(name), name
+
+
+def test_allan_fit_recovers_white_noise_and_random_walk_with_intervals():
+    f, hours = 10.0, 8.0
+    n = int(hours * 3600 * f)
+    arw, rrw = 0.002, 0.05                       # °/√h, °/h/√h: RRW dominates beyond 100 s
+    covered_rrw = unresolved_bi = 0
+    seeds = range(8, 14)
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        y = arw * 60 * np.sqrt(f) * rng.standard_normal(n)
+        y += np.cumsum(rrw / 60 / np.sqrt(f) * rng.standard_normal(n))
+        res = fit_allan(y, f)
+        assert res.values["arw_deg_per_sqrt_h"] == pytest.approx(arw, rel=0.05)
+        assert res.values["rrw_deg_per_h_per_sqrt_h"] == pytest.approx(rrw, rel=0.3)
+        lo, hi = res.intervals["rrw_deg_per_h_per_sqrt_h"]
+        covered_rrw += lo <= rrw <= hi
+        unresolved_bi += res.intervals["bi_deg_per_h"][0] == 0.0     # there is no flicker
+    # 95 % intervals, approximate (correlated Allan estimates): most of six runs
+    assert covered_rrw >= 4 and unresolved_bi >= 4
+    with pytest.raises(ValueError, match="too short|at least"):
+        fit_allan(y[:50], f)
