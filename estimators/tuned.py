@@ -41,6 +41,7 @@ from rlgsim.estimators.optimize import harris_hawks, particle_swarm
 from rlgsim.estimators.rvr import RVR, basis_centres, rbf_from_sqdist, scale_width, sparse_bayes_fit
 
 OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
+_MAX_CACHED_CELLS = 20_000_000      # squared-distance cells PSO-SVR caches (160 MB of float64)
 
 
 class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
@@ -240,20 +241,28 @@ class HHORVR(OptimizerTunedRegressor):
         return self.estimator_.predict(X, return_std=return_std)
 
 
-def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, C: float,
+def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, dist, C: float,
                  gamma: float, eps: float) -> tuple[float, int]:
     """Squared validation error summed over the splits of one (C, gamma, epsilon) point
-    (standardised units) and how many of its fits stopped at ``max_iter``."""
+    (standardised units) and how many of its fits stopped at ``max_iter``. ``dist``: per split
+    the squared distances (train x train, test x train) for libsvm's precomputed kernel
+    exp(-gamma D2) — 10-25 % faster per fit than its own RBF evaluations — or None (RBF)."""
     sse, capped = 0.0, 0
-    for tr, te in splits:
-        svr = SVR(kernel="rbf", C=C, gamma=gamma, epsilon=eps, max_iter=max_iter,
+    for k, (tr, te) in enumerate(splits):
+        kernel = "rbf" if dist is None else "precomputed"
+        svr = SVR(kernel=kernel, C=C, gamma=gamma, epsilon=eps, max_iter=max_iter,
                   cache_size=500)
+        if dist is None:
+            A_tr, A_te = Xs[tr], Xs[te]
+        else:
+            A_tr = np.exp(dist[k][0] * -gamma)
+            A_te = np.exp(dist[k][1] * -gamma)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
-            svr.fit(Xs[tr], ys[tr])
+            svr.fit(A_tr, ys[tr])
         if max_iter > 0 and np.max(svr.n_iter_) >= max_iter:
             capped += 1
-        sse += float(np.sum((svr.predict(Xs[te]) - ys[te]) ** 2))
+        sse += float(np.sum((svr.predict(A_te) - ys[te]) ** 2))
     return sse, capped
 
 
@@ -380,7 +389,15 @@ class PSOSVR(OptimizerTunedRegressor):
         res = self.resolution
         max_iter = int(self.search_max_iter)
         n_jobs = _n_jobs(self.n_jobs, X.shape[0])
-        data = (Xs, ys, tuple(splits), max_iter)
+        # the squared distances of every split, computed once (unless they would exceed
+        # ~160 MB); each worker process receives them once per swarm iteration (joblib
+        # memory-maps large arrays)
+        n_cells = sum(tr.size * (tr.size + te.size) for tr, te in splits)
+        dist = None
+        if n_cells <= _MAX_CACHED_CELLS:
+            dist = [(squared_distances(Xs[tr], Xs[tr]), squared_distances(Xs[te], Xs[tr]))
+                    for tr, te in splits]
+        data = (Xs, ys, tuple(splits), max_iter, dist)
         self.n_capped_fits_ = 0
         cache: dict = {}
 
