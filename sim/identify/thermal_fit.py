@@ -37,7 +37,9 @@ constants make neighbouring seconds redundant. The final twin runs on the record
 twin − recorded probe readings (missing readings carry zero weight). Fit:
 :func:`rlgsim.estimators.identify.lsq_stats.fit` on the log-multipliers; identifiability:
 :func:`rlgsim.estimators.identify.lsq_stats.screen` first at the template (Jacobian at ``x = 0``),
-then at the solution; a refused parameter keeps the template's value and the reason is
+then at the solution, where a parameter that ran to its bound (a factor 10 either way) or whose
+log-multiplier has a standard error above 1 (more than a factor e) is refused too; a refused
+parameter keeps the template's value and the reason is
 reported.
 """
 
@@ -289,6 +291,24 @@ class ThermalFit:
     notes: list[str] = field(default_factory=list)
 
 
+#: largest standard error of a log-multiplier still reported as identified (a factor e)
+MAX_LOG_SE = 1.0
+
+
+def _undetermined(res: LsqFit, names: list[str]) -> tuple[int, str] | None:
+    """A parameter that ended on its bound or whose standard error exceeds a factor e."""
+    at_bound = np.flatnonzero(np.abs(np.abs(res.x) - _BOUND) < 1e-6)
+    if at_bound.size:
+        i = int(at_bound[np.argmax(res.se[at_bound])])
+        return i, (f"the fit ran to its bound (×{math.exp(res.x[i]):.3g} of the template): the "
+                   f"recording does not determine it")
+    i = int(np.argmax(res.se))
+    if res.se[i] > MAX_LOG_SE:
+        return i, (f"standard error of its logarithm {res.se[i]:.2f} > {MAX_LOG_SE:g} (more than "
+                   f"a factor e): the recording does not determine it")
+    return None
+
+
 def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str = "",
                 max_corr: float = 0.99) -> ThermalFit:
@@ -356,12 +376,12 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         J = np.delete(J, i, axis=1)
     res = None
     x = np.zeros(len(free))
-    for _ in range(4):
+    for _ in range(8):
         if not free:
             break
         res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
                   segments=len(probe_names), diff_step=1e-6, batches=8)
-        s = screen(res.jac, free, max_corr=max_corr)
+        s = screen(res.jac, free, max_corr=max_corr) or _undetermined(res, free)
         if s is None:
             break
         i, why = s

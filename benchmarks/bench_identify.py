@@ -1,0 +1,232 @@
+"""Digital twin (issue 17): closed-loop figures of `rlgsim identify` against truth.
+
+Part A — coverage: units whose thermal multipliers are drawn around the rlg_single template
+(log-normal, 10 %) with a known bias law (c1, rate, gradient A-G) and trplg_001's noise are
+simulated, identified, and |estimate − truth| / standard error is collected; printed: recovered
+vs drawn multipliers and the fraction of |z| below 1 and 2 (nominal 68 % / 95 %).
+
+Part B — closed loop on two presets (trplg_001, rlg8_003): Monte Carlo units (unit ≥ 1: the
+thermal network and every law coefficient drawn from the presets' tolerances, i.e. a unit *not*
+in the twin's family of group multipliers) are simulated through a 20 h programme at 1 Hz
+(probes and gyro), identified (timed: the target is ≤ 60 s on 2 cores), then the twin and the
+original unit are both simulated through a *different* programme (10 h): probe RMS difference,
+bias-law RMS difference (true law of each, 100 s windows), raw 100 s bias stability ratio twin /
+original; and one compensator study (LS cubic in T, LS linear in all probes, stepwise, LSSVM;
+trained on the 20 h run, scored on the 10 h run against each run's true bias) on the twin and on
+the original: the Spearman rank correlation of the two rankings.
+
+    python benchmarks/bench_identify.py [--units 2] [--coverage-units 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
+
+import identify_truth as IT                     # noqa: E402
+from _machine import machine                    # noqa: E402
+
+PROGRAMME_20H = [{"type": "hold", "duration_h": 1}, {"type": "ramp", "to_c": -20.0,
+                 "rate_c_per_min": 1.0}, {"type": "hold", "duration_h": 3},
+                 {"type": "ramp", "to_c": 60.0, "rate_c_per_min": 1.0},
+                 {"type": "hold", "duration_h": 3}, {"type": "ramp", "to_c": 0.0,
+                 "rate_c_per_min": 0.5}, {"type": "hold", "duration_h": 2},
+                 {"type": "ramp", "to_c": 40.0, "rate_c_per_min": 2.0},
+                 {"type": "hold", "duration_h": 2}, {"type": "ramp", "to_c": 25.0,
+                 "rate_c_per_min": 1.0}, {"type": "hold", "duration_min": 263}]
+PROGRAMME_10H = [{"type": "hold", "duration_h": 1}, {"type": "ramp", "to_c": 50.0,
+                 "rate_c_per_min": 0.7}, {"type": "hold", "duration_h": 2.5},
+                 {"type": "ramp", "to_c": -10.0, "rate_c_per_min": 1.5},
+                 {"type": "hold", "duration_h": 3}, {"type": "ramp", "to_c": 30.0,
+                 "rate_c_per_min": 1.0}, {"type": "hold", "duration_min": 67}]
+BIAS = {"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01, "c1_deg_per_h_per_k": 3e-4,
+        "rate_deg_per_h_per_c_per_min": -0.01, "langmuir_deg_per_h_per_ma": 0.0,
+        "gradients": [{"a": "A", "b": "G", "coeff_deg_per_h_per_k": 0.008}]}
+SHORT = [{"type": "hold", "duration_min": 20}, {"type": "ramp", "to_c": 45.0,
+         "rate_c_per_min": 1.0}, {"type": "hold", "duration_min": 45},
+         {"type": "ramp", "to_c": 0.0, "rate_c_per_min": 1.5},
+         {"type": "hold", "duration_min": 45}]
+
+
+def coverage(n_units: int, work: pathlib.Path) -> None:
+    from rlgsim.sim import presets
+    from rlgsim.sim.identify.law_fit import fit_laws
+    from rlgsim.sim.identify.recording_data import read_recording
+    from rlgsim.sim.identify.thermal_fit import fit_thermal
+    template = presets.load_thermal_file("rlg_single").data
+    dev_t = presets.load_device_file("trplg_001").data
+    rng = np.random.default_rng(2017)
+    zt, zl, rows = [], [], []
+    for u in range(n_units):
+        folder = work / f"cov{u}"
+        folder.mkdir()
+        mult = {k: float(np.exp(0.1 * rng.standard_normal())) for k in IT.IDENTIFIABLE}
+        dev = IT.device_truth(folder, IT.thermal_truth(folder, mult), bias=BIAS,
+                              keep_uhfo=False, noise=dict(dev_t["noise"]))
+        rec = read_recording(IT.simulate(IT.scenario(folder, dev, programme=SHORT,
+                                                     seed=500 + u), folder / "r.h5"))
+        fit = fit_thermal(template, rec.air_c, rec.power, rec.step_s, rec.probe_names,
+                          rec.probes_c)
+        for k, true in mult.items():
+            if k in fit.multipliers:
+                zt.append((math.log(fit.multipliers[k]) - math.log(true)) / fit.rel_se[k])
+                rows.append((u, k, true, fit.multipliers[k], fit.rel_se[k] * fit.multipliers[k]))
+        laws = fit_laws(rec, fit.nodes_c, fit.network.node_names,
+                        {**dev_t, "gyro": {**dev_t["gyro"], "bias": BIAS}})
+        for term, true in (("c1", 3e-4), ("rate", -0.01), ("gradient[A-G]", 0.008)):
+            if term in laws.bias.terms:
+                zl.append((laws.bias.value(term) - true) / laws.bias.se(term))
+    print(f"\nA. coverage over {n_units} units (rlg_single, 2.6 h programme, trplg_001 noise)")
+    print("   unit  multiplier                        drawn   recovered  std.err")
+    for u, k, true, est, se in rows:
+        print(f"   {u:4d}  {k:32s} {true:7.4f}  {est:9.4f}  {se:7.4f}")
+    for name, z in (("thermal multipliers", zt), ("bias-law coefficients", zl)):
+        z = np.abs(z)
+        print(f"   {name}: {len(z)} estimates, |z| < 1: {np.mean(z < 1):.0%} (nominal 68 %), "
+              f"|z| < 2: {np.mean(z < 2):.0%} (nominal 95 %), largest |z| {z.max():.2f}")
+
+
+def window_bias(path) -> tuple[np.ndarray, np.ndarray, object]:
+    import rlgsim
+    w = rlgsim.window_table(str(path))
+    law = np.asarray(w["true_bias_deg_per_h"] - w["true_random_deg_per_h"])
+    return law, np.asarray(w["bias_deg_per_h"]), w
+
+
+def compensator_scores(train, test, probes: list[str], uhfo: bool) -> dict[str, float]:
+    from rlgsim.estimators.lssvm import LSSVMRegressor
+    from rlgsim.estimators.polynomial import PolynomialRegressor
+    from rlgsim.estimators.stepwise import StepwiseRegressor
+    a = probes[0]
+    t_in = [f"probe_{a}_c"]
+    all_in = [f"probe_{p}_c" for p in probes]
+    sw_in = [f"probe_{a}_c", f"dTdt_{a}_k_per_s"] + (["uhfo_v"] if uhfo else all_in[1:4])
+    models = {"LS cubic T": (PolynomialRegressor(degree=3), t_in),
+              "LS linear, all probes": (PolynomialRegressor(degree=1), all_in),
+              "stepwise": (StepwiseRegressor(), sw_in),
+              "LSSVM": (LSSVMRegressor(gamma=100.0, sigma2=4.0), sw_in)}
+    out = {}
+    truth = np.asarray(test["true_bias_deg_per_h"])
+    for name, (m, cols) in models.items():
+        m.fit(train[cols], train["bias_deg_per_h"])
+        pred = m.predict(test[cols])
+        out[name] = float(np.sqrt(np.mean((pred - truth) ** 2)))
+    out["raw"] = float(np.sqrt(np.mean((np.mean(np.asarray(train["bias_deg_per_h"]))
+                                         - truth) ** 2)))
+    return out
+
+
+def closed_loop(preset: str, units: int, work: pathlib.Path, times: list[float]) -> None:
+    import rlgsim
+    from scipy.stats import spearmanr
+    from rlgsim.sim.identify import identify
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim import presets
+    thermal_name = presets.load_device_file(preset).data["device"]["thermal_preset"]
+    print(f"\nB. closed loop, {preset} (thermal template {thermal_name}), {units} drawn unit(s)")
+    for unit in range(1, units + 1):
+        folder = work / f"{preset}_{unit}"
+        folder.mkdir()
+        for prog, name in ((PROGRAMME_20H, "ident"), (PROGRAMME_10H, "valid")):
+            sc = {"name": name, "description": "bench", "device": preset, "seed": 40 + unit,
+                  "device_seed": 4000, "acquisition": {"sample_rate_hz": 1.0,
+                                                       "thermal_step_s": 1.0},
+                  "power": {"on_at_s": 0.0}, "chamber": {"start_c": 25.0 if name == "ident"
+                                                         else 20.0, "segments": prog}}
+            from rlgsim.sim.identify.preset_text import dumps
+            (folder / f"{name}.toml").write_text(dumps(sc))
+            s = dataclasses.replace(load_scenario(str(folder / f"{name}.toml")), unit=unit)
+            simulate(s, str(folder / f"orig_{name}.h5"), progress=False)
+        t0 = time.perf_counter()
+        r = identify(folder / "orig_ident.h5", folder / "twin", name=f"{preset}_twin{unit}")
+        dt = time.perf_counter() - t0
+        times.append(dt)
+        # the twin through both programmes (unit 0: the twin is its own nominal design)
+        for name in ("ident", "valid"):
+            text = (folder / f"{name}.toml").read_text().replace(
+                f'device = "{preset}"', f'device = "twin/device.toml"')
+            (folder / f"twin_{name}.toml").write_text(text)
+            simulate(load_scenario(str(folder / f"twin_{name}.toml")),
+                     str(folder / f"twin_{name}.h5"), progress=False)
+        to = rlgsim.open_tree(str(folder / "orig_valid.h5"), load=True)
+        tt = rlgsim.open_tree(str(folder / "twin_valid.h5"), load=True)
+        po = np.asarray(to["probes"]["temperature"].values)
+        pt = np.asarray(tt["probes"]["temperature"].values)
+        probe_rms = np.sqrt(np.mean((po - pt) ** 2, axis=0))
+        names = [str(p) for p in to["probes"]["probe"].values]
+        to.close()
+        tt.close()
+        law_o, raw_o, w_o = window_bias(folder / "orig_valid.h5")
+        law_t, raw_t, w_t = window_bias(folder / "twin_valid.h5")
+        n = min(law_o.size, law_t.size)
+        law_rms = float(np.sqrt(np.mean(((law_o[:n] - law_o[:n].mean())
+                                         - (law_t[:n] - law_t[:n].mean())) ** 2)))
+        ratio = float(np.std(raw_t, ddof=1) / np.std(raw_o, ddof=1))
+        th = r.thermal
+        print(f"   unit {unit}: identified in {dt:.1f} s; fitted: " + ", ".join(
+            f"{k} ×{v:.3f}±{th.rel_se[k] * v:.3f}" for k, v in th.multipliers.items()))
+        print(f"     refused: {', '.join(th.refused) or 'none'}")
+        print(f"     bias law terms: {', '.join(r.laws.bias.terms)}; noise ARW "
+              f"{r.laws.noise.values['arw_deg_per_sqrt_h']:.2e} °/√h, BI "
+              f"{r.laws.noise.values['bi_deg_per_h']:.2e} °/h")
+        with rlgsim.open_tree(str(folder / "orig_ident.h5"), load=True) as tr:
+            co = dict(zip(map(str, tr["truth"]["coefficient"].values),
+                          tr["truth"]["coefficient_value"].values))
+        drawn = {k.split(".")[2].split("[")[0]: float(v) for k, v in co.items()
+                 if k.startswith("gyro.bias.")}
+        pairs = []
+        for term in r.laws.bias.terms:
+            if term in drawn and drawn[term] != 0:
+                pairs.append(f"{term} {r.laws.bias.value(term):.3g}±{r.laws.bias.se(term):.2g}"
+                             f" (drawn {drawn[term]:.3g})")
+        print(f"     law vs drawn: {'; '.join(pairs) or '-'}")
+        print(f"     other programme: probe RMS difference max {probe_rms.max():.3f} °C "
+              f"({names[int(np.argmax(probe_rms))]}), mean {probe_rms.mean():.3f} °C; bias-law "
+              f"RMS difference {law_rms:.4f} °/h (law RMS {np.std(law_o):.4f}); raw 100 s "
+              f"stability twin/original {ratio:.2f}")
+        probes = [p for p in names if p != "housing"]
+        uh = "uhfo_v" in w_o.columns
+        train_o, _, _ = window_bias(folder / "orig_ident.h5")
+        s_o = compensator_scores(window_bias(folder / "orig_ident.h5")[2], w_o, probes, uh)
+        s_t = compensator_scores(window_bias(folder / "twin_ident.h5")[2], w_t, probes, uh)
+        keys = list(s_o)
+        rho = spearmanr([s_o[k] for k in keys], [s_t[k] for k in keys]).statistic
+        print("     compensators, RMSE vs truth on the other programme [°/h] original / twin: "
+              + "; ".join(f"{k} {s_o[k]:.4f}/{s_t[k]:.4f}" for k in keys))
+        print(f"     rank correlation (Spearman) of the rankings: {rho:.2f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--units", type=int, default=2)
+    ap.add_argument("--coverage-units", type=int, default=10)
+    args = ap.parse_args()
+    print("bench_identify:", machine())
+    print(f"load average at start: {os.getloadavg()}")
+    times: list[float] = []
+    with tempfile.TemporaryDirectory(prefix="bench-identify-") as tmp:
+        work = pathlib.Path(tmp)
+        t0 = time.perf_counter()
+        if args.coverage_units:
+            coverage(args.coverage_units, work)
+        for preset in ("trplg_001", "rlg8_003"):
+            closed_loop(preset, args.units, work, times)
+        print(f"\none identification of a 20 h recording (1 Hz probes and gyro, 100 s "
+              f"windows): {', '.join(f'{t:.1f}' for t in times)} s (target ≤ 60 s on 2 cores)")
+        print(f"total {time.perf_counter() - t0:.0f} s; load average at end: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
