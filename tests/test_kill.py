@@ -24,7 +24,7 @@ CAL_SCENARIO = """
 name = "cal"
 device = "rlg_imu_000"
 seed = 3
-duration_min = 22
+duration_s = 942
 [acquisition]
 sample_rate_hz = 100
 [chamber]
