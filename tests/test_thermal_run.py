@@ -6,6 +6,7 @@ the run matches the integrator driven directly."""
 from __future__ import annotations
 
 import pathlib
+import re
 
 import h5py
 import numpy as np
@@ -55,8 +56,8 @@ def case(tmp_path_factory):
     th = (ROOT / "scenarios" / "thermal" / "rlg_single.toml").read_text()
     (tmp / "th.toml").write_text(th + EXTRA)
     dev = (ROOT / "scenarios" / "devices" / "rlg8_003.toml").read_text()
-    dev = dev.replace('thermal_preset = "rlg_single"', 'thermal_preset = "th.toml"')
-    assert "th.toml" in dev
+    dev = re.sub(r'(?m)^thermal_preset = ".*"', 'thermal_preset = "th.toml"', dev)
+    assert 'thermal_preset = "th.toml"' in dev
     (tmp / "dev.toml").write_text(dev)
     sc = (ROOT / "scenarios" / "quickstart.toml").read_text()
     sc = sc.replace('device = "rlg8_003"', 'device = "dev.toml"')
