@@ -99,12 +99,15 @@ def _corr(cov: np.ndarray) -> np.ndarray:
 
 
 def screen(jac: np.ndarray, names: Sequence[str], *, max_corr: float = 0.99,
-           rcond: float = 1e-7) -> tuple[int, str] | None:
+           rcond: float = 1e-7, optional: Sequence[bool] | None = None
+           ) -> tuple[int, str] | None:
     """The one parameter (index, reason) the data cannot identify, or ``None``.
 
     Rank first (column-scaled Jacobian, smallest/largest singular value below ``rcond``), then
     the largest pairwise correlation of the estimates above ``max_corr``; of a correlated pair
-    the one with the larger scaled standard error (the less determined) is refused."""
+    an ``optional`` parameter (a refinement of another, e.g. one heat source on its own) is
+    refused before a general one, otherwise the one with the larger scaled standard error (the
+    less determined)."""
     J = np.asarray(jac, dtype=float)
     norms = np.linalg.norm(J, axis=0)
     if np.any(norms == 0):
@@ -126,7 +129,11 @@ def screen(jac: np.ndarray, names: Sequence[str], *, max_corr: float = 0.99,
     i, j = np.unravel_index(int(np.argmax(np.abs(c))), c.shape)
     if abs(c[i, j]) > max_corr:
         se = np.sqrt(np.clip(np.diag(cov), 0, None)) * norms   # per unit of the parameter
-        worse, other = (i, j) if se[i] >= se[j] else (j, i)
+        opt = list(optional) if optional is not None else [False] * len(names)
+        if opt[i] != opt[j]:
+            worse, other = (i, j) if opt[i] else (j, i)
+        else:
+            worse, other = (i, j) if se[i] >= se[j] else (j, i)
         return int(worse), (f"correlation {c[i, j]:+.4f} with {names[other]} (|r| > "
                             f"{max_corr:g}): the recording cannot separate the two")
     return None

@@ -98,8 +98,8 @@ def _refine_theta(y: np.ndarray, base: np.ndarray, t: Term, th0: np.ndarray) -> 
         return th0
 
 
-def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int = 6
-                 ) -> SelectedLaw:
+def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int = 6,
+                 batches: int = 8) -> SelectedLaw:
     """Choose terms by BIC (module docstring) and refine them jointly."""
     y = np.asarray(y, dtype=float)
     if y.ndim != 1 or y.size < 3 or not np.all(np.isfinite(y)):
@@ -197,8 +197,8 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
 
     if not any(by_name[c].k for c in chosen):
         # linear: one solve, statistics from the same machinery
-        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5)
+        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5, batches=batches)
     else:
-        res = fit(residual, x0a, names, bounds=(lo_a, hi_a))
+        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
                        candidates=tuple(t.name for t in candidates))

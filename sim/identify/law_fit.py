@@ -13,8 +13,9 @@ simulator's per-step law is averaged by the windows:
   — centres on a grid over the recorded range (and the template's), polished, and kept inside
   the range the recording covers (a sigmoid centred outside it is a constant there);
 - ``rate``: the backward-difference rate of ``T`` in °C/min;
-- ``gradient[a-b]``: ``T_a − T_b`` for the template's gradient pairs and for the law node against
-  every other probed node of the block;
+- ``gradient[a-b]``: ``T_a − T_b`` for the template's gradient pairs, for the law node against
+  every other probed node of the block, and for the anode arms (``arm_nodes``, default D−E:
+  the Langmuir-flow term of an asymmetric unit);
 - ``uhfo``: ``U − U_0`` with the recorded UHFO and the fitted UHFO law's ``U_0``.
 
 UHFO law (when the recording has UHFO): the same family on the discharge-side node of the
@@ -188,6 +189,8 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     probed = [n.split(".", 1)[1] for n in rec.probe_names if block and n.startswith(f"{block}.")]
     cand_pairs = [(str(g["a"]), str(g["b"])) for g in law.get("gradients", [])]
     cand_pairs += [(bias_node, o) for o in probed if o != bias_node]
+    arm = law.get("arm_nodes", ["D", "E"])          # the Langmuir pair: anode-arm difference
+    cand_pairs.append((str(arm[0]), str(arm[1])))
     for a, b in cand_pairs:
         key = f"gradient[{a}-{b}]"
         if key in extra or f"gradient[{b}-{a}]" in extra:
@@ -196,7 +199,10 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
             ia, ib = _node(block, a, node_names), _node(block, b, node_names)
         except ValueError:
             continue
-        extra[key] = nodes_c[:, ia] - nodes_c[:, ib]
+        diff = nodes_c[:, ia] - nodes_c[:, ib]
+        if np.ptp(diff) < 1e-6:          # a symmetric pair of the twin: no information
+            continue
+        extra[key] = diff
         pairs[key] = (a, b)
     if rec.uhfo_v is not None:
         extra["uhfo"] = rec.uhfo_v - u0

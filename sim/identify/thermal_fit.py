@@ -9,6 +9,8 @@ values, so a parameter is always positive and ``x`` is its relative change):
 ``<template>.capacity``                     every node capacity of every instance of a template
                                             (the gyro block's glass, discharge, ballasts, board)
 ``<template>.power``                        its heat sources (discharge, ballasts, pre-amplifier)
+``<template>.power.<node>``                 each source but the largest on its own (ballast
+                                            against ballast: a real block's arm asymmetry)
 ``<template>.internal_conductance``         links between its own nodes (the glass web, bonds)
 ``<template>.<port>_conductance``           its links to a port (``air``: its faces to the
                                             cabinet; ``mount``: the dither mount and standoffs)
@@ -146,6 +148,14 @@ def thermal_parameters(data: dict, probe_names: tuple[str, ...] | None = None
             out.append(ThermalParam(f"{tname}.power", f"heat sources of {tname} "
                                     f"({', '.join(powered)})",
                                     inst_edit("power_factors", [(n, None) for n in powered])))
+            # each smaller source on its own (ballast against ballast: the arm-to-arm
+            # asymmetry of a real block, paper 003 §2), the largest one held by the above
+            main = max(powered, key=lambda n: float(nodes[n].get("power_w", 0.0)))
+            for node in powered:
+                if node != main:
+                    out.append(ThermalParam(f"{tname}.power.{node}",
+                                            f"heat source {node} of {tname} on its own",
+                                            inst_edit("power_factors", [(node, None)])))
         groups: dict[str, list[tuple[str, str]]] = {}
         for ln in links:
             a, b = ln["between"]
@@ -228,7 +238,7 @@ def thermal_parameters(data: dict, probe_names: tuple[str, ...] | None = None
 def apply_multipliers(data: dict, params: list[ThermalParam], mult: dict[str, float]
                       ) -> tuple[dict, dict[tuple, tuple[str, float, float]]]:
     """A deep copy of ``data`` with every multiplier applied; and the changes
-    ``{path: (parameter, old, new)}``."""
+    ``{path: (parameter names joined by '+', template value, new value)}``."""
     d = copy.deepcopy(data)
     changes: dict[tuple, tuple[str, float, float]] = {}
     for p in params:
@@ -237,7 +247,11 @@ def apply_multipliers(data: dict, params: list[ThermalParam], mult: dict[str, fl
             continue
 
         def note(path, old, new, name=p.name):
-            changes[path] = (name, old, new)
+            if path in changes:              # a second multiplier on the same value
+                names, first, _ = changes[path]
+                changes[path] = (f"{names}+{name}", first, new)
+            else:
+                changes[path] = (name, old, new)
         p.edit(d, m, note)
     return d, changes
 
@@ -366,8 +380,11 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
     free = [p.name for p in params]
     refused: dict[str, str] = {}
     J = jac_at(free, np.zeros(len(free)))
+    def optional(names: list[str]) -> list[bool]:
+        return [n.count(".power.") > 0 for n in names]
+
     while free:
-        s = screen(J, free, max_corr=max_corr)
+        s = screen(J, free, max_corr=max_corr, optional=optional(free))
         if s is None:
             break
         i, why = s
@@ -381,7 +398,8 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
             break
         res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
                   segments=len(probe_names), diff_step=1e-6, batches=8)
-        s = screen(res.jac, free, max_corr=max_corr) or _undetermined(res, free)
+        s = (screen(res.jac, free, max_corr=max_corr, optional=optional(free))
+             or _undetermined(res, free))
         if s is None:
             break
         i, why = s

@@ -107,10 +107,12 @@ def _se_note(se: float, what: str = "") -> str:
 def _thermal_text(fit: ThermalFit, tname: str, source: str) -> tuple[dict, str]:
     comments = {}
     for path, (param, old, new) in fit.changes.items():
-        m = fit.multipliers[param]
-        se = fit.rel_se[param] * m
-        comments[path] = (f"fitted: {param} × {m:.5g} ± {se:.2g} (standard error); "
-                          f"template {old:.6g}")
+        parts = []
+        for name in param.split("+"):    # two multipliers on one value (a source on its own)
+            m = fit.multipliers[name]
+            parts.append(f"{name} × {m:.5g} ± {fit.rel_se[name] * m:.2g}")
+        comments[path] = (f"fitted: {', '.join(parts)} (standard error); template "
+                          f"{old:.6g}")
     lines = [f"Thermal preset identified by rlgsim identify from {source}",
              f"template: {tname}; topology kept, multipliers fitted (log scale, least squares "
              f"on the exact integrator)",
