@@ -281,7 +281,7 @@ def _n_jobs(n_jobs, n_rows: int) -> int:
 
 def _parallel(n_jobs: int):
     from joblib import Parallel
-    return Parallel(n_jobs=n_jobs, backend="loky")
+    return Parallel(n_jobs=n_jobs, backend="loky", batch_size=1, pre_dispatch="all")
 
 
 class PSOSVR(OptimizerTunedRegressor):
@@ -412,7 +412,14 @@ class PSOSVR(OptimizerTunedRegressor):
             points = [params_of(np.asarray(k, float) * res if res is not None else
                                 np.asarray(k, float)) for k in todo]
             if n_jobs > 1 and len(points) > 1:
-                out = _parallel(n_jobs)(delayed(_holdout_sse)(*data, *p) for p in points)
+                # largest C first, one point per task: the slow (large-C) fits start at once
+                # and the cheap ones fill the other workers (the swarm waits for the slowest)
+                first = sorted(range(len(points)), key=lambda i: -points[i][0])
+                res_ = _parallel(n_jobs)(delayed(_holdout_sse)(*data, *points[i])
+                                         for i in first)
+                out = [None] * len(points)
+                for i, r in zip(first, res_):
+                    out[i] = r
             else:
                 out = [_holdout_sse(*data, *p) for p in points]
             for k, (sse, capped) in zip(todo, out):
