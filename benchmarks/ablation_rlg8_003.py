@@ -60,7 +60,17 @@ VARIANTS = {
     "asymmetry": "no nominal arm asymmetry (instance factors 1)",
     "all_off": "all three off (the new cabinet and turntable nodes kept)",
     "rlg_single": "the previous preset rlg_single (symmetric block, cabinet at chamber air)",
+    "old_law": "as shipped, but the previous bias law's gradients (A-G 0.0075, A-H 0.012, "
+               "A-B 0.010, A-D 0.006 °/h/K)",
 }
+
+OLD_GRADIENTS = """gradients = [
+  { a = "A", b = "G", coeff_deg_per_h_per_k = 0.0075 },
+  { a = "A", b = "H", coeff_deg_per_h_per_k = 0.012 },
+  { a = "A", b = "B", coeff_deg_per_h_per_k = 0.010 },
+  { a = "A", b = "D", coeff_deg_per_h_per_k = 0.006 },
+]
+"""
 
 
 def run_variant(name: str, tmp: pathlib.Path, rate_hz: float, pso: tuple[int, int] | None):
@@ -69,11 +79,13 @@ def run_variant(name: str, tmp: pathlib.Path, rate_hz: float, pso: tuple[int, in
 
     d = tmp / name
     d.mkdir()
-    thermal = _thermal(name) if name != "nominal" else \
+    thermal = _thermal(name) if name not in ("nominal", "old_law") else \
         (SC / "thermal" / "rlg8_003_block.toml").read_text()
     (d / "thermal.toml").write_text(thermal)
     dev = (SC / "devices" / "rlg8_003.toml").read_text()
     dev = re.sub(r'thermal_preset = "[^"]*"', 'thermal_preset = "thermal.toml"', dev)
+    if name == "old_law":
+        dev = re.sub(r"gradients = \[.*?\n\]\n", OLD_GRADIENTS, dev, flags=re.S)
     (d / "rlg8_003.toml").write_text(dev)
     for sc in ("paper003_cycles", "paper003_random"):
         text = (SC / f"{sc}.toml").read_text().replace('device = "rlg8_003"',
