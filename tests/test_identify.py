@@ -64,6 +64,14 @@ def test_noise_free_recording_is_recovered_to_tight_tolerances(tmp_path):
     assert sc.device.thermal.network.n_nodes == 14
     assert sc.duration_s == pytest.approx(r.data.duration_s)
     assert (tmp_path / "twin" / "report.md").exists() and (tmp_path / "twin" / "report.html").exists()
+    # the command line gives the same twin
+    import rlgsim
+    assert rlgsim.identify is identify
+    code = main(["identify", str(rec), "--device-template", str(dev), "--thermal-template",
+                 "rlg_single", "-o", str(tmp_path / "cli"), "-q"])
+    assert code == 0
+    assert (tmp_path / "cli" / "device.toml").read_text() == r.device_path.read_text().replace(
+        str(tmp_path / "twin"), str(tmp_path / "cli"))
 
 
 def test_standard_errors_cover_the_truth_on_noisy_recordings(tmp_path):

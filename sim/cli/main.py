@@ -7,6 +7,7 @@
     rlgsim list                                              shipped scenarios and devices
     rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDR] [-o DIR]
                                                              a study over N drawn units
+    rlgsim identify RECORDING [--device-template P] -o DIR   a digital twin of the recorded device
 
 Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its

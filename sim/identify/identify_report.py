@@ -19,8 +19,8 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
         {"parameter": n, "estimate": float(v), "standard error": float(s),
          "unit": unit if n in ("intercept",) else ""}
         for n, v, s in zip(sel.fit.names, sel.fit.x, sel.fit.se)],
-        note=f"standard errors from the Jacobian, inflated ×{sel.fit.inflation:.2f} for the "
-             f"residual autocorrelation (lag-one ρ = {sel.fit.rho:.2f})"))
+        note=f"standard errors: sandwich with batch means, ×{sel.fit.inflation:.2f} the "
+             f"independent-residual value (residual lag-one correlation {sel.fit.rho:.2f})"))
 
 
 def build_report(result, device_name: str, thermal_name: str) -> Report:
@@ -64,9 +64,10 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                                      pairs or [{"a": "-", "b": "-", "correlation": None}],
                                      note="pairs with |r| > 0.8; above 0.99 a parameter is "
                                           "refused"))
-        rep.paragraph(f"Standard errors inflated ×{th.fit.inflation:.2f} for the residual "
-                      f"autocorrelation (lag-one ρ = {th.fit.rho:.3f}); {th.fit.nfev} "
-                      f"evaluations of the network over the whole recording.")
+        rep.paragraph(f"Standard errors: sandwich covariance with batch means of the scores "
+                      f"(8 per probe), ×{th.fit.inflation:.2f} the independent-residual value "
+                      f"(residual lag-one correlation {th.fit.rho:.3f}); {th.fit.nfev} "
+                      f"evaluations of the network over the whole recording in the fit.")
     rep.table(Table.from_records("Probe residual RMS [°C]", [
         {"probe": n, "template": th.rms_template_c[n], "fitted twin": th.rms_fitted_c[n]}
         for n in th.probe_names]))
