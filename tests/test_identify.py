@@ -154,3 +154,15 @@ def test_bad_recordings_are_refused_with_one_line(tmp_path, flat_recording, caps
                       str(tmp_path / "d")], capsys)
     assert code == 2 and len(err) == 1 and "too short" in err[0]
     assert not (tmp_path / "a").exists() and not (tmp_path / "d").exists()
+
+
+def test_short_gaps_of_the_chamber_air_are_bridged_and_long_ones_refused():
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.sim.identify.recording_data import _bridge
+    air = np.linspace(20.0, 30.0, 2000)
+    gappy = air.copy()
+    gappy[100:130] = np.nan
+    np.testing.assert_allclose(_bridge(gappy, 1.0, "r.csv", "the chamber air"), air, atol=1e-12)
+    gappy[500:1200] = np.nan
+    with pytest.raises(UserInputError, match="missing for 700 s"):
+        _bridge(gappy, 1.0, "r.csv", "the chamber air")

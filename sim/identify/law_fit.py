@@ -219,6 +219,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     powered = np.repeat(rec.power[:n_steps] > 0.5, per)
     resid = rate[:n_steps * per] - np.repeat(per_step[:n_steps], per)
     resid = resid[powered]
+    resid = resid[np.isfinite(resid)]            # dropout samples (a gap joins its two sides)
     try:
         noise = fit_allan(resid, f)
     except ValueError:

@@ -4,7 +4,9 @@ rate at its sample rate, and the 100 s bias windows (:func:`rlgsim.api.window_ta
 removes the Earth rate). Every other module of :mod:`rlgsim.sim.identify` works on
 :class:`RecordingData` only.
 
-A recording that cannot support an identification is refused here with one
+Short gaps of the chamber air and the UHFO (dropout rows) are bridged linearly (up to 10 min);
+missing probe readings stay NaN and are left out of the thermal fit. A recording that cannot
+support an identification is refused here with one
 :class:`~rlgsim.ground.errors.UserInputError` line saying what is needed (:data:`NEEDS`).
 """
 
@@ -55,6 +57,28 @@ class RecordingData:
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1]) if self.t_s.size else 0.0
+
+
+#: longest gap of the chamber air or the UHFO bridged by linear interpolation [s]
+MAX_GAP_S = 600.0
+
+
+def _bridge(x: np.ndarray, step: float, source: str, what: str) -> np.ndarray:
+    """``x`` with short gaps (dropout rows, NaN) filled linearly; a longer gap is refused."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return x
+    if bad.all():
+        raise _refuse(source, f"{what} has no values")
+    edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))
+    longest = int((np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)).max())
+    if longest * step > MAX_GAP_S:
+        raise _refuse(source, f"{what} is missing for {longest * step:g} s in one stretch "
+                              f"(gaps up to {MAX_GAP_S:g} s are bridged)")
+    idx = np.arange(x.size)
+    out = x.copy()
+    out[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+    return out
 
 
 def _refuse(source: str, what: str) -> UserInputError:
@@ -127,8 +151,9 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     if not np.allclose(np.diff(t), step, rtol=1e-6, atol=1e-9) or abs(t[0] - step) > 1e-6 * step:
         raise UserInputError(f"{source}: the temperature samples must be regular from the "
                              f"start (one every {step:g} s, the first at {step:g} s); {NEEDS}")
-    if not np.all(np.isfinite(air)):
-        raise _refuse(source, "the chamber air has missing values")
+    air = _bridge(air, step, source, "the chamber air")
+    if uhfo is not None:
+        uhfo = _bridge(uhfo, step, source, "the UHFO")
     powered = power > 0.5
     if t[-1] < MIN_DURATION_S or powered.sum() * step < MIN_DURATION_S:
         raise _refuse(source, f"too short: {powered.sum() * step / 3600:.2f} h powered of "
@@ -140,7 +165,12 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     good = np.isfinite(temps).mean(axis=0)
     if np.all(good < 0.5):
         raise _refuse(source, "the probes hold no usable readings")
-    windows = window_table(source, window_s, gyro=gyro)
+    try:
+        windows = window_table(source, window_s, gyro=gyro)
+    except ValueError as exc:            # e.g. missing probe readings inside a window
+        raise UserInputError(f"{source}: the {window_s:g} s bias windows cannot be formed "
+                             f"({exc}); identification needs windows with complete gyro and "
+                             f"probe data") from None
     if len(windows) < 20:
         raise _refuse(source, f"only {len(windows)} complete powered {window_s:g} s windows "
                               f"of the gyro")
