@@ -167,7 +167,10 @@ class FilterSettings:
     noise (flicker, random walk); when any is > 0 the filter carries the bias wander and its
     running mean (12 more states) and reports the window-mean biases;
     ``max_iterations``; convergence when every parameter correction is below
-    ``tol_sigma`` × its σ or ``tol_abs`` (filter units).
+    ``tol_sigma`` × its σ or ``tol_abs`` (filter units); ``reuse_tol``: a pass reuses the gains
+    of the last full pass in this process (same window shape, motions and settings) when its
+    linearisation point is within this relative Jacobian change of that pass's
+    (:func:`linearisation_distance`); 0 runs every pass in full.
     """
 
     arw_rad_per_sqrt_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
