@@ -5,9 +5,11 @@ Each file set is written by :func:`rlgsim.estimators.c_codegen.save_compensator`
 (coefficients, inputs with units, standardisation, training range, kind, rlgsim version) loads
 back with :func:`rlgsim.estimators.model_export.load_json`; the C function is self-contained
 for the gyro's microprocessor (docs/compensator_export.md). A recipe hands its fitted models
-over as :class:`FittedModel` records in :attr:`rlgsim.sim.study.StudyResult.models`; the runner
-writes them and adds a table of the files to the report. A compensator of ``kind = "custom"``
-(the user's own regressor) has no export and is listed as such.
+over through its optional hook ``fitted_models(config, result) -> list[FittedModel]``
+(:func:`from_fitted` turns the fitting loop's records into them); the study runner
+(:mod:`rlgsim.sim.study`) writes them and adds a table of the files to the report. A
+compensator of ``kind = "custom"`` (the user's own regressor) has no export and is listed as
+such.
 """
 
 from __future__ import annotations
@@ -45,6 +47,13 @@ class FittedModel:
     inputs: tuple[str, ...]
     target: str = "bias"
     target_unit: str = "°/h"
+
+
+def from_fitted(fitted: Sequence[Any], prefix: str = "") -> list[FittedModel]:
+    """:class:`FittedModel` records of the fitting loop's results (``Fitted``: ``spec`` with
+    ``name``, ``kind``, ``inputs``; ``model``; ``X_train``), names prefixed by ``prefix``."""
+    return [FittedModel(prefix + f.spec.name, f.spec.kind, f.model, f.X_train,
+                        tuple(f.spec.inputs)) for f in fitted]
 
 
 def write_models(models: Sequence[FittedModel], folder: str | pathlib.Path

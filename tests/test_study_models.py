@@ -1,4 +1,4 @@
-"""A study's fitted compensators written as models/<name>.json, .c, .h (sim/studies/model_files)."""
+"""A study's fitted compensators written as models/<name>.json, .c, .h (sim/study_models)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from rlgsim.estimators.columns import Columns
 from rlgsim.estimators.model_export import load_json
 from rlgsim.sim.report import Report
-from rlgsim.sim.studies.model_files import FittedModel, input_unit, report_models, write_models
+from rlgsim.sim.study_models import FittedModel, input_unit, report_models, write_models
 
 
 def test_input_units_of_the_study_inputs():
