@@ -83,21 +83,28 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
             dev_name = dname.decode() if isinstance(dname, bytes) else str(dname)
             dev = tomllib.loads(text)
             if thermal_template is None and ttext:
-                return dev_name, dev, "dataset thermal preset", tomllib.loads(ttext)
+                tname = str(dev.get("device", {}).get("thermal_preset", "thermal preset"))
+                _one_gyro(dev_name, dev)
+                return dev_name, dev, f"{tname} (as embedded in the dataset)", \
+                    tomllib.loads(ttext)
     if dev is None:
         raise UserInputError(f"{source}: a recording needs --device-template PRESET (the device "
                              f"preset whose law family and noise keys the twin takes; e.g. "
                              f"trplg_001)")
-    axes = dev.get("gyro", {}).get("axes", [])
-    if len(axes) != 1:
-        raise UserInputError(f"{dev_name}: the device template has {len(axes)} gyro axes; "
-                             f"identification fits one gyro (a single-gyro template such as "
-                             f"trplg_001 or rlg8_003)")
+    _one_gyro(dev_name, dev)
     tref = thermal_template or dev.get("device", {}).get("thermal_preset")
     if not tref:
         raise UserInputError(f"{dev_name}: no thermal preset; give --thermal-template PRESET")
     t = presets.load_thermal_file(tref, base_dir=base)
     return dev_name, dev, t.name, t.data
+
+
+def _one_gyro(dev_name: str, dev: dict) -> None:
+    axes = dev.get("gyro", {}).get("axes", [])
+    if len(axes) != 1:
+        raise UserInputError(f"{dev_name}: the device template has {len(axes)} gyro axes; "
+                             f"identification fits one gyro (a single-gyro template such as "
+                             f"trplg_001 or rlg8_003)")
 
 
 def _se_note(se: float, what: str = "") -> str:
