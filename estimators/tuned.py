@@ -310,9 +310,11 @@ class PSOSVR(OptimizerTunedRegressor):
     resolution : float or None, default 0.02
         Resolution of the search in decades of every tuned parameter (0.02 decade = 4.7 %):
         positions that round to the same grid point share one validation (cached), and the
-        point evaluated is the grid point. A converging swarm revisits the same few cells
-        (30 x 100 on 2000 points: about a third of the evaluations are distinct), and no SVR
-        hyper-parameter matters to a few per cent. ``None`` evaluates every position exactly.
+        point evaluated is the grid point. A converging swarm revisits cells (30 x 100 on 2000
+        points: 1938 of the 3030 evaluations distinct; optimum 0.12 % above the exact search's,
+        benchmarks/estimators_optimizers.py), and no SVR hyper-parameter matters to a few per
+        cent. ``None`` evaluates every position exactly. The search time stays libsvm's: the
+        large-C fits that run to ``search_max_iter`` dominate it (0.5-1 s each at 1600 rows).
     n_jobs : int or None
         Processes that validate the distinct new points of a swarm iteration in parallel
         (joblib); ``None``: the available cores (at most 8) for problems of 500 rows or more,
