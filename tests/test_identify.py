@@ -169,3 +169,52 @@ def test_short_gaps_of_the_chamber_air_are_bridged_and_long_ones_refused():
     gappy[500:1200] = np.nan
     with pytest.raises(UserInputError, match="missing for 700 s"):
         _bridge(gappy, 1.0, "r.csv", "the chamber air")
+
+
+def test_recording_with_dropout_rows_is_identified(tmp_path):
+    """Dropout rows (gyro, probe and chamber air missing): the window table leaves out the
+    windows that hold one and keeps every other window as it was; identify accepts it."""
+    import rlgsim
+    from rlgsim.api import _nan_windows
+    from rlgsim.estimators.features import temperature_rate, window_average
+    from rlgsim.ground.recording_export import export
+    # the window mean and slope of a channel with missing readings use its valid samples
+    rng = np.random.default_rng(3)
+    x = 20.0 + 0.01 * np.arange(300.0) + rng.normal(0, 0.05, 300)
+    x[[5, 6, 7, 150]] = np.nan
+    x[200:260] = np.nan
+    mean = _nan_windows(window_average, x, 1.0, 100.0)
+    slope = _nan_windows(temperature_rate, x, 1.0, 100.0)
+    for k in range(2):
+        seg, t = x[100 * k:100 * k + 100], np.arange(100.0)
+        ok = np.isfinite(seg)
+        assert mean[k] == pytest.approx(seg[ok].mean(), abs=1e-12)
+        assert slope[k] == pytest.approx(np.polyfit(t[ok], seg[ok], 1)[0], abs=1e-12)
+    assert np.isnan(mean[2]) and np.isnan(slope[2])        # more than half missing
+    # a recording with dropout rows
+    th = IT.thermal_truth(tmp_path, {})
+    dev = IT.device_truth(tmp_path, th, bias=BIAS, keep_uhfo=False)
+    rec = IT.simulate(IT.scenario(tmp_path, dev, programme=SHORT, name="gap"),
+                      tmp_path / "gap.h5")
+    csv = pathlib.Path(export(str(rec), "csv", str(tmp_path / "gaprec.csv")).table)
+    table = pd.read_csv(csv)
+    clean = rlgsim.window_table(str(csv))
+    probes = [c for c in table.columns if c.startswith("probe_")]
+    gyro = next(c for c in table.columns if c.startswith("gyro_"))
+    table["dropout"] = 0
+    rows = list(range(1010, 1020)) + list(range(4000, 4003))
+    table.loc[rows, "dropout"] = 1
+    table[gyro] = table[gyro].astype(float)
+    table.loc[rows, [gyro, *probes, "chamber_air_c"]] = np.nan
+    gappy = tmp_path / "gappy.csv"
+    table.to_csv(gappy, index=False)
+    gappy.with_suffix(".toml").write_text(csv.with_suffix(".toml").read_text())
+    w = rlgsim.window_table(str(gappy))
+    assert len(w) == len(clean) - 2
+    assert not {1100.0, 4100.0} & set(w["time_s"])
+    kept = clean[~clean["time_s"].isin([1100.0, 4100.0])].reset_index(drop=True)
+    pd.testing.assert_frame_equal(w, kept)
+    r = identify(gappy, tmp_path / "twin", device_template=str(dev),
+                 thermal_template="rlg_single")
+    assert len(r.data.windows) == len(clean) - 2
+    assert max(r.thermal.rms_fitted_c.values()) < 0.1

@@ -82,8 +82,10 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
     gyro axis), ``probe_<name>_c`` (window mean), ``dTdt_<name>_k_per_s`` (least-squares slope
     in the window), ``uhfo_v`` (when logged), and for a simulated dataset
     ``true_bias_deg_per_h`` and ``true_random_deg_per_h`` (the truth's window mean and its
-    flicker + random-walk part). Windows that are not powered throughout, or that hold a
-    dropout, are left out.
+    flicker + random-walk part). Windows that are not powered throughout, or whose gyro
+    output holds a dropout, are left out; a probe, UHFO or power reading missing inside a
+    window (a dropout row) is left out of that window's mean and slope, and a window missing
+    more than half of a channel's readings is left out.
 
     ``source``: a dataset or recording path. K is the nominal scale factor (the truth's drawn
     ``gyro.k0`` for a dataset, the sidecar's for a recording); the Earth rate is the exact
@@ -180,19 +182,49 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
         cols.update(truth)
     for j, name in enumerate(names):
         T = temps[:, j]
-        cols[f"probe_{name}_c"] = window_average(T, f_slow, window_s)[:n_win]
-        cols[f"dTdt_{name}_k_per_s"] = temperature_rate(T, f_slow, window_s)[:n_win]
+        cols[f"probe_{name}_c"] = _nan_windows(window_average, T, f_slow, window_s)[:n_win]
+        cols[f"dTdt_{name}_k_per_s"] = _nan_windows(temperature_rate, T, f_slow,
+                                                    window_s)[:n_win]
     for key, v in extra.items():
-        cols[key] = window_average(v, f_slow, window_s)[:n_win]
+        cols[key] = _nan_windows(window_average, v, f_slow, window_s)[:n_win]
     keep = ~bad
     if power is not None:
-        keep &= window_average(power, f_slow, window_s)[:n_win] >= 1.0
+        keep &= _nan_windows(window_average, power, f_slow, window_s)[:n_win] >= 1.0
     for key, v in cols.items():
         if len(v) != n_win:
             raise ValueError(f"{source}: {key} covers {len(v)} windows, the pulses {n_win}")
     df = pd.DataFrame(cols)
     keep &= np.all(np.isfinite(df.to_numpy(dtype=float)), axis=1)
     return df[keep].reset_index(drop=True)
+
+
+def _nan_windows(func, x, rate_hz: float, window_s: float) -> np.ndarray:
+    """``func`` (window mean or least-squares slope) per window of a slow channel with missing
+    readings (NaN, e.g. dropout rows of a recording): a window missing more than half of its
+    samples is NaN (the window is then left out), otherwise the value of its valid samples. A
+    complete channel goes straight through ``func``."""
+    from rlgsim.estimators.features import samples_per_window
+    x = np.asarray(x, dtype=np.float64)
+    ok = np.isfinite(x)
+    if ok.all():
+        return func(x, rate_hz, window_s)
+    m = samples_per_window(rate_hz, window_s)
+    n_win = x.size // m
+    xw = x[:n_win * m].reshape(n_win, m)
+    okw = ok[:n_win * m].reshape(n_win, m)
+    cnt = okw.sum(axis=1)
+    x0 = np.where(okw, xw, 0.0)
+    mean = x0.sum(axis=1) / np.maximum(cnt, 1)
+    if func.__name__ == "window_average":
+        out = mean
+    else:                               # slope of x against time over the valid samples
+        t = np.broadcast_to(np.arange(m, dtype=np.float64) / rate_hz, xw.shape)
+        tm = np.where(okw, t, 0.0).sum(axis=1) / np.maximum(cnt, 1)
+        dt = np.where(okw, t - tm[:, None], 0.0)
+        den = (dt * dt).sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = (dt * (x0 - mean[:, None] * okw)).sum(axis=1) / den
+    return np.where(cnt * 2 > m, out, np.nan)
 
 
 def _axis(axes: list[str], gyro: str | None, source) -> str:
