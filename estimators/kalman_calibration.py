@@ -15,8 +15,10 @@ are not identity rows), and H = [0 I 0] selects δv, so :func:`run_filter` write
 equations (filterpy's update in Joseph form, same order) on those rows — a test pins the
 estimates to those of the filterpy version to 1e-5 σ — and records the gains. A pass whose
 linearisation point is within ``FilterSettings.reuse_tol`` (relative change of the Jacobian,
-:func:`linearisation_distance`) of an earlier full pass — the later passes of a window, and the
-next window of a campaign, which runs the same motion programme — reuses those gains
+:func:`linearisation_distance`) of the window's earlier full pass — the later passes of a
+window — reuses those gains. Gains are never carried from one window to the next: a window's
+estimates depend on its own pulses only, never on what the process calibrated before, so a
+campaign gives the same bytes for any number of worker processes and any window order
 (:func:`rerun_filter`: a fixed-gain, chord-Newton pass, 8 ms instead of 110 ms). The
 navigation and the convergence test are unchanged, so the iteration still ends at the
 nonlinear fixed point to within the gains' mismatch: a few 1e-3 σ at the default 1e-3, σ within
@@ -593,11 +595,6 @@ def linearisation_distance(a: SensorModel, b: SensorModel, phi_a: np.ndarray,
     return float(max(np.max(v) for v in d))
 
 
-#: The last full pass's linearisation in this process (a campaign's windows share their
-#: motion programme, so the next window starts near it and reuses its gains).
-_LAST: dict = {}
-
-
 def _linearisation_key(motions, rate_hz, n, settings, sigma_v, g, nominal) -> tuple:
     """Everything the gains depend on besides the linearisation point."""
     return (tuple(motions), float(rate_hz), int(n), repr(settings), float(sigma_v), float(g),
@@ -643,6 +640,7 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
     it = 0
     key = _linearisation_key(motions, rate_hz, n, settings, sigma_v, g, nominal)
     window_s = n * dt
+    lin = None                     # this window's last full pass (gains reused by later passes)
     for it in range(1, settings.max_iterations + 1):
         dtheta, dv = model.compensate(gp, ap, dt)
         if c0 is None:
@@ -654,7 +652,6 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         x0 = np.zeros(N_STATES)
         x0[PARAMS] = model_difference(nominal, model)
         x0[PHI] = x0[PHI0] = -phi_fed
-        lin = _LAST.get("lin")
         if (lin is not None and lin.key == key and settings.reuse_tol > 0
                 and linearisation_distance(model, lin.model, phi_fed, lin.phi_fed, window_s, g)
                 <= settings.reuse_tol):
@@ -662,8 +659,8 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         else:
             x, P, diag = run_filter(nav, dtheta, dv, rate_hz, motions, g, w_ie, settings,
                                     sigma_v, x0)
-            _LAST["lin"] = dataclasses.replace(diag["linearisation"], key=key, model=model,
-                                               phi_fed=phi_fed.copy())
+            lin = dataclasses.replace(diag["linearisation"], key=key, model=model,
+                                      phi_fed=phi_fed.copy())
         model = apply_correction(model, x[:N_STATES])
         c0 = rotation_matrix(x[PHI0] * ARCSEC) @ c0
         phi_fed = phi_fed + x[PHI0]
