@@ -405,7 +405,9 @@ class ImuSimulator:
         dt = self.step_s
         m = len(trace.t_s)
         k0 = int(round(float(trace.t_s[0]) / dt)) - 1           # first step of the block
-        n = int(round(m * dt * self.rate_hz))
+        # samples whose interval ends inside the block (a short last block at a low rate may
+        # hold none: sample_rate_hz = 0.1, duration_s = 605)
+        n = int(math.floor(m * dt * self.rate_hz + 1e-9))
         inputs = self._get_inputs(b, k0, m, n)
         motion_block = inputs["motion"]
         idx = sample_step_index(n, m, self.rate_hz, dt)
@@ -464,11 +466,15 @@ class ImuSimulator:
             rows["truth"]["sample"] = {"dtheta": motion_block.dtheta_rad,
                                        "dv": motion_block.dv_m_per_s}
         # turntable angles and motion index at the end of each thermal step
-        last = _last_sample_of_step(idx, m, n)
+        if n:
+            last = _last_sample_of_step(idx, m, n)
+            outer, inner = motion_block.outer_deg[last], motion_block.inner_deg[last]
+            segment = motion_block.segment[last]
+        else:                        # no sample in the block: the table at each step's end
+            outer, inner, segment = self.motion.angles(trace.t_s)
         rows["turntable"] = {"time": {
-            "time": trace.t_s, "outer_angle": motion_block.outer_deg[last],
-            "inner_angle": motion_block.inner_deg[last],
-            "motion_index": motion_block.segment[last].astype(np.int32)}}
+            "time": trace.t_s, "outer_angle": outer, "inner_angle": inner,
+            "motion_index": np.asarray(segment).astype(np.int32)}}
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
