@@ -324,9 +324,15 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                     db.setdefault(name, []).append(np.asarray(arr))
 
         def flush() -> None:
-            for group, gb in buffers.items():
-                for dim, arrays in gb.items():
-                    writers[group].append(dim, {k: np.concatenate(v) for k, v in arrays.items()})
+            # One append per block and group, in block order: the HDF5 calls — and so the
+            # file's bytes, chunk placement included — are the same whatever chunk_s.
+            blocks = max((len(v) for gb in buffers.values() for arrays in gb.values()
+                          for v in arrays.values()), default=0)
+            for i in range(blocks):
+                for group, gb in buffers.items():
+                    for dim, arrays in gb.items():
+                        if all(len(v) > i for v in arrays.values()):
+                            writers[group].append(dim, {k: v[i] for k, v in arrays.items()})
             buffers.clear()
 
         bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
