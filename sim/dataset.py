@@ -32,7 +32,8 @@ from typing import Any, Iterable, Iterator, Mapping
 import h5py
 import numpy as np
 
-from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, TIME,
+from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
+                                          INCOMPLETE_ATTR, TIME,
                                           VERSION_ATTR, open_dataset)
 from rlgsim.ground.errors import UserInputError
 
@@ -202,6 +203,32 @@ class GroupWriter:
             self._g[dim].resize(start + m, axis=0)
 
 
+def remove_stale_temporaries(path: pathlib.Path) -> list[pathlib.Path]:
+    """Delete ``<path>.tmp-<pid>`` files whose writing process no longer runs (a run killed
+    with SIGKILL, a power cut); the temporary file of a live process is kept. Returns the
+    files removed."""
+    from rlgsim.ground.lifeline import process_alive
+    prefix = f"{path.name}.tmp-"
+    removed = []
+    try:
+        entries = list(path.parent.iterdir())
+    except OSError:
+        return removed
+    for p in entries:
+        pid = p.name[len(prefix):]
+        if not p.name.startswith(prefix) or not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        if process_alive(int(pid)):
+            continue
+        try:
+            if p.is_file() and not p.is_symlink():
+                p.unlink()
+                removed.append(p)
+        except OSError:
+            pass
+    return removed
+
+
 class DatasetWriter:
     """Stream a dataset to ``<path>.tmp-<pid>``; :meth:`commit` renames it onto ``path``.
 
@@ -211,10 +238,12 @@ class DatasetWriter:
 
     def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any]) -> None:
         self.path = check_writable(path)
+        remove_stale_temporaries(self.path)
         self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
         self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True)
-        self._file.attrs[FORMAT_ATTR] = FORMAT
-        self._file.attrs[VERSION_ATTR] = FORMAT_VERSION
+        # The format marker is written last (commit): until then the file says it is
+        # incomplete, so the temporary file of a killed run is never taken for a dataset.
+        self._file.attrs[INCOMPLETE_ATTR] = INCOMPLETE
         self._file.attrs["software_version"] = software_version()
         for key, value in attrs.items():
             self._file.attrs[key] = _attr_value(value)
@@ -232,6 +261,9 @@ class DatasetWriter:
             self._file.attrs[key] = _attr_value(value)
 
     def commit(self) -> pathlib.Path:
+        del self._file.attrs[INCOMPLETE_ATTR]
+        self._file.attrs[FORMAT_ATTR] = FORMAT
+        self._file.attrs[VERSION_ATTR] = FORMAT_VERSION
         self._file.close()
         os.replace(self.tmp_path, self.path)
         return self.path

@@ -154,8 +154,6 @@ def temporaries(folder: pathlib.Path) -> list[str]:
     return sorted(p.name for p in folder.rglob("*") if ".tmp" in p.name)
 
 
-@pytest.mark.xfail(reason="temporaries of a killed run: cleaned up with issue 15 item 8",
-                   strict=True)
 def test_kill_run(tmp_path):
     (tmp_path / "long.toml").write_text(SCENARIO.replace("duration_h = 2.0", "duration_h = 8"))
     out = tmp_path / "long.h5"

@@ -30,7 +30,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from rlgsim.ground.dataset_format import IMU, PROBES, THERMAL, TRUTH, Dataset, open_dataset
+from rlgsim.ground.dataset_format import (IMU, PROBES, THERMAL, TRUTH, Dataset, check_finite,
+                                          open_dataset)
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
 from rlgsim.sim.study import Study, scenario_for
@@ -213,15 +214,17 @@ def _window_block(ds: Dataset, i: int, j: int, m_s: int, m_t: int, step: float, 
            "power": ds.read(THERMAL, "power_on", grid).reshape(n, m_t).min(axis=1) > 0}
     if where.probes:
         cols = sorted(set(where.probes.values()))
-        temps = ds.read(PROBES, "temperature", grid, cols).astype(np.float64)
+        temps = check_finite(ds.path, PROBES, "temperature",
+                             ds.read(PROBES, "temperature", grid, cols).astype(np.float64), t0)
         for name, c in where.probes.items():
             out[f"mean:{name}"] = window_average(temps[:, cols.index(c)], thermal_rate, W)
         if where.temperature:
             T = temps[:, cols.index(where.probes[where.temperature])]
             out["slope"] = temperature_rate(T, thermal_rate, W)
     if where.uhfo:
-        out["uhfo"] = window_average(ds.read(IMU, "uhfo", grid, where.gyro).astype(np.float64),
-                                     thermal_rate, W)
+        u = check_finite(ds.path, IMU, "uhfo",
+                         ds.read(IMU, "uhfo", grid, where.gyro).astype(np.float64), t0)
+        out["uhfo"] = window_average(u, thermal_rate, W)
     return out
 
 

@@ -52,6 +52,11 @@ SEGMENT_DETAILS = "details"
 SEGMENT_DETAILS_V1 = "attrs"
 FORMAT_ATTR = "rlgsim_format"
 VERSION_ATTR = "rlgsim_format_version"
+#: Root attribute of a dataset still being written (removed when the marker is written, last).
+INCOMPLETE_ATTR = "rlgsim_incomplete"
+INCOMPLETE = "rlgsim dataset being written: incomplete until its run ends"
+#: Root attributes that must be finite and > 0 when present.
+POSITIVE_ATTRS = ("duration_s", "thermal_step_s", "sample_rate_hz", "block_s")
 
 # ---- group names (docs/dataset.md)
 TIMELINE = "timeline"      #: labelled segments of the run and the chamber setpoint breakpoints
@@ -128,17 +133,41 @@ def open_dataset(path: str | os.PathLike) -> "Dataset":
     """
     import h5py
 
+    import re
+    import stat
+
     p = pathlib.Path(path)
-    if not p.exists():
-        raise UserInputError(f"{p}: no such file")
-    if p.is_dir():
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        raise UserInputError(f"{p}: no such file") from None
+    except OSError as exc:
+        raise UserInputError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):
         raise UserInputError(f"{p}: is a directory, not an rlgsim dataset")
+    if not stat.S_ISREG(mode):
+        raise UserInputError(f"{p}: not a regular file (a FIFO, device or socket), not an "
+                             f"rlgsim dataset")
+    temporary = re.search(r"\.tmp-?\d+$", p.name) is not None
+    incomplete = UserInputError(f"{p}: an incomplete rlgsim dataset (the temporary file of a run "
+                                f"that was interrupted or is still running); run it again")
     try:
         f = h5py.File(p, "r")
     except OSError:
+        if temporary:
+            raise incomplete from None
         raise UserInputError(f"{p}: not an rlgsim dataset (not an HDF5 file)") from None
     try:
-        fmt = _plain(f.attrs.get(FORMAT_ATTR))
+        try:
+            attrs = {k: _plain(f.attrs[k]) for k in f.attrs.keys()}
+        except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
+            if temporary:
+                raise incomplete from None
+            raise UserInputError(f"{p}: damaged HDF5 file (its attributes cannot be read: "
+                                 f"{' '.join(str(exc).split())[:100]})") from None
+        fmt = attrs.get(FORMAT_ATTR)
+        if fmt != FORMAT and (INCOMPLETE_ATTR in attrs or temporary):
+            raise incomplete
         if fmt != FORMAT:
             raise UserInputError(f"{p}: not an rlgsim dataset (HDF5 file without the "
                                  f"{FORMAT_ATTR} = '{FORMAT}' marker)")
@@ -156,10 +185,33 @@ def open_dataset(path: str | os.PathLike) -> "Dataset":
         if version < 1:
             raise UserInputError(f"{p}: rlgsim dataset format version {version} is not valid; "
                                  f"this rlgsim reads versions 1 to {FORMAT_VERSION}")
+        for key in POSITIVE_ATTRS:
+            if key in attrs:
+                value = attrs[key]
+                ok = (isinstance(value, (int, float)) and not isinstance(value, bool)
+                      and np.isfinite(value) and value > 0)
+                if not ok:
+                    raise UserInputError(f"{p}: root attribute {key} = {value!r} is not valid "
+                                         f"(a finite number > 0); a damaged dataset?")
     except BaseException:
         f.close()
         raise
     return Dataset(f, p, version)
+
+
+def check_finite(path: str | os.PathLike, group: str, name: str, values: np.ndarray,
+                 first_row: int = 0) -> np.ndarray:
+    """``values`` (rows ``first_row …`` of ``group/name``) unchanged if every value is finite,
+    else a one-line :class:`UserInputError` naming the file, variable and first bad row — the
+    check readers apply to what a simulated dataset never holds (NaN times, NaN readings)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind in "fc" and arr.size and not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        row = first_row + int(bad[0]) if arr.ndim else first_row
+        raise UserInputError(f"{path}: {group}/{name} holds NaN or infinite values (row {row}); "
+                             f"a damaged dataset? (delete a study's data/ file to simulate it "
+                             f"again)")
+    return values
 
 
 class Dataset:
@@ -280,12 +332,34 @@ class Dataset:
         (the JSON details decoded), in file order; only ``track``'s when given."""
         t0, t1 = self.read(TIMELINE, "t0"), self.read(TIMELINE, "t1")
         tracks, labels = self.read(TIMELINE, "track"), self.read(TIMELINE, "label")
-        details = self.read(TIMELINE, SEGMENT_DETAILS if self.has(TIMELINE, SEGMENT_DETAILS)
-                            else SEGMENT_DETAILS_V1)          # version-1 files
-        return [dict(t0=float(a), t1=float(b), track=str(tr), label=str(lb),
-                     attrs=json.loads(str(at)))
-                for a, b, tr, lb, at in zip(t0, t1, tracks, labels, details)
-                if track is None or str(tr) == track]
+        name = SEGMENT_DETAILS if self.has(TIMELINE, SEGMENT_DETAILS) else SEGMENT_DETAILS_V1
+        details = self.read(TIMELINE, name)                       # version-1 files: "attrs"
+        check_finite(self.path, TIMELINE, "t0", t0)
+        check_finite(self.path, TIMELINE, "t1", t1)
+        bad = np.flatnonzero(t1 < t0)
+        if bad.size:
+            raise UserInputError(f"{self.path}: {TIMELINE}/t1 is before {TIMELINE}/t0 in row "
+                                 f"{int(bad[0])}; a damaged dataset?")
+        if not len(t0) == len(t1) == len(tracks) == len(labels) == len(details):
+            raise UserInputError(f"{self.path}: the {TIMELINE} variables have different "
+                                 f"lengths; a damaged dataset?")
+        out = []
+        for row, (a, b, tr, lb, at) in enumerate(zip(t0, t1, tracks, labels, details)):
+            if track is not None and str(tr) != track:
+                continue
+            try:
+                decoded = json.loads(str(at))
+            except ValueError as exc:
+                why = getattr(exc, "msg", None) or type(exc).__name__
+                raise UserInputError(f"{self.path}: {TIMELINE}/{name} row {row}: not valid JSON "
+                                     f"({why}); a damaged dataset?") from None
+            if not isinstance(decoded, dict):
+                raise UserInputError(f"{self.path}: {TIMELINE}/{name} row {row}: JSON "
+                                     f"{type(decoded).__name__}, expected an object; a damaged "
+                                     f"dataset?")
+            out.append(dict(t0=float(a), t1=float(b), track=str(tr), label=str(lb),
+                            attrs=decoded))
+        return out
 
     def coefficients(self) -> dict[str, float]:
         """The drawn unit's coefficient table (group ``truth``): ``<law>.<term>[<axis>]`` →
