@@ -117,7 +117,7 @@ def load_custom_estimator(ref: str, base_dir: pathlib.Path | None, ctx: Ctx):
             module = importlib.import_module(where)
     except UserInputError:
         raise
-    except Exception as exc:          # the user's module failed to import: say which and why
+    except (Exception, SystemExit) as exc:   # the user's module failed to import: say why
         raise ctx.error("estimator", f"cannot import {where!r} (value {ref!r}): "
                                      f"{type(exc).__name__}: {' '.join(str(exc).split())}"
                         ) from None

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.studies.compensators import CUSTOM, CompensatorSpec, make_estimator
 from rlgsim.sim.studies.runs import RunSeries
 
@@ -60,6 +61,12 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
                     pair = tuned[key]
                 model.set_params(gamma=pair[0], sigma2=pair[1])
             model.fit(Xi, y)
+    except SystemExit as exc:       # sys.exit() in the user's fit: not a silent exit 0
+        if spec.kind != CUSTOM:
+            raise
+        raise spec.ctx.error("estimator", f"compensator {spec.name!r} (custom) called "
+                                          f"sys.exit({exc.code!r}) in fit instead of returning "
+                                          f"self") from None
     except Exception as exc:        # built-in kinds: a bad value; custom: the user's code
         if spec.kind != CUSTOM and not isinstance(exc, (ValueError, TypeError)):
             raise
@@ -95,5 +102,50 @@ def fit_all(specs, X, y: np.ndarray, random_state: int, *, progress: bool,
 
 
 def predict(f: Fitted, rs: RunSeries) -> np.ndarray:
-    """A fitted compensator's prediction ŷ on a run's windows [°/h]."""
-    return np.asarray(f.model.predict(rs.X.select(f.spec.inputs)), dtype=float)
+    """A fitted compensator's prediction ŷ on a run's windows [°/h]: one finite number per
+    window. A custom compensator whose ``predict`` raises, exits or returns anything else
+    (NaN, infinities, another length, strings, None) is a one-line
+    :class:`~rlgsim.ground.errors.UserInputError` naming it and what it returned."""
+    X = rs.X.select(f.spec.inputs)
+    spec = f.spec
+    custom = spec.kind == CUSTOM
+    if not custom:
+        return np.asarray(f.model.predict(X), dtype=float)
+    n = np.asarray(X, dtype=float).shape[0]
+
+    def refuse(what: str) -> UserInputError:
+        return spec.ctx.error("estimator",
+                              f"compensator {spec.name!r} ({spec.kind}): predict on run "
+                              f"{rs.label!r} {what}")
+    try:
+        raw = f.model.predict(X)
+    except SystemExit as exc:
+        raise refuse(f"called sys.exit({exc.code!r})") from None
+    except Exception as exc:        # noqa: BLE001 - the user's code
+        raise refuse(f"raised {type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
+                     ) from None
+    try:
+        if raw is None or np.asarray(raw).dtype.kind not in "biufO":
+            raise TypeError
+        y = np.asarray(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise refuse(f"returned {_describe(raw)}, not numbers") from None
+    if y.ndim == 2 and y.shape[1] == 1:
+        y = y[:, 0]                  # a column vector is one value per window too
+    if y.shape != (n,):
+        raise refuse(f"returned {y.size} values for {n} windows (shape {y.shape}); expected "
+                     f"one number per window")
+    bad = ~np.isfinite(y)
+    if bad.any():
+        kind = "NaN" if np.isnan(y[bad]).any() else "infinite values"
+        raise refuse(f"returned {kind} for {int(bad.sum())} of {n} windows (first: window "
+                     f"{int(np.flatnonzero(bad)[0])})")
+    return y
+
+
+def _describe(value: Any) -> str:
+    """A short description of what a predict returned (for messages)."""
+    if value is None:
+        return "None"
+    text = repr(value)
+    return f"{type(value).__name__} {text[:60]}{'...' if len(text) > 60 else ''}"
