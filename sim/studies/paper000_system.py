@@ -60,13 +60,13 @@ from __future__ import annotations
 import os
 import pathlib
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.lifeline import process_pool
 from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_int, get_section,
                                get_str)
 from rlgsim.sim.report import Report, Table
@@ -347,7 +347,7 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0,
     fitted: dict[str, tuple] = {}
     workers = _workers(cfg)
     if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as ex:
+        with process_pool(max_workers=workers) as ex:       # workers die with us
             futs = {p: ex.submit(_fit_models, xs[p], ys[p], cfg, seeds[p])
                     for p in PAPER_PARAMETERS}
             fitted = {p: f.result() for p, f in futs.items()}
