@@ -1,14 +1,14 @@
-"""Helpers for tests that build scenarios: a small TOML writer and the quickstart as a dict."""
+"""Helpers for tests that build scenarios: TOML text of a dict (tomlkit, through
+:mod:`rlgsim.sim.toml_text`) and the quickstart as a dict."""
 
 from __future__ import annotations
 
 import copy
-import json
-import math
 import pathlib
 import tomllib
 
 from rlgsim.sim.scenario import Scenario, parse_scenario
+from rlgsim.sim.toml_text import dumps, value_text
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -17,27 +17,12 @@ QUICKSTART_PATH = SCENARIOS / "quickstart.toml"
 
 def toml_value(v) -> str:
     """One TOML value (tables and arrays inline)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if math.isnan(v):
-            return "nan"
-        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{toml_value(str(k))} = {toml_value(x)}"
-                               for k, x in v.items()) + "}"
-    raise TypeError(type(v))
+    return value_text(v)
 
 
 def to_toml(d: dict) -> str:
-    """A TOML document with every key at the top level (sub-tables inline)."""
-    return "".join(f"{toml_value(str(k))} = {toml_value(v)}\n" for k, v in d.items())
+    """A TOML document of ``d`` (sub-tables as tables, lists of tables as arrays of tables)."""
+    return dumps(d)
 
 
 def quickstart() -> dict:

@@ -43,6 +43,19 @@ def test_with_changes_text_matches_and_validates():
         sc.with_changes({"chamber.segments[9].to_c": 3})
 
 
+def test_with_changes_keeps_the_comments_of_the_original(tmp_path):
+    text = rlgsim.load_scenario("quickstart").text.replace(
+        "start_c = 20.0", "start_c = 20.0  # the soak temperature\n# a note of the user")
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    ch = rlgsim.load_scenario(str(path)).with_changes({"chamber.start_c": 22.5, "seed": 5})
+    assert tomllib.loads(ch.text) == ch.tables and ch.chamber.start_c == 22.5
+    assert "start_c = 22.5  # the soak temperature\n# a note of the user\n" in ch.text
+    assert "# The quickstart scenario" in ch.text                 # the file's own header
+    assert ch.text.startswith("# scenario quickstart, from ")
+    assert "with chamber.start_c = 22.5, seed = 5\n" in ch.text
+
+
 def test_run_in_memory_and_tree_times(short, tmp_path, monkeypatch):
     sc, path = short
     monkeypatch.chdir(tmp_path)
