@@ -14,7 +14,6 @@ do not stop the campaign: the table says which and why, and they are listed on s
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import pathlib
 import sys
@@ -24,6 +23,7 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import ARCSEC, G0
+from rlgsim.sim.cli.arg_types import number, whole_number
 
 #: UDUNITS spelling of the table's units.
 _UDUNITS = {"deg/h": "degree h-1", "ppm": "1e-6", "arcsec": "arcsecond",
@@ -31,30 +31,10 @@ _UDUNITS = {"deg/h": "degree h-1", "ppm": "1e-6", "arcsec": "arcsecond",
             "mm s-1": "mm s-1", "arcsec-1": "arcsecond-1", "s-1": "s-1"}
 
 
-def _positive(kind):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not math.isfinite(value) or value <= 0:
-            raise argparse.ArgumentTypeError(f"value {text!r} not allowed; {kind} must be > 0")
-        return value
-    return parse
-
-
-def _workers(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be >= 1")
-    return value
-
-
 def add_subparser(sub) -> None:
     """Add the ``calibrate`` subcommand to the ``rlgsim`` subparsers."""
+    def positive(name: str):
+        return number(0.0, strict=True, name=name)
     c = sub.add_parser("calibrate", help="turntable Kalman calibration of every calibration "
                                          "window of a dataset → parameter-vs-temperature table")
     c.add_argument("dataset", metavar="DATASET", help="an rlgsim dataset (.h5) or a recording "
@@ -68,18 +48,18 @@ def add_subparser(sub) -> None:
                    help="also draw every parameter vs temperature (PNG next to the table)")
     c.add_argument("--probe", metavar="NAME",
                    help="probe whose temperature is the x axis of the plots (default: first)")
-    c.add_argument("--workers", type=_workers, metavar="N",
+    c.add_argument("--workers", type=whole_number(), metavar="N",
                    help="processes (default: min(2, CPUs))")
     c.add_argument("--no-dataset", action="store_true",
                    help="do not add the calibration group to the dataset")
-    c.add_argument("--arw-deg-per-sqrt-h", type=_positive("ARW"), metavar="X",
+    c.add_argument("--arw-deg-per-sqrt-h", type=positive("ARW"), metavar="X",
                    help="gyro angle random walk for the filter (default: the dataset's device "
                         "preset, else 0.002)")
-    c.add_argument("--vrw-ug-per-sqrt-hz", type=_positive("VRW"), metavar="X",
+    c.add_argument("--vrw-ug-per-sqrt-hz", type=positive("VRW"), metavar="X",
                    help="accelerometer velocity random walk (default: device preset, else 10)")
-    c.add_argument("--gyro-sf-pulse-per-arcsec", type=_positive("the scale factor"),
+    c.add_argument("--gyro-sf-pulse-per-arcsec", type=positive("the scale factor"),
                    metavar="K", help="nominal gyro scale factor (default: device preset, 2.14)")
-    c.add_argument("--accel-sf-pulse-per-s-per-g", type=_positive("the scale factor"),
+    c.add_argument("--accel-sf-pulse-per-s-per-g", type=positive("the scale factor"),
                    metavar="K", help="nominal accelerometer scale factor (default: device "
                                      "preset, 5000)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")

@@ -30,6 +30,7 @@ import time
 from typing import Any, Callable, Sequence
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.cli.arg_types import number, whole_number
 
 #: Metrics that are wall-clock timings: not a property of the unit, so never in results.csv
 #: (they would make the table depend on the machine and its load).
@@ -308,44 +309,23 @@ def _slug(text: str) -> str:
 
 
 # ------------------------------------------------------------------------------ command line
-def _units(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of units, got {text!r}"
-                                         ) from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be >= 1")
-    return value
-
-
-def _sigma(text: str) -> float:
-    import math
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be >= 0")
-    return value
-
-
 def add_subparser(sub) -> None:
     """Register ``rlgsim montecarlo`` on the CLI's subparsers."""
+    units, sigma = whole_number("a whole number of units"), number(0.0, strict=False)
     m = sub.add_parser("montecarlo", help="run a study over N simulated units (local processes "
                                           "or a Dask cluster) and summarise the spread")
     m.add_argument("study", metavar="STUDY",
                    help="a shipped study's name or a path to a study .toml file")
-    m.add_argument("--units", type=_units, required=True, metavar="N",
+    m.add_argument("--units", type=units, required=True, metavar="N",
                    help="number of units (0 .. N-1); re-running only runs missing units")
     where = m.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_units, default=1, metavar="K",
+    where.add_argument("--workers", type=units, default=1, metavar="K",
                        help="local worker processes (default 1)")
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="a Dask scheduler (tcp://host:port): run the units on its cluster")
-    m.add_argument("--chamber-offset-c", type=_sigma, default=0.0, metavar="S",
+    m.add_argument("--chamber-offset-c", type=sigma, default=0.0, metavar="S",
                    help="per-unit chamber temperature offset, 1 sigma [K] (default 0)")
-    m.add_argument("--chamber-rate-rel", type=_sigma, default=0.0, metavar="R",
+    m.add_argument("--chamber-rate-rel", type=sigma, default=0.0, metavar="R",
                    help="per-unit relative spread of the chamber ramp rates, 1 sigma "
                         "(log-normal; default 0)")
     m.add_argument("-o", "--output", metavar="DIR",

@@ -81,18 +81,25 @@ def _same(a: pathlib.Path, b: str | os.PathLike) -> bool:
             return False
 
 
+def _output(path: str | os.PathLike, doing: str, *, follow: bool
+            ) -> tuple[pathlib.Path, os.stat_result | None]:
+    """An output path (``~`` expanded, length checked) and its status (``None``: it does not
+    exist yet); ``follow``: through a symbolic link (``os.stat``) or of the link (``lstat``)."""
+    p = pathlib.Path(path).expanduser()
+    _check_length(p)
+    try:
+        return p, (os.stat(p) if follow else os.lstat(p))
+    except FileNotFoundError:
+        return p, None
+    except OSError as exc:
+        raise _os_error(p, exc, doing) from None
+
+
 def output_file(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
                 option: str = "-o") -> pathlib.Path:
     """An output file that may be created or replaced: not a symlink, not a non-regular
     file, not one of ``inputs``, a name the file system takes."""
-    p = pathlib.Path(path).expanduser()
-    _check_length(p)
-    try:
-        st = os.lstat(p)
-    except FileNotFoundError:
-        st = None
-    except OSError as exc:
-        raise _os_error(p, exc, "write it") from None
+    p, st = _output(path, "write it", follow=False)
     if st is not None:
         if stat.S_ISLNK(st.st_mode):
             raise UserInputError(f"{p}: is a symbolic link; rlgsim does not replace links "
@@ -114,14 +121,7 @@ def output_folder(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike
                   option: str = "-o") -> pathlib.Path:
     """An output folder: created if missing, written through if a symlink to a folder; an
     existing non-folder, an input or an over-long name is refused."""
-    p = pathlib.Path(path).expanduser()
-    _check_length(p)
-    try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        st = None
-    except OSError as exc:
-        raise _os_error(p, exc, "use it as the output folder") from None
+    p, st = _output(path, "use it as the output folder", follow=True)
     if st is not None and not stat.S_ISDIR(st.st_mode):
         what = "a regular file" if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
         raise UserInputError(f"{p}: is {what}, not a folder; choose another output folder "

@@ -24,22 +24,18 @@ import pathlib
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.gyro_axis import choose_gyro
 from rlgsim.ground.recording import Recording, load_recording
 
 __all__ = ["check_recording_run", "recording_series"]
 
 
 def _axis(rec: Recording, gyro: str | None, where: str) -> str:
-    axes = rec.gyro_axes
-    if gyro is not None:
-        if gyro not in axes:
-            raise UserInputError(f"{where}: data.gyro: value {gyro!r} not allowed; recording "
-                                 f"{rec.path.name} has gyro axes {', '.join(axes) or 'none'}")
-        return gyro
-    if len(axes) != 1:
-        raise UserInputError(f"{where}: data.gyro: missing: recording {rec.path.name} has "
-                             f"{len(axes)} gyros ({', '.join(axes)}); say which one")
-    return axes[0]
+    return choose_gyro(rec.gyro_axes, gyro, where=where, name=rec.path.name,
+                       unknown="{where}: data.gyro: value {gyro!r} not allowed; recording "
+                               "{name} has gyro axes {axes}",
+                       several="{where}: data.gyro: missing: recording {name} has {n} gyros "
+                               "({axes}); say which one")
 
 
 def _rates(rec: Recording) -> tuple[float, float]:

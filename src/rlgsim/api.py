@@ -228,16 +228,10 @@ def _nan_windows(func, x, rate_hz: float, window_s: float) -> np.ndarray:
 
 
 def _axis(axes: list[str], gyro: str | None, source) -> str:
-    from rlgsim.ground.errors import UserInputError
-    if gyro is not None:
-        if gyro not in axes:
-            raise UserInputError(f"{source}: gyro {gyro!r} not allowed; the gyro axes are "
-                                 f"{', '.join(axes) or 'none'}")
-        return gyro
-    if len(axes) != 1:
-        raise UserInputError(f"{source}: several gyros ({', '.join(axes)}); say which one with "
-                             f"gyro=")
-    return axes[0]
+    from rlgsim.ground.gyro_axis import choose_gyro
+    return choose_gyro(axes, gyro, where=source,
+                       unknown="{where}: gyro {gyro!r} not allowed; the gyro axes are {axes}",
+                       several="{where}: several gyros ({axes}); say which one with gyro=")
 
 
 # ---------------------------------------------------------------------------- scores
