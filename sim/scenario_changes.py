@@ -14,7 +14,7 @@ top-level keys. A value of ``None`` removes the key (e.g. ``duration_h=None`` to
 chamber programme set the duration). Unknown keys and bad values are reported by the scenario
 validator as for a file.
 
-The original text is edited in place with tomlkit (:func:`rlgsim.sim.toml_text.with_values`),
+The original text is edited in place with tomlkit (:func:`rlgsim.ground.toml_text.with_values`),
 so the comments and layout of the user's file survive; the text starts with a comment naming
 the source and the changes.
 """
@@ -24,7 +24,7 @@ from __future__ import annotations
 import tomllib
 from typing import Any, Mapping
 
-from rlgsim.sim.toml_text import dumps, value_text, with_values
+from rlgsim.ground.toml_text import dumps, value_text, with_values
 
 __all__ = ["with_changes", "changed_text", "dumps_toml"]
 

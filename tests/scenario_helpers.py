@@ -1,5 +1,5 @@
 """Helpers for tests that build scenarios: TOML text of a dict (tomlkit, through
-:mod:`rlgsim.sim.toml_text`) and the quickstart as a dict."""
+:mod:`rlgsim.ground.toml_text`) and the quickstart as a dict."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pathlib
 import tomllib
 
 from rlgsim.sim.scenario import Scenario, parse_scenario
-from rlgsim.sim.toml_text import dumps, value_text
+from rlgsim.ground.toml_text import dumps, value_text
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

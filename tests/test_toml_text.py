@@ -1,4 +1,4 @@
-"""sim/toml_text.py: TOML written with tomlkit reads back (tomllib) to exactly the data written;
+"""rlgsim.ground.toml_text: TOML written with tomlkit reads back (tomllib) to exactly the data written;
 changed keys keep the document's comments; numpy values are written as plain numbers."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.toml_text import dumps, set_value, value_text, with_values
+from rlgsim.ground.toml_text import dumps, set_value, value_text, with_values
 
 _leaves = (st.booleans() | st.integers(min_value=-2**63, max_value=2**63 - 1)
            | st.floats(allow_nan=False) | st.text(max_size=12))
