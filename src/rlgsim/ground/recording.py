@@ -33,6 +33,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.toml_text import dumps
 from rlgsim.ground.units import ARCSEC, DEG, EARTH_RATE, G0, HOUR
 
 __all__ = ["RECORDING_FORMAT", "RECORDING_VERSION", "DATA_SUFFIXES", "COLUMN_RULES",
@@ -828,33 +829,11 @@ def _check_range(std, kind, unit, v, mask, where, sc) -> None:
 
 # ---------------------------------------------------------------------------- writing
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
 def write_sidecar(path: str | os.PathLike, tables: Mapping[str, Mapping[str, Any]],
                   comment: str = "") -> pathlib.Path:
     """Write a sidecar: ``tables`` maps table name to ``{key: value}`` (scalars, lists)."""
     p = pathlib.Path(path)
-    lines = [f"# {c}" for c in comment.splitlines()] if comment else []
-    for name, table in tables.items():
-        if not table:
-            continue
-        lines.append(f"\n[{name}]")
-        for k, v in table.items():
-            key = k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml_value(k)
-            lines.append(f"{key} = {_toml_value(v)}")
-    text = "\n".join(lines).lstrip("\n") + "\n"
+    text = dumps({name: dict(table) for name, table in tables.items() if table}, header=comment)
     tomllib.loads(text)                  # never write a sidecar that does not read back
     tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
     tmp.write_text(text, encoding="utf-8")
