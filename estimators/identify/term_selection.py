@@ -18,6 +18,26 @@ is only chosen when it pays for its centre and width. (An effective sample size 
 residual autocorrelation was tried in the BIC and rejected: the residual of an incomplete law
 is smooth, so it shrinks n until no missing term can enter.)
 
+Selection uncertainty (Buckland, Burnham & Augustin 1997; Hoeting et al. 1999; quasi-likelihood
+criteria with an overdispersion ĉ, Burnham & Anderson 2002 §6.2): when rate and the gradients a
+ramp drives are nearly the same signal, several subsets have nearly the same BIC and the chosen
+one is a coin toss whose coefficients are not the physical ones. With the nonlinear terms of the
+choice held, every linear subset (up to ``max_linear``) gets the weight
+``w ∝ exp(−QBIC/2)``, ``QBIC = n·ln(SSR/n)/ĉ + k·ln n`` (ĉ ≥ 1 the batch-means long-run /
+independent variance ratio of the chosen model's residual: windows carrying flicker hold fewer
+independent pieces of information than their count). Reported for every linear candidate: the
+model-averaged coefficient ``Σ w_S β_S`` (0 where the term is out), its standard error
+``√Σ w_S (se_S² + (β_S − β̄)²)`` (each ``se_S`` the batch-means sandwich of subset S) and its
+inclusion probability ``Σ_{S∋t} w_S``; :meth:`SelectedLaw.predict` averages predictions the
+same way. Terms whose inclusion is undecided (between 5 % and 95 %) are grouped with the
+candidates whose window features they nearly repeat (|r| ≥ 0.9 after the chosen model's other
+terms are removed) as ``unseparable``, each group with a one-line reason naming the programme
+feature that would separate it. The variance inflation factors of the chosen terms are
+``vif``. A subset in which a term's variance inflation factor exceeds :data:`MAX_VIF` (100,
+partial |r| ≈ 0.995) is neither selected nor averaged: two terms that nearly repeat each other
+get huge opposite coefficients there, which extrapolate wildly to another programme (their
+difference is then what the recording cannot determine, and the group is named instead).
+
 Refinement: every coefficient and every nonlinear parameter of the chosen terms are fitted
 together by :func:`rlgsim.estimators.identify.lsq_stats.fit`, whose standard errors are
 inflated for the residual autocorrelation (window series of a gyro bias carry flicker noise).
@@ -66,12 +86,37 @@ class SelectedLaw:
     steps: tuple[tuple[str, float], ...]
     bic: float
     candidates: tuple[str, ...]
+    #: {term or "intercept": (model-averaged value, its standard error, inclusion probability)}
+    averaged: dict = field(default_factory=dict)
+    #: ((terms, one-line reason), ...) groups the recording cannot separate
+    unseparable: tuple = ()
+    #: variance inflation factor of each chosen linear term; overdispersion ĉ of the weights
+    vif: dict = field(default_factory=dict)
+    c_hat: float = 1.0
+    #: averaged models: (base names, subset, coefficients, covariance, weight)
+    models: tuple = ()
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
 
     def se(self, name: str) -> float:
         return float(self.fit.se[self.fit.names.index(name)])
+
+    def predict(self, cols: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Model-averaged prediction and its standard error (selection included) from the
+        feature columns ``cols`` {term: (m,)} (nonlinear terms at their chosen parameters)."""
+        m = next(iter(cols.values())).shape[0]
+        preds, vars_, ws = [], [], []
+        for base, subset, beta, cov, w in self.models:
+            X = np.column_stack([np.ones(m)] + [cols[c] for c in base[1:]]
+                                + [cols[c] for c in subset])
+            preds.append(X @ beta)
+            vars_.append(np.einsum("ij,jk,ik->i", X, cov, X))
+            ws.append(w)
+        P, V, W = np.array(preds), np.array(vars_), np.array(ws)[:, None]
+        mean = (W * P).sum(axis=0)
+        var = (W * (V + (P - mean) ** 2)).sum(axis=0)
+        return mean, np.sqrt(var)
 
 
 def _bic(y: np.ndarray, X: np.ndarray, k_extra: int) -> float:
@@ -81,6 +126,171 @@ def _bic(y: np.ndarray, X: np.ndarray, k_extra: int) -> float:
     n = y.size
     ssr = max(float(r @ r), 1e-300)
     return n * np.log(ssr / n) + (X.shape[1] + k_extra) * np.log(n)
+
+
+#: programme features that separate a candidate from the others (for the refusal lines)
+_SEPARATES = {"rate": "ramps at several rates", "uhfo": "UHFO changes at steady temperature",
+              "c": "soaks at several temperatures", "gradient": "soaks long enough for the "
+              "gradients to settle after each ramp"}
+
+
+def _separating_feature(names: Sequence[str]) -> str:
+    kinds = []
+    for n in names:
+        k = "gradient" if n.startswith("gradient") else "c" if n in (
+            "c1", "c2", "c3", "knee", "step") else n
+        if k in _SEPARATES and _SEPARATES[k] not in kinds:
+            kinds.append(_SEPARATES[k])
+    return " and ".join(kinds) or "a programme that moves them independently"
+
+
+def _ols(y: np.ndarray, X: np.ndarray, batches: int) -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray]:
+    """Coefficients, batch-means sandwich covariance (never below the independent-residual
+    one) and residual of the least-squares fit of ``y`` on ``X``."""
+    from rlgsim.estimators.identify.lsq_stats import batch_means_covariance, covariance
+    beta = np.linalg.lstsq(X, y, rcond=None)[0]
+    r = y - X @ beta
+    c0, _ = covariance(X, r)
+    c1 = batch_means_covariance(X, r, 1, batches)
+    d0, d1 = np.sqrt(np.clip(np.diag(c0), 0, None)), np.sqrt(np.clip(np.diag(c1), 0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = np.where(d1 > 0, np.maximum(d0, d1) / d1, 1.0)
+    return beta, c1 * np.outer(f, f), r
+
+
+def _overdispersion(r: np.ndarray, batches: int) -> float:
+    """ĉ = long-run variance (batch means) / variance of a residual series, at least 1."""
+    r = np.asarray(r, dtype=float) - np.mean(r)
+    L = r.size // batches
+    if L < 2:
+        return 1.0
+    bm = r[:L * batches].reshape(batches, L).mean(axis=1)
+    return float(max(1.0, L * np.mean(bm ** 2) / max(np.mean(r ** 2), 1e-300)))
+
+
+#: largest variance inflation factor of a subset's terms (partial |r| ≈ 0.995): beyond it the
+#: recording cannot tell the terms' coefficients apart and the subset is not considered
+MAX_VIF = 100.0
+
+
+def _corr_matrix(lcols: dict, names: Sequence[str]) -> dict:
+    if not names:
+        return {"names": [], "R": np.zeros((0, 0))}
+    Z = np.column_stack([lcols[c] - lcols[c].mean() for c in names])
+    Z = Z / np.linalg.norm(Z, axis=0)
+    return {"names": list(names), "R": Z.T @ Z}
+
+
+def _conditioned(R: dict, combo: Sequence[str]) -> bool:
+    """All variance inflation factors of the subset ``combo`` at most :data:`MAX_VIF`."""
+    if len(combo) < 2:
+        return True
+    idx = [R["names"].index(c) for c in combo]
+    sub = R["R"][np.ix_(idx, idx)]
+    try:
+        vif = np.diag(np.linalg.inv(sub))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.all(np.isfinite(vif)) and np.all(vif <= MAX_VIF))
+
+
+def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, batches):
+    """Selection uncertainty of the linear subset (module docstring)."""
+    n = y.size
+    R = _corr_matrix(lcols, lin_names)
+    _, _, r_best = _ols(y, np.column_stack([base] + [lcols[c] for c in chosen_lin]), batches)
+    c_hat = _overdispersion(r_best, batches)
+    fits = []
+    for size in range(0, min(max_linear, len(lin_names)) + 1):
+        for combo in itertools.combinations(lin_names, size):
+            if not _conditioned(R, combo):
+                continue
+            X = np.column_stack([base] + [lcols[c] for c in combo])
+            beta = np.linalg.lstsq(X, y, rcond=None)[0]
+            ssr = max(float(np.sum((y - X @ beta) ** 2)), 1e-300)
+            fits.append((n * np.log(ssr / n) / c_hat + X.shape[1] * np.log(n), combo))
+    q = np.array([f[0] for f in fits])
+    w = np.exp(-(q - q.min()) / 2.0)
+    w /= w.sum()
+    order = np.argsort(-w)
+    keep = order[np.cumsum(w[order]) <= 1 - 1e-4 + 1e-12]
+    keep = order[:max(keep.size + 1, 1)][:1000]
+    wk = w[keep] / w[keep].sum()
+    models = []
+    for i, wi in zip(keep, wk):
+        combo = fits[i][1]
+        X = np.column_stack([base] + [lcols[c] for c in combo])
+        beta, cov, _ = _ols(y, X, batches)
+        models.append((tuple(base_names), tuple(combo), beta, cov, float(wi)))
+    averaged = {}
+    for name in list(base_names) + list(lin_names):
+        vals, vars_, ws = [], [], []
+        for bn, combo, beta, cov, wi in models:
+            names = list(bn) + list(combo)
+            if name in names:
+                j = names.index(name)
+                vals.append(beta[j])
+                vars_.append(cov[j, j])
+            else:
+                vals.append(0.0)
+                vars_.append(0.0)
+            ws.append(wi)
+        v, s2, ww = np.array(vals), np.array(vars_), np.array(ws)
+        mean = float(ww @ v)
+        incl = float(sum(wi for (bn, combo, _, _, wi) in models if name in bn or name in combo))
+        averaged[name] = (mean, float(np.sqrt(ww @ (s2 + (v - mean) ** 2))), incl)
+    # unseparable groups: undecided terms with the candidates whose features they repeat
+    undecided = [c for c in lin_names if 0.05 < averaged[c][2] < 0.95]
+    edges: dict[str, list[tuple[str, float]]] = {c: [] for c in lin_names}
+    for c in undecided:
+        for o in lin_names:
+            if o == c or (o not in chosen_lin and o not in undecided):
+                continue
+            cols = [k for k in chosen_lin if k not in (c, o)]
+            Z = np.column_stack([base] + [lcols[k] for k in cols])
+            ra = lcols[c] - Z @ np.linalg.lstsq(Z, lcols[c], rcond=None)[0]
+            rb = lcols[o] - Z @ np.linalg.lstsq(Z, lcols[o], rcond=None)[0]
+            den = np.sqrt(float(ra @ ra) * float(rb @ rb))
+            rr = float(ra @ rb) / den if den > 0 else 0.0
+            if abs(rr) >= 0.9:
+                edges[c].append((o, rr))
+                edges[o].append((c, rr))
+    groups: list[tuple[tuple[str, ...], str]] = []
+    seen: set[str] = set()
+    for c in undecided:                     # connected groups of terms that repeat each other
+        if c in seen or not edges[c]:
+            continue
+        group, todo, pairs = [], [c], {}
+        while todo:
+            a = todo.pop()
+            if a in group:
+                continue
+            group.append(a)
+            for o, rr in edges[a]:
+                pairs[tuple(sorted((a, o)))] = rr
+                todo.append(o)
+        group = [g for g in lin_names if g in group]
+        seen.update(group)
+        corr = ", ".join(f"{a}/{b} {rr:+.3f}" for (a, b), rr in pairs.items())
+        incl = ", ".join(f"{g} {averaged[g][2]:.2f}" for g in group)
+        groups.append((tuple(group), (
+            f"{', '.join(group)} cannot be separated by this recording (correlation of their "
+            f"window features after the other chosen terms: {corr}; inclusion probabilities "
+            f"{incl}): their separate coefficients are not identified and are reported "
+            f"model-averaged with the selection in their standard errors; "
+            f"{_separating_feature(group)} would separate them")))
+    return averaged, tuple(groups), c_hat, tuple(models)
+
+
+def _vif(base: np.ndarray, lcols: dict, chosen: list[str]) -> dict[str, float]:
+    out = {}
+    for c in chosen:
+        Z = np.column_stack([base] + [lcols[k] for k in chosen if k != c])
+        r = lcols[c] - Z @ np.linalg.lstsq(Z, lcols[c], rcond=None)[0]
+        d = lcols[c] - lcols[c].mean()
+        out[c] = float(d @ d / max(float(r @ r), 1e-300))
+    return out
 
 
 def _refine_theta(y: np.ndarray, base: np.ndarray, t: Term, th0: np.ndarray) -> np.ndarray:
@@ -109,8 +319,20 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     nonlin = [t for t in candidates if t.k]
     lcols = {t.name: np.asarray(t.feature(np.zeros(0)), dtype=float) for t in lin}
     lin = [t for t in lin if np.all(np.isfinite(lcols[t.name])) and np.ptp(lcols[t.name]) > 0]
+    # a column that repeats an earlier one exactly (two gradients of a symmetric twin: A−D and
+    # A−E with D, E mirror nodes) carries nothing new: the earlier candidate stands for both
+    unit = {}
+    for t in list(lin):
+        v = lcols[t.name] - lcols[t.name].mean()
+        v = v / np.linalg.norm(v)
+        if any(abs(float(v @ u)) > 1 - 1e-9 for u in unit.values()):
+            lin.remove(t)
+        else:
+            unit[t.name] = v
     by_name = {t.name: t for t in candidates}
     steps: list[tuple[str, float]] = []
+
+    R = _corr_matrix(lcols, [t.name for t in lin])
 
     def best_subset(fixed: list[np.ndarray], k_extra: int) -> tuple[float, list[str]]:
         base = np.column_stack([ones, *fixed])
@@ -119,10 +341,14 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
         for size in range(1, min(max_linear, len(names)) + 1):
             best_k = None
             for combo in itertools.combinations(names, size):
+                if not _conditioned(R, combo):
+                    continue
                 X = np.column_stack([base] + [lcols[c] for c in combo])
                 b = _bic(y, X, k_extra)
                 if best_k is None or b < best_k[0]:
                     best_k = (b, list(combo))
+            if best_k is None:
+                continue
             steps.append((" + ".join(best_k[1]), float(best_k[0])))
             if best_k[0] < best[0]:
                 best = best_k
@@ -200,5 +426,13 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5, batches=batches)
     else:
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches)
+    base = np.column_stack([ones] + [nl_cols[c] for c in nl_chosen])
+    averaged, groups, c_hat, models = _averaging(
+        y, base, ["intercept", *nl_chosen], [t.name for t in lin], lcols, lin_chosen,
+        max_linear, batches)
+    for name in nl_chosen:                     # held at the choice: its own refined values
+        averaged[name] = (float(res.x[names.index(name)]), float(res.se[names.index(name)]), 1.0)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
-                       candidates=tuple(t.name for t in candidates))
+                       candidates=tuple(t.name for t in candidates), averaged=averaged,
+                       unseparable=groups, vif=_vif(base, lcols, lin_chosen), c_hat=c_hat,
+                       models=models)

@@ -20,7 +20,20 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
          "unit": unit if n in ("intercept",) else ""}
         for n, v, s in zip(sel.fit.names, sel.fit.x, sel.fit.se)],
         note=f"standard errors: sandwich with batch means, ×{sel.fit.inflation:.2f} the "
-             f"independent-residual value (residual lag-one correlation {sel.fit.rho:.2f})"))
+             f"independent-residual value (residual lag-one correlation {sel.fit.rho:.2f}); "
+             f"given the chosen terms (selection uncertainty: next table)"))
+    if sel.averaged:
+        rep.table(Table.from_records(f"{title}: model-averaged over the term subsets", [
+            {"term": n, "model-averaged": v, "standard error (selection included)": se,
+             "inclusion probability": p,
+             "VIF in the chosen law": sel.vif.get(n)}
+            for n, (v, se, p) in sel.averaged.items()],
+            note=f"BIC weights of every linear subset with the likelihood divided by the "
+                 f"overdispersion ĉ = {sel.c_hat:.2f} of the windows (flicker): the spread "
+                 f"of the coefficients across near-equally supported subsets is in the "
+                 f"standard errors; a term out of a subset counts as 0"))
+    for _, reason in sel.unseparable:
+        rep.paragraph(f"**Not identified separately:** {reason}.")
 
 
 def build_report(result, device_name: str, thermal_name: str) -> Report:

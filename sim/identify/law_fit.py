@@ -41,7 +41,7 @@ from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 from rlgsim.sim.identify.recording_data import RecordingData
 
-__all__ = ["LawFit", "fit_laws", "law_prediction"]
+__all__ = ["LawFit", "fit_laws", "law_prediction", "bias_features"]
 
 
 @dataclass
@@ -184,28 +184,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                       "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
     # ------------------------------------------------------------------ bias law
     T = nodes_c[:, _node(block, bias_node, node_names)]
-    extra: dict[str, np.ndarray] = {}
-    pairs: dict[str, tuple[str, str]] = {}
-    probed = [n.split(".", 1)[1] for n in rec.probe_names if block and n.startswith(f"{block}.")]
-    cand_pairs = [(str(g["a"]), str(g["b"])) for g in law.get("gradients", [])]
-    cand_pairs += [(bias_node, o) for o in probed if o != bias_node]
-    arm = law.get("arm_nodes", ["D", "E"])          # the Langmuir pair: anode-arm difference
-    cand_pairs.append((str(arm[0]), str(arm[1])))
-    for a, b in cand_pairs:
-        key = f"gradient[{a}-{b}]"
-        if key in extra or f"gradient[{b}-{a}]" in extra:
-            continue
-        try:
-            ia, ib = _node(block, a, node_names), _node(block, b, node_names)
-        except ValueError:
-            continue
-        diff = nodes_c[:, ia] - nodes_c[:, ib]
-        if np.ptp(diff) < 1e-6:          # a symmetric pair of the twin: no information
-            continue
-        extra[key] = diff
-        pairs[key] = (a, b)
-    if rec.uhfo_v is not None:
-        extra["uhfo"] = rec.uhfo_v - u0
+    extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
     bias_sel = select_terms(y, _candidates(T, t_ref, step, win, law, extra))
     per_step = law_prediction(bias_sel, _per_step(T, t_ref, step, extra))
@@ -228,3 +207,59 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                   uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
                   noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
                   per_step_bias_deg_per_h=per_step, gradient_pairs=pairs)
+
+
+def bias_features(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+                  device: dict, laws: LawFit) -> dict[str, np.ndarray]:
+    """Window features {term: (windows,)} of the fitted bias law's candidates on another
+    recording ``rec`` whose twin node temperatures are ``nodes_c`` (nonlinear terms at the
+    fitted centre and width) — the input of :meth:`SelectedLaw.predict`, e.g. the law's
+    prediction with its uncertainty on a programme it was not identified from."""
+    gyro = device.get("gyro", {})
+    block = (gyro.get("blocks") or [""])[0]
+    law = dict(gyro.get("bias", {}))
+    rows = _window_rows(rec)
+
+    def win(v: np.ndarray) -> np.ndarray:
+        return np.asarray(window_average(np.asarray(v, dtype=float), 1.0 / rec.step_s,
+                                         rec.window_s))[rows]
+    T = nodes_c[:, _node(block, laws.bias_node, node_names)]
+    extra, _ = _bias_extra(rec, nodes_c, node_names, block, law, laws.bias_node, laws.u0_v)
+    sel = laws.bias
+    out = {}
+    for t in _candidates(T, laws.t_ref_c, rec.step_s, win, law, extra):
+        if t.k and t.name in sel.terms:
+            out[t.name] = t.feature(np.array([sel.value(f"{t.name}.{n}")
+                                              for n in t.theta_names]))
+        elif not t.k:
+            out[t.name] = t.feature(np.zeros(0))
+    return out
+
+
+def _bias_extra(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+                block: str, law: dict, bias_node: str, u0: float
+                ) -> tuple[dict[str, np.ndarray], dict[str, tuple[str, str]]]:
+    """Per-step gradient and UHFO candidates of the bias law and the gradient pairs."""
+    extra: dict[str, np.ndarray] = {}
+    pairs: dict[str, tuple[str, str]] = {}
+    probed = [n.split(".", 1)[1] for n in rec.probe_names if block and n.startswith(f"{block}.")]
+    cand_pairs = [(str(g["a"]), str(g["b"])) for g in law.get("gradients", [])]
+    cand_pairs += [(bias_node, o) for o in probed if o != bias_node]
+    arm = law.get("arm_nodes", ["D", "E"])          # the Langmuir pair: anode-arm difference
+    cand_pairs.append((str(arm[0]), str(arm[1])))
+    for a, b in cand_pairs:
+        key = f"gradient[{a}-{b}]"
+        if key in extra or f"gradient[{b}-{a}]" in extra:
+            continue
+        try:
+            ia, ib = _node(block, a, node_names), _node(block, b, node_names)
+        except ValueError:
+            continue
+        diff = nodes_c[:, ia] - nodes_c[:, ib]
+        if np.ptp(diff) < 1e-6:          # a symmetric pair of the twin: no information
+            continue
+        extra[key] = diff
+        pairs[key] = (a, b)
+    if rec.uhfo_v is not None:
+        extra["uhfo"] = rec.uhfo_v - u0
+    return extra, pairs

@@ -111,6 +111,28 @@ def _se_note(se: float, what: str = "") -> str:
     return f"fitted, standard error {se:.3g}{'; ' + what if what else ''}"
 
 
+def _law_note(sel, t: str) -> str:
+    """Comment of a BIC-selected term: its standard error in the chosen law, and the
+    model-averaged value with the selection uncertainty (and, for a term the recording cannot
+    separate from another, which one)."""
+    note = _se_note(sel.se(t), "BIC-selected")
+    if t in sel.averaged:
+        v, se, p = sel.averaged[t]
+        note += f"; model-averaged {v:.4g} ± {se:.2g} (inclusion {p:.2f})"
+    for group, _ in sel.unseparable:
+        if t in group:
+            others = [g for g in group if g != t]
+            note += f"; not separable from {', '.join(others)} (header)"
+    return note
+
+
+def _law_header(sel) -> str:
+    lines = []
+    for _, reason in sel.unseparable:
+        lines.append(f"bias law: {reason}")
+    return "\n".join(lines)
+
+
 def _thermal_text(fit: ThermalFit, tname: str, source: str) -> tuple[dict, str]:
     comments = {}
     for path, (param, old, new) in fit.changes.items():
@@ -152,7 +174,7 @@ def _device_dict(template: dict, laws: LawFit, name: str, source: str
     for t in sel.terms:
         if t in _BIAS_KEYS:
             bias[_BIAS_KEYS[t]] = sel.value(t)
-            comments[("gyro", "bias", _BIAS_KEYS[t])] = _se_note(sel.se(t), "BIC-selected")
+            comments[("gyro", "bias", _BIAS_KEYS[t])] = _law_note(sel, t)
         if t in ("knee", "step"):
             bias[f"{t}_c"] = sel.value(f"{t}.center_c")
             bias[f"{t}_width_k"] = sel.value(f"{t}.width_k")
@@ -165,7 +187,7 @@ def _device_dict(template: dict, laws: LawFit, name: str, source: str
             a, b = laws.gradient_pairs[t]
             bias["gradients"].append({"a": a, "b": b, "coeff_deg_per_h_per_k": sel.value(t)})
             comments[("gyro", "bias", "gradients", i, "coeff_deg_per_h_per_k")] = \
-                f"{a}-{b}: " + _se_note(sel.se(t), "BIC-selected")
+                f"{a}-{b}: " + _law_note(sel, t)
     gyro["bias"] = bias
     used = set(bias)
     tol = dev.get("tolerance", {}).get("gyro", {})
@@ -257,7 +279,9 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     dev, comments = _device_dict(dev_t, laws, name, source)
     dtext = dumps(dev, comments, f"Device preset identified by rlgsim identify from {source}\n"
                                  f"template: {dev_name}; bias and UHFO terms chosen by BIC, "
-                                 f"noise from the Allan deviation of the law residual")
+                                 f"noise from the Allan deviation of the law residual"
+                                 + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
+                                    else ""))
     stext = _scenario_text(data, name)
     for text in (ttext, dtext, stext):
         tomllib.loads(text)                        # never write what cannot be read back
