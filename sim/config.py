@@ -218,4 +218,7 @@ def get_quantity(table: Mapping[str, Any], base: str, ctx: Ctx, units: Mapping[s
                       min=None if min is None else min / factor,
                       max=None if max is None else max / factor,
                       min_exclusive=min_exclusive)
+    if not math.isfinite(value * factor):
+        raise ctx.error(key, f"{value!r} is too large: it overflows when converted to SI "
+                             f"({value!r} × {factor:g})")
     return value * factor

@@ -12,7 +12,7 @@ import pathlib
 import re
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
 
 from rlgsim.ground.errors import UserInputError
@@ -285,6 +285,7 @@ VALUES = st.one_of(
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(key=st.sampled_from(KEYS), value=VALUES, which=st.integers(0, 3))
+@example(key="duration_h", value="1e308", which=0)     # overflowed in SI (OverflowError)
 def test_fuzzed_scenario_values_are_user_errors_or_valid(key, value, which):
     from rlgsim.sim.scenario import parse_scenario
     lines = QUICK.splitlines()
