@@ -65,12 +65,12 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
     from rlgsim.sim.identify.thermal_fit import fit_thermal
     import rlgsim
     from rlgsim.sim.identify.law_fit import bias_features
-    from rlgsim.sim.identify.thermal_fit import twin_response
+    from rlgsim.sim.identify.thermal_fit import build, twin_response
     template = presets.load_thermal_file("rlg_single").data
     dev_t = presets.load_device_file("trplg_001").data
     rng = np.random.default_rng(2017)
     zt, zl, zl_exact, rows, chosen = [], [], [], [], []
-    z_avg, z_pred, groups, t_sel = [], [], [], []
+    z_avg, z_pred, z_pred_true, groups, t_sel, split = [], [], [], [], [], []
     true_law = {"c1": 3e-4, "rate": -0.01, "gradient[A-G]": 0.008}
     for u in range(n_units):
         folder = work / f"cov{u}"
@@ -109,6 +109,17 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
         truth = truth[np.searchsorted(np.asarray(w["time_s"]),
                                       np.asarray(rec_b.windows["time_s"]))]
         z_pred.append((pred - truth) / pse)
+        err = pred - truth
+        split.append((float(np.mean(err) / np.median(pse)),
+                      float(np.std(err) / np.median(pse))))
+        # the same law fed the unit's true thermal state there: the law's own uncertainty
+        true_net, true_probes = build(presets.load_thermal_file(
+            str(folder / "truth_thermal.toml")).data)
+        nodes_t, _ = twin_response(true_net, true_probes, rec_b.air_c, rec_b.power,
+                                   rec_b.step_s)
+        pred_t, pse_t = sel.predict(bias_features(rec_b, nodes_t, true_net.node_names,
+                                                  dev_law, laws))
+        z_pred_true.append((pred_t - truth) / pse_t)
         for term, true in true_law.items():
             if term in laws.bias.terms:
                 z = (laws.bias.value(term) - true) / laws.bias.se(term)
@@ -133,7 +144,9 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
                     ("bias-law coefficients model-averaged (selection in the standard errors; "
                      "c1, rate, gradient[A-G] of every unit)", z_avg),
                     (f"law prediction on another programme, per 100 s window ({zp.size} "
-                     f"windows; windows of a unit are correlated)", zp)):
+                     f"windows; windows of a unit are correlated)", zp),
+                    ("the same with the unit's true thermal state on that programme (the law's "
+                     "own uncertainty alone)", np.concatenate(z_pred_true))):
         if not len(z):
             print(f"   {name}: none")
             continue
@@ -141,7 +154,10 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
         print(f"   {name}: {len(z)} estimates, |z| < 1: {np.mean(z < 1):.0%} (nominal 68 %), "
               f"|z| < 2: {np.mean(z < 2):.0%} (nominal 95 %), largest |z| {z.max():.2f}")
     print(f"   law prediction on another programme: RMS of z per unit "
-          f"{', '.join(f'{v:.2f}' for v in per_unit)} (nominal 1)")
+          f"{', '.join(f'{v:.2f}' for v in per_unit)} (nominal 1); with the true thermal "
+          f"state {', '.join(f'{np.sqrt(np.mean(z ** 2)):.2f}' for z in z_pred_true)}")
+    print("   prediction error per unit, mean / standard deviation over the windows, in units of "
+          "the median standard error: " + ", ".join(f"{a:+.2f}/{b:.2f}" for a, b in split))
 
 
 def window_bias(path) -> tuple[np.ndarray, np.ndarray, object]:
