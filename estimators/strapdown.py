@@ -9,7 +9,7 @@ come from the ground package both sides share (:mod:`rlgsim.ground.earth`,
 Frames: navigation frame ENU at the site (x East, y North, z Up); body frame = the IMU
 measurement frame; i0 = the inertial frame that coincides with ENU at the start of the window.
 
-Pulse model (paper 000 eqs. 17 and 20; DESIGN.md), per sample of length Δt:
+Pulse model (paper 000 eqs. 17 and 20; docs/design.md), per sample of length Δt:
 
     N_g = K_g (D_g Δt + E_g Δθ)            K_g [pulse/rad] diagonal, D_g [rad/s], E_g unit-diagonal
     N_a = K_a^± (D_a Δt + E_a Δv)          K_a^± [pulse/(m/s)] chosen per axis by the sign of the

@@ -17,7 +17,7 @@ imbalance move bias and scale factor): bias law in µg, K^± = K_0·(1 + 10⁻�
 ppm laws for the two signs, misalignment law in arcsec (all :mod:`rlgsim.sim.temperature_laws`,
 local node the accelerometer's own thermal node by default). Typical navigation-grade
 quartz-flexure figures: bias temperature coefficient tens of µg/°C, scale factor tens of ppm/°C
-(DESIGN.md). Bias instability (flicker) and acceleration random walk join the true bias
+(docs/design.md). Bias instability (flicker) and acceleration random walk join the true bias
 (:class:`rlgsim.sim.noise.SlowNoise`).
 
 Evaluation order (float64; the stored truth reproduces the pulses in this order):

@@ -49,7 +49,7 @@ from rlgsim.sim.temperature_laws import Law, LawSpec
 __all__ = ["BODY_AXES", "GyroModel", "GyroParameters", "Gyros", "phase_increments",
            "sample_step_index"]
 
-#: Langmuir-flow bias per mA of leg-current imbalance [°/h/mA] (DESIGN.md, after Aronowitz &
+#: Langmuir-flow bias per mA of leg-current imbalance [°/h/mA] (docs/design.md, after Aronowitz &
 #: Lim 1979) and the default imbalance per kelvin of anode-arm difference [mA/K]
 #: (rlgsim.sim.temperature_laws).
 LANGMUIR_DEG_PER_H_PER_MA = 0.0066

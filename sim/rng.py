@@ -2,7 +2,7 @@
 
 Every random draw in ``sim`` comes from a :class:`numpy.random.Generator` built from a
 :class:`numpy.random.SeedSequence` keyed by (scenario seed, unit index, purpose, channel, block
-index) — DESIGN.md, "Determinism". A block is a fixed stretch of simulated time, independent of
+index) — docs/design.md, "Determinism". A block is a fixed stretch of simulated time, independent of
 how the run is chunked for writing, so the same scenario and seed give identical bytes whatever
 the chunk size, worker count or executor.
 """

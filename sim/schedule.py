@@ -1,4 +1,4 @@
-"""The run's timeline, built by simpy processes (DESIGN.md "data flow": schedule).
+"""The run's timeline, built by simpy processes (docs/design.md "data flow": schedule).
 
 Each part of an experiment is a simpy process on one shared clock: the chamber programme, the
 power switch, the turntable programme, the calibration windows and the data acquisition. Each

@@ -24,7 +24,7 @@ the step's samples).
 
 **Langmuir term.** A two-anode laser gyro cancels the Langmuir (gas-flow) bias of its two
 discharge legs only while the leg currents are equal; the residual is ≈ 0.0066 °/h per mA of
-imbalance (the figure quoted in DESIGN.md after Aronowitz & Lim, 1979). The imbalance is tied to
+imbalance (the figure quoted in docs/design.md after Aronowitz & Lim, 1979). The imbalance is tied to
 the arm-to-arm gradient: in a ballast-balanced discharge the sustaining voltage of a leg scales
 with its gas number density, ∝ 1/T_abs, i.e. −0.33 %/K of ≈ 500 V, ≈ −1.7 V/K; over an
 effective leg resistance (ballast ≈ 100 kΩ minus the plasma's negative dynamic resistance

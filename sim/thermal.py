@@ -1,6 +1,6 @@
 """The lumped thermal network of an RLG (or RLG-IMU): nodes, conductances, heat sources.
 
-Model (docs/thermal.md; DESIGN.md "Thermal network"): ``n`` isothermal nodes with heat
+Model (docs/thermal.md; docs/design.md "Thermal network"): ``n`` isothermal nodes with heat
 capacities ``C_i`` [J/K], node-to-node conductances ``G_ij = G_ji`` [W/K], conductances to the
 chamber air ``g_i`` [W/K] and heat sources ``P_i`` [W] switched by the power state
 ``u(t) ∈ {0, 1}``::

@@ -1,6 +1,6 @@
 """Thermometer probes on thermal-network nodes: first-order lag, white noise, resolution.
 
-The compensators never see node truth, only these readings (DESIGN.md "Thermal network").
+The compensators never see node truth, only these readings (docs/design.md "Thermal network").
 Each probe ``p`` sits on node ``i(p)``; its sensing element follows the node with a first-order
 lag (docs/thermal.md, eq. (5))::
 
