@@ -295,6 +295,7 @@ class ImuSimulator:
         #: GIL), overlapping them with this block's arithmetic on a second core
         self.prefetch = bool(prefetch)
         self.n_steps = n_steps                  # thermal steps of the run (None: open-ended)
+        self.anomalies = None                   # rlgsim.sim.anomalies.AnomalyRun (optional)
         self._pool = None
         self._ahead = None
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
@@ -432,11 +433,20 @@ class ImuSimulator:
 
         # gyros
         gp = g.parameters(nodes, start, dt, slow[:, :self.n_gyro], uhfo_dev)
+        an = self.anomalies
+        if an is not None:                      # mode hops: part of the true bias
+            gp.bias = gp.bias + an.gyro_bias_offset(trace)
         dth_t = inputs["dth_t"]
         inc = gyro_increments(gp.scale_factor, gp.bias, gp.installation, dth_t, inputs["zg"],
                               self.gyro_white_sigma, self.sample_dt, idx, power, g.axis_idx)
         gyro_pulses, g_rem = self._count(inc, state.gyro_remainder)
+        valid = None
+        if an is not None:                      # read-out spikes, lost frames (after counting)
+            k0_sample = int(math.floor(k0 * dt * self.rate_hz + 1e-9))   # first sample
+            gyro_pulses, valid = an.gyro_pulses(b, k0_sample, self.rate_hz, gyro_pulses, start)
         imu_sample = {"gyro_pulses": gyro_pulses}
+        if an is not None and an.model.imu_dropout_rate_per_h > 0:
+            imu_sample["sample_valid"] = valid.astype(np.int8)
         truth_time.update(gyro_bias=gp.bias, gyro_bias_random=gp.bias_random,
                           gyro_scale_factor=gp.scale_factor,
                           gyro_installation=gp.installation)
@@ -451,6 +461,9 @@ class ImuSimulator:
                                    self.accel_white_sigma, self.sample_dt, idx, power,
                                    acc.axis_idx)
             accel_pulses, a_rem = self._count(inc, state.accel_remainder)
+            if valid is not None and not valid.all():     # lost frames lose every channel
+                accel_pulses = an.other_pulses(valid, k0_sample, self.rate_hz, accel_pulses,
+                                               acc.axes)
             imu_sample["accel_pulses"] = accel_pulses
             truth_time.update(accel_bias=ap.bias, accel_bias_random=ap.bias_random,
                               accel_scale_factor_pos=ap.scale_factor_pos,
@@ -528,6 +541,8 @@ class ImuStage:
                                 step_s=timeline.step_s, motion=None,
                                 truth_samples=self.truth_samples,
                                 source=scenario.device.source, n_steps=timeline.n_steps)
+        from rlgsim.sim.anomalies import AnomalyRun
+        self.sim.anomalies = AnomalyRun.of(scenario, timeline)   # None unless [anomalies]
 
     @classmethod
     def create(cls, scenario, timeline) -> "ImuStage | None":
@@ -543,6 +558,9 @@ class ImuStage:
         docs/dataset.md)."""
         r, sim = self.realisation, self.sim
         declare_imu(writers[IMU], r, rate_hz=sim.rate_hz, step_s=sim.step_s)
+        if sim.anomalies is not None and sim.anomalies.model.imu_dropout_rate_per_h > 0:
+            from rlgsim.sim.anomalies import declare_sample_valid
+            declare_sample_valid(writers[IMU])
         declare_turntable(writers[TURNTABLE], self.turntable_segments)
         declare_truth(writers[TRUTH], r, seed=self.scenario.seed, unit=self.unit,
                       rate_hz=sim.rate_hz, step_s=sim.step_s,
