@@ -385,7 +385,7 @@ class Anomalies:
 
         # frame dropouts: a running one first, then new ones (all channels at once)
         runs: list[tuple[int, int, bool]] = []      # (start, stop, continued)
-        if lost_left > 0:
+        if lost_left > 0 and n > 0:
             stop = min(n, lost_left)
             runs.append((0, stop, True))
             lost_left -= stop

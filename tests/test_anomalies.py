@@ -265,3 +265,14 @@ def test_a_drawn_unit_shifts_its_hop_temperatures_within_one_mode_spacing():
     assert 5.0 < np.ptp(temps) < 25.0
     nominal = bound({"mode_hop": HOP})
     assert nominal.hops[0].reference_c == 20.0           # unit 0: the design as written
+
+
+def test_an_empty_block_neither_records_nor_loses_anything():
+    """A short last block may hold no IMU sample (low rates): a running dropout waits."""
+    an = bound({"imu_dropouts": {"rate_per_h": 3600.0, "mean_samples": 1e5}})
+    st = an.initial_state(np.zeros(3))
+    p = np.ones((1000, 1), dtype=np.int32)
+    out, valid, ev, st = an.pulses(st, 0, 0, 100.0, p)
+    assert st.imu_lost_left > 0
+    out, valid, ev, st2 = an.pulses(st, 1, 1000, 100.0, np.zeros((0, 1), dtype=np.int32))
+    assert len(ev) == 0 and out.shape == (0, 1) and st2.imu_lost_left == st.imu_lost_left
