@@ -8,6 +8,8 @@ A study file (TOML, shipped in ``scenarios/studies/`` or given by path) has a ``
     paper = "001"                     # which paper it replays (shared/papers/README.md), or ""
     recipe = "bias_compensation"      # how it runs: a module sim/studies/<recipe>.py
     device_seed = 1001                # optional: the unit simulated (default: each scenario's)
+    export_models = true              # optional: each fitted compensator as models/<name>.json,
+                                      # .c, .h in the report folder (docs/compensator_export.md)
 
 and further tables that belong to its *recipe*. A recipe is a module ``sim/studies/<recipe>.py``
 named in :data:`RECIPES`, with one shape:
@@ -22,6 +24,9 @@ named in :data:`RECIPES`, with one shape:
         the report of a run; the runner calls it for ``rlgsim study`` (never for a Monte Carlo
         unit) and ends it with the study file and the scenario and preset files. A recipe
         without it gets a report of its score rows.
+    fitted_models(config, result: StudyResult) -> list[FittedModel]        (optional)
+        the fitted compensators of a run (:mod:`rlgsim.sim.study_models`), written as JSON and
+        C when the study exports its models (``export_models``, ``--export-models``).
 
 The runner (this module) knows its recipes by name only: it imports ``sim/studies/<recipe>.py``
 when a study names it, and nothing in ``sim/studies/`` is imported here, so the recipes and
@@ -41,13 +46,13 @@ from typing import Any
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim import presets
-from rlgsim.sim.config import Ctx, check_known_keys, get_int, get_str, get_table
+from rlgsim.sim.config import Ctx, check_known_keys, get_bool, get_int, get_str, get_table
 from rlgsim.sim.report import Report, Table, output_folder
 
 __all__ = ["Study", "StudyResult", "parse_study", "load_study", "list_studies", "recipe_module",
            "scenario_for", "scenario_refs", "run_study", "study_unit"]
 
-STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed")
+STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed", "export_models")
 #: The recipes, each a module ``rlgsim.sim.studies.<name>`` (a new recipe adds its name here).
 RECIPES = ("bias_compensation", "environments", "gradient_selection", "paper000_system")
 
@@ -65,6 +70,7 @@ class Study:
     base_dir: pathlib.Path | None
     device_seed: int | None = None
     tables: dict = field(default_factory=dict, repr=False)
+    export_models: bool = False
 
     @property
     def title(self) -> str:
@@ -104,7 +110,7 @@ def parse_study(text: str, source: str = "<string>", *, base_dir: pathlib.Path |
         recipe=get_str(table, "recipe", sctx, choices=RECIPES),
         source=source, text=text, base_dir=base_dir,
         device_seed=get_int(table, "device_seed", sctx, None, min=0, max=2**63 - 1),
-        tables=data)
+        tables=data, export_models=get_bool(table, "export_models", sctx, False))
     recipe_module(study).check(study)
     return study
 
@@ -174,15 +180,25 @@ def scenario_refs(tables: dict) -> list[str]:
     return list(dict.fromkeys(refs))
 
 
-def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True
-              ) -> pathlib.Path:
-    """Run ``study`` (unit 0) and write its report folder; returns the path of report.md."""
+def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = True,
+              export_models: bool | None = None) -> pathlib.Path:
+    """Run ``study`` (unit 0) and write its report folder; returns the path of report.md.
+    ``export_models`` (default: the study file's ``export_models``) also writes every fitted
+    compensator as ``models/<name>.json``, ``.c`` and ``.h`` (docs/compensator_export.md)."""
     out_dir = output_folder(out_dir)
     recipe = recipe_module(study)
     config = recipe.check(study)
+    export = study.export_models if export_models is None else export_models
+    models_hook = getattr(recipe, "fitted_models", None)
+    if export and models_hook is None:
+        raise UserInputError(f"{study.source}: study.export_models: the {study.recipe} recipe "
+                             "has no fitted compensators to export")
     result = recipe.run(study, config, out_dir, unit=0, progress=progress)
     hook = getattr(recipe, "report", None)
     report = hook(study, config, result) if hook is not None else _rows_report(study, result)
+    if export:
+        from rlgsim.sim.study_models import MODELS_DIR, report_models, write_models
+        report_models(report, write_models(models_hook(config, result), out_dir / MODELS_DIR))
     report.heading("Study file", 2)
     report.verbatim(study.text, title=study.source, language="toml")
     _input_files(study, report)

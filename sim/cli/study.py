@@ -1,11 +1,14 @@
 """``rlgsim study``: run a study (sim/study.py) into a report folder; ``rlgsim demo`` uses it.
 
-    rlgsim study STUDY [-o DIR] [--quiet]     run a shipped study (name) or a study file (path)
+    rlgsim study STUDY [-o DIR] [--quiet] [--export-models]
+                                              run a shipped study (name) or a study file (path)
     rlgsim study --list                       one line per shipped study
 
 The report folder holds report.md, report.html (figures embedded), one CSV per table, the
 figures as PNG and, under data/, the simulated datasets (reused when the study is run again
-with the same scenarios, seeds and unit).
+with the same scenarios, seeds and unit). With ``--export-models`` (or ``export_models = true``
+in the study file) it also holds models/<compensator>.json, .c and .h: every fitted compensator
+as JSON and as a C function (docs/compensator_export.md).
 """
 
 from __future__ import annotations
@@ -30,6 +33,9 @@ def add_subparser(sub) -> None:
                    help="report folder (default: ./<study name>-study/)")
     s.add_argument("--list", action="store_true", help="list the shipped studies")
     s.add_argument("-q", "--quiet", action="store_true", help="no progress bars, no summary")
+    s.add_argument("--export-models", action="store_true",
+                   help="also write every fitted compensator as models/<name>.json and as a C "
+                        "function (.c, .h) into the report folder")
     s.set_defaults(handler=main)
 
 
@@ -42,9 +48,10 @@ def list_studies() -> None:
 
 
 def run(ref: str, out_dir: str | pathlib.Path | None, *, quiet: bool,
-        summary: bool = True) -> pathlib.Path:
+        summary: bool = True, export_models: bool | None = None) -> pathlib.Path:
     """Run study ``ref`` into ``out_dir``; unless ``quiet``, show progress and (with
-    ``summary``) print where the report is. Returns the path of report.md."""
+    ``summary``) print where the report is. ``export_models``: see
+    :func:`rlgsim.sim.study.run_study`. Returns the path of report.md."""
     from rlgsim.sim.study import load_study, run_study
     from rlgsim.sim.cli.paths import name_path, output_folder
     study = load_study(ref)
@@ -54,7 +61,7 @@ def run(ref: str, out_dir: str | pathlib.Path | None, *, quiet: bool,
     t0 = time.perf_counter()
     if not quiet and summary:
         print(f"study {study.name}: {study.description}")
-    md = run_study(study, out, progress=not quiet)
+    md = run_study(study, out, progress=not quiet, export_models=export_models)
     if not quiet and summary:
         print(f"study {study.name} done in {time.perf_counter() - t0:.1f} s")
         print(f"  report: {md}")
@@ -73,7 +80,8 @@ def main(args) -> int:
     if not args.study:
         raise UserInputError("missing STUDY: a shipped study's name (rlgsim study --list) or a "
                              "path to a .toml study file (see 'rlgsim study --help')")
-    run(args.study, args.output, quiet=args.quiet)
+    run(args.study, args.output, quiet=args.quiet,
+        export_models=True if getattr(args, "export_models", False) else None)
     return 0
 
 

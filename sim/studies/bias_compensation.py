@@ -152,6 +152,12 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         Xtr=Xtr, ytr=ytr, unit=unit, t_data=t_data, t_total=time.perf_counter() - t_start))
 
 
+def fitted_models(config: Config, result: StudyResult) -> list:
+    """The fitted compensators, for ``export_models`` (:mod:`rlgsim.sim.study_models`)."""
+    from rlgsim.sim.study_models import from_fitted
+    return from_fitted(result.details.fitted)
+
+
 # ------------------------------------------------------------------------------ the report
 def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report of a run (the paper's tables beside ours, truth-based scores, rankings,

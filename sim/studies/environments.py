@@ -128,6 +128,14 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
                                        t_total=time.perf_counter() - t_start))
 
 
+def fitted_models(config: Config, result: StudyResult) -> list:
+    """The compensators fitted in each environment (names prefixed by the environment), for
+    ``export_models`` (:mod:`rlgsim.sim.study_models`)."""
+    from rlgsim.sim.study_models import from_fitted
+    return [m for res in result.details.results
+            for m in from_fitted(res.fitted, prefix=f"{res.env.name} ")]
+
+
 def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report (:mod:`rlgsim.sim.studies.environments_report`), refits included, with one
     BLAS thread like the fits of :func:`run`."""

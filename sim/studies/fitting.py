@@ -25,6 +25,7 @@ class Fitted:
     model: Any
     fit_s: float
     hyper: dict[str, float]
+    X_train: Any = None         # the inputs it was fitted on (their range: the export's)
 
 
 def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
@@ -82,7 +83,7 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
         hyper["c"], hyper["sigma2"] = float(model.gamma), float(model.sigma2)
     if hasattr(model, "best_params_"):
         hyper.update({k: float(v) for k, v in model.best_params_.items()})
-    return Fitted(spec, model, time.perf_counter() - t0, hyper)
+    return Fitted(spec, model, time.perf_counter() - t0, hyper, Xi)
 
 
 def fit_all(specs, X, y: np.ndarray, random_state: int, *, progress: bool,

@@ -320,6 +320,12 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         corr=corr, Xtr=Xtr, unit=unit, t_data=t_data, t_total=time.perf_counter() - t_start))
 
 
+def fitted_models(config: Config, result: StudyResult) -> list:
+    """The fitted compensators, for ``export_models`` (:mod:`rlgsim.sim.study_models`)."""
+    from rlgsim.sim.study_models import from_fitted
+    return from_fitted(result.details.fitted)
+
+
 # ------------------------------------------------------------------------------ the report
 def improvement_over_traditional(trad_pct: float, prop_pct: float) -> float:
     """Paper 003 Tables 4-5: relative gain of the improvement percentage,

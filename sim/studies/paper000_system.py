@@ -456,6 +456,17 @@ def _device_params(path: pathlib.Path) -> dict[str, float]:
     return out
 
 
+def fitted_models(cfg: Config, result: StudyResult) -> list:
+    """HHO-RVR and the cubic LSM of every parameter against its probe temperature T [°C],
+    for ``export_models`` (:mod:`rlgsim.sim.study_models`)."""
+    from rlgsim.sim.study_models import FittedModel
+    out: Outcome = result.details
+    return [FittedModel(f"{LABEL[c]} {p}", "hho_rvr" if c == "hho_rvr" else "polynomial",
+                        out.fitted[p][i], out.xs[p][:, None], ("T",), target=p,
+                        target_unit=out.units[p])
+            for p in out.fitted for i, c in enumerate(COMPENSATORS)]
+
+
 # -------------------------------------------------------------------------------- report
 
 def report(study, cfg: Config, result: StudyResult) -> Report:
