@@ -68,3 +68,25 @@ def test_error_in_a_subprocess_has_no_traceback(tmp_path):
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [r.stderr.strip()]
     assert "did you mean 'quickstart'" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_sigterm_landing_in_a_finaliser_prints_no_traceback(capsys):
+    """The SIGTERM handler's SystemExit can land inside a finaliser, where Python only reports
+    it ("Exception ignored in ...", with a traceback): after a SIGTERM that report is silenced,
+    any other unraisable exception is still reported."""
+    import importlib
+    import types
+    cli_main = importlib.import_module("rlgsim.sim.cli.main")
+
+    def unraisable(exc):
+        return types.SimpleNamespace(exc_type=type(exc), exc_value=exc, exc_traceback=None,
+                                     err_msg="Exception ignored in", object=None)
+
+    cli_main._stop_signal[:] = [15]
+    try:
+        cli_main._quiet_unraisable(unraisable(SystemExit(143)))
+        assert capsys.readouterr().err == ""
+    finally:
+        cli_main._stop_signal.clear()
+    cli_main._quiet_unraisable(unraisable(SystemExit(143)))
+    assert "SystemExit" in capsys.readouterr().err

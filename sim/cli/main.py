@@ -53,6 +53,8 @@ def _positive_seconds(text: str) -> float:
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="Simulated ring-laser-gyro IMU in a temperature chamber "
                                        "on a turntable, with ground truth.")
+    from rlgsim import __version__
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     r = sub.add_parser("run", help="simulate a scenario into an HDF5 dataset")
@@ -138,17 +140,29 @@ def _stop_requested() -> bool:
     return bool(_stop_signal)
 
 
+def _quiet_unraisable(unraisable) -> None:
+    """The SystemExit of :func:`_terminated` landing inside a finaliser is "ignored" by Python,
+    which prints it with a traceback; the run stops at its next poll anyway, so say nothing.
+    Every other unraisable exception is reported as usual."""
+    if _stop_signal and isinstance(unraisable.exc_value, SystemExit):
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``rlgsim`` console script; returns the exit code."""
     previous = None
     _stop_signal.clear()
+    previous_hook = sys.unraisablehook
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _terminated)
+        sys.unraisablehook = _quiet_unraisable
     try:
         return _main(argv)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+            sys.unraisablehook = previous_hook
 
 
 def _main(argv: Sequence[str] | None) -> int:
