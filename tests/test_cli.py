@@ -75,18 +75,22 @@ def test_a_sigterm_landing_in_a_finaliser_prints_no_traceback(capsys):
     it ("Exception ignored in ...", with a traceback): after a SIGTERM that report is silenced,
     any other unraisable exception is still reported."""
     import importlib
-    import types
+    import sys
     cli_main = importlib.import_module("rlgsim.sim.cli.main")
 
-    def unraisable(exc):
-        return types.SimpleNamespace(exc_type=type(exc), exc_value=exc, exc_traceback=None,
-                                     err_msg="Exception ignored in", object=None)
+    class Finaliser:
+        def __del__(self):
+            raise SystemExit(143)
 
-    cli_main._stop_signal[:] = [15]
+    hook = sys.unraisablehook
+    sys.unraisablehook = cli_main._quiet_unraisable
     try:
-        cli_main._quiet_unraisable(unraisable(SystemExit(143)))
+        cli_main._stop_signal[:] = [15]
+        Finaliser()
         assert capsys.readouterr().err == ""
-    finally:
         cli_main._stop_signal.clear()
-    cli_main._quiet_unraisable(unraisable(SystemExit(143)))
-    assert "SystemExit" in capsys.readouterr().err
+        Finaliser()
+        assert "SystemExit" in capsys.readouterr().err
+    finally:
+        sys.unraisablehook = hook
+        cli_main._stop_signal.clear()
