@@ -190,6 +190,18 @@ def _unknown_name(kind: str, ref: str, context: str | None) -> UserInputError:
         f" (or give a path to a .toml file)")
 
 
+def _shipped_hint(kind: str, ref: str) -> str:
+    """For a path that does not exist: the shipped name it (nearly) names, if any."""
+    stem = pathlib.PurePath(ref).name.removesuffix(".toml")
+    names = list_names(kind)
+    close = [stem] if stem in names else difflib.get_close_matches(stem, names, n=1)
+    if not close:
+        return ""
+    label = {"scenario": "scenario", "device": "device preset",
+             "thermal": "thermal preset", "study": "study"}[kind]
+    return f" (did you mean the shipped {label} '{close[0]}'? give its name without a path)"
+
+
 def locate(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
            context: str | None = None) -> tuple[str, pathlib.Path | None, object]:
     """Resolve a name or path to ``(name, base_dir, traversable)``. ``context`` prefixes the
@@ -205,7 +217,7 @@ def locate(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
             if not path.is_absolute() and base_dir is not None and (base_dir / path).exists():
                 path = base_dir / path
             if not path.exists():
-                raise UserInputError(f"{where}{ref}: no such file")
+                raise UserInputError(f"{where}{ref}: no such file{_shipped_hint(kind, ref)}")
             folder = path.resolve().parent
         except (OSError, ValueError, RuntimeError) as exc:
             raise UserInputError(f"{where}{ref!r}: not a usable path ({exc})") from None
