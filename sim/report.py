@@ -227,7 +227,8 @@ class Report:
                             + "</ul>")
             elif item.kind == "table":
                 t = item.payload
-                body.append(f"<h4>{html.escape(t.title)}</h4>" + t.html())
+                body.append(f"<h4>{html.escape(t.title)}</h4><div class='table-wrap'>"
+                            + t.html() + "</div>")
                 if t.note:
                     body.append(f"<p class='note'>{html.escape(t.note)}</p>")
             elif item.kind == "attachment":
@@ -248,7 +249,9 @@ class Report:
                 body.append(f"<pre>{html.escape(item.payload)}</pre>")
         style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
                  "color:#222}table{border-collapse:collapse;margin:.5em 0 1.5em}"
-                 "th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
+                 "th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;"
+                 "max-width:24em;overflow-wrap:break-word}"
+                 ".table-wrap{max-width:100%;overflow-x:auto}"   # a wide table scrolls inside
                  "th{background:#eee}figure{margin:1em 0}img{max-width:100%}"
                  "pre{background:#f6f6f6;padding:.8em;overflow-x:auto}.note{font-style:italic}")
         return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
