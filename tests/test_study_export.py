@@ -110,3 +110,16 @@ def test_recipe_hooks_hand_over_every_fitted_model(tmp_path):
     loaded = load_json(tmp_path / records[0]["JSON"].split("/")[-1])
     assert loaded.input_names_ == ("T",) and loaded.input_units_ == ("°C",)
     assert loaded.target_ == "gyro_bias_x"
+
+
+def test_report_notes_only_where_they_apply(demo_export):
+    """The LS-SVM note under the LSSVM table only; no IR-LSSVM note without IR-LSSVM."""
+    md = (demo_export / "report.md").read_text()
+
+    def note_after(title: str) -> str:
+        rest = md[md.index(f"**{title}**"):]
+        return next(line for line in rest.splitlines() if line.startswith("*paper:"))
+
+    assert "LS-SVM regularisation" not in note_after("Least squares (paper 001 Table 2)")
+    assert "LS-SVM regularisation" in note_after("LSSVM (paper 001 §4.3)")
+    assert "IR-LSSVM: (c, σ²)" not in md

@@ -246,13 +246,14 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         for rec in recs:
             cols += [k for k in rec if k not in cols]
         recs = [{k: rec.get(k) for k in cols} for rec in recs]
+        note = "paper: the published value; — where the paper gives none."
+        if "c (ours)" in cols:          # kernel models only: their hyper-parameters
+            note += (" c is the LS-SVM regularisation (gamma), σ² the squared kernel width in "
+                     "standardised inputs (ours; the paper does not say whether it "
+                     "standardised). The paper's F(x) column is not reproduced: the paper "
+                     "does not define it.")
         rep.table(Table.from_records(tname, recs, csv_name=f"paper_{slug(tname)}.csv",
-                                     note="paper: the published value; — where the paper gives "
-                                          "none. c is the LS-SVM regularisation (gamma), σ² the "
-                                          "squared kernel width in standardised inputs (ours; "
-                                          "the paper does not say whether it standardised). The "
-                                          "paper's F(x) column is not reproduced: the paper "
-                                          "does not define it."))
+                                     note=note))
 
     # -- truth-based scores
     if truth:
@@ -265,6 +266,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     cols = []
     for rec in hyp:
         cols += [k for k in rec if k not in cols]
+    irls = any(f.spec.kind == "ir_lssvm" for f in fitted)
     rep.table(Table.from_records("Fitted hyper-parameters", [{k: r.get(k) for k in cols}
                                                              for r in hyp],
                                  csv_name="hyperparameters.csv",
@@ -272,7 +274,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
                                       "cross-validation of the unweighted LS-SVM and shared by "
                                       "the four weights (its time is in the first one's fit "
                                       "time); weight_param: the Huber β / Myriad δ chosen by "
-                                      "robust CV."))
+                                      "robust CV." if irls else ""))
 
     eqs = []
     for f in fitted:
