@@ -22,6 +22,35 @@ def higher_is_better(metric: str) -> bool:
     return base in HIGHER_IS_BETTER or base.rsplit("_", 1)[0] in HIGHER_IS_BETTER
 
 
+def metric_unit(metric: str) -> str:
+    """Unit of a study metric: % for improvements, 1 for R² and factors, °/h for the
+    single-gyro recipes' stabilities and errors; "" when a per-parameter metric of paper 000
+    (``gyro_bias_x.rmse``: the parameter's own unit) or unknown."""
+    base = metric.split("@")[0]
+    name = base.rsplit(".", 1)[-1]
+    name = name.removesuffix("_true").removesuffix("_test")
+    if name.startswith("improvement_pct") or name.startswith("avg_improvement"):
+        return "%"
+    if name in ("r2", "improvement_factor"):
+        return "1"
+    if "." not in base and name.startswith(("stability", "rmse", "mae", "residual", "floor",
+                                            "bias", "std")):
+        return "°/h"
+    return ""
+
+
+def clean_tiny(values: Sequence[float | None], scale: float, rel: float = 1e-9
+               ) -> list[float | None]:
+    """Values below ``rel`` × ``scale`` in magnitude (rounding noise such as -1.084e-14 for a
+    quantity that is zero by construction) as 0.0; None and NaN kept."""
+    out: list[float | None] = []
+    for v in values:
+        if v is not None and np.isfinite(v) and abs(v) <= rel * scale:
+            v = 0.0
+        out.append(v)
+    return out
+
+
 def better(metric: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Element-wise: is ``a`` better than ``b`` for ``metric``?"""
     return a > b if higher_is_better(metric) else a < b
@@ -36,6 +65,8 @@ class MetricSummary:
     p5: float
     p95: float
     beats_baseline: float      # share of units (0..1) where it beats the baseline; nan if none
+    same_as_baseline: bool = False  # equal to the baseline on every unit (e.g. the stability
+                                    # before compensation): says nothing about the compensator
 
 
 def metric_matrix(records: Sequence[UnitRecord]) -> dict[tuple[str, str], dict[int, float]]:
@@ -57,15 +88,18 @@ def summarise(records: Sequence[UnitRecord], baseline: str | None) -> list[Metri
         units = sorted(per_unit)
         values = np.array([per_unit[u] for u in units])
         share = float("nan")
+        same = False
         base = matrix.get((baseline, metric)) if baseline else None
         if base is not None and comp != baseline:
             common = [u for u in units if u in base]
             if common:
                 a = np.array([per_unit[u] for u in common])
                 b = np.array([base[u] for u in common])
-                share = float(np.mean(better(metric, a, b)))
+                same = len(common) == len(units) == len(base) and np.array_equal(a, b)
+                share = float("nan") if same else float(np.mean(better(metric, a, b)))
         p5, med, p95 = np.nanpercentile(values, [5, 50, 95]) if values.size else (np.nan,) * 3
-        out.append(MetricSummary(comp, metric, len(units), float(med), float(p5), float(p95), share))
+        out.append(MetricSummary(comp, metric, len(units), float(med), float(p5), float(p95),
+                                 share, same))
     return out
 
 

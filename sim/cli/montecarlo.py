@@ -223,7 +223,8 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from rlgsim.sim.montecarlo_summary import metric_matrix, summarise, worst_units
+    from rlgsim.sim.montecarlo_summary import (clean_tiny, metric_matrix, metric_unit, summarise,
+                                               worst_units)
     from rlgsim.sim.report import Report, Table
 
     ok = [r for r in records if r.status == "ok"]
@@ -239,18 +240,27 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
                   f"realisation i (tolerance models of the presets) with its own noise; "
                   f"baseline for 'beats baseline': {baseline or 'none'}.")
     rows = []
-    for s in summarise(records, baseline):
-        rows.append([s.compensator, s.metric, s.n_units, s.median, s.p5, s.p95,
+    summaries = [s for s in summarise(records, baseline) if not s.same_as_baseline]
+    scale = {}                  # per metric: the largest magnitude over the compensators
+    for s in summaries:
+        mags = [abs(v) for v in (s.median, s.p5, s.p95) if np.isfinite(v)]
+        scale[s.metric] = max([scale.get(s.metric, 0.0), *mags])
+    for s in summaries:
+        med, p5, p95 = clean_tiny([s.median, s.p5, s.p95], scale[s.metric])
+        rows.append([s.compensator, s.metric, metric_unit(s.metric), s.n_units, med, p5, p95,
                      None if np.isnan(s.beats_baseline) else s.beats_baseline])
     rows.sort(key=lambda r: (comps.index(r[0]) if r[0] in comps else len(comps),
                              metrics.index(r[1]) if r[1] in metrics else len(metrics)))
     rep.heading("Distribution per compensator and metric", 2)
-    rep.table(Table("Distributions", ["compensator", "metric", "units", "median", "p5", "p95",
-                                      "beats baseline"], rows,
+    rep.table(Table("Distributions", ["compensator", "metric", "unit", "units", "median", "p5",
+                                      "p95", "beats baseline"], rows,
                     note="p5/p95: 5th and 95th percentiles over the units; 'beats baseline': "
                          "share of units (0-1) where the compensator does better than the "
                          "baseline on that metric (larger is better for r2 and improvement, "
-                         "smaller otherwise)", csv_name="summary.csv"))
+                         "smaller otherwise). A metric equal to the baseline's on every unit "
+                         "(the stability before compensation) is shown for the baseline only; "
+                         "values below 1e-9 of the metric's largest are shown as 0 (rounding).",
+                    csv_name="summary.csv"))
 
     rep.heading("Spread over the units", 2)
     for metric in metrics[:MAX_FIGURES]:
@@ -267,7 +277,8 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
         ax.boxplot([d for _, d in keep], positions=pos, widths=0.25, showfliers=True)
         ax.set_xticks(pos)
         ax.set_xticklabels([n for n, _ in keep], rotation=25, ha="right", fontsize=8)
-        ax.set_ylabel(metric)
+        unit = metric_unit(metric)
+        ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
         ax.grid(True, axis="y", alpha=0.3)
         rep.figure(fig, f"spread_{metric}", f"{metric} over {len(ok)} units: violin (density) "
                                            f"and box (median, quartiles, 1.5 IQR whiskers)")
