@@ -123,3 +123,15 @@ def test_report_notes_only_where_they_apply(demo_export):
     assert "LS-SVM regularisation" not in note_after("Least squares (paper 001 Table 2)")
     assert "LS-SVM regularisation" in note_after("LSSVM (paper 001 §4.3)")
     assert "IR-LSSVM: (c, σ²)" not in md
+
+
+def test_device_coefficients_carry_the_presets_units(demo_export):
+    import csv
+    with open(demo_export / "device_coefficients.csv", encoding="utf-8") as fh:
+        rows = {r["coefficient"]: r for r in csv.DictReader(fh)}
+    arw = rows["noise.gyro_arw[z]"]
+    assert arw["unit"] == "°/√h"                       # the preset key gyro_arw_deg_per_sqrt_h
+    assert 0.0005 < float(arw["value"]) < 0.0011       # trplg_001: 0.0008 ± 10 % (1σ)
+    assert rows["gyro.bias.c1[z]"]["unit"] == "°/h/K"
+    assert all(r["unit"] for r in rows.values())
+    assert "rad/s" not in (demo_export / "report.md").read_text()

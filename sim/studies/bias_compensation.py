@@ -298,7 +298,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
                      per_test[spec.label], ytr, spec.label, multi)
 
     if rs_test.coefficients:
-        device_coefficients_section(rep, rs_test.coefficients)
+        device_coefficients_section(rep, rs_test.coefficients, rs_test.path)
     return rep
 
 

@@ -759,5 +759,6 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     _figures(rep, results, config)
-    device_coefficients_section(rep, results[0].tests[0].coefficients)
+    device_coefficients_section(rep, results[0].tests[0].coefficients,
+                                results[0].tests[0].path)
     return rep

@@ -378,7 +378,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         rep.paragraph(para)
     _series_attachments(rep, config, runs, predictions)
     _figures(rep, config, runs, per_test, predictions, fitted, corr)
-    device_coefficients_section(rep, runs[config.test[0].key].series.coefficients)
+    first = runs[config.test[0].key].series
+    device_coefficients_section(rep, first.coefficients, first.path)
     return rep
 
 

@@ -58,11 +58,18 @@ def truth_score_tables(rep, per_test: dict[str, dict[str, dict[str, float]]]) ->
                                           "improvement_factor (1)."))
 
 
-def device_coefficients_section(rep, coefficients: dict[str, float]) -> None:
+def device_coefficients_section(rep, coefficients: dict[str, float], path=None) -> None:
     """The report's section of the drawn device coefficients worth showing (non-zero bias and
-    UHFO law terms; ``device_coefficients.csv``)."""
+    UHFO law terms; ``device_coefficients.csv``), each with its unit as the preset writes it
+    (read from the dataset at ``path``; :mod:`rlgsim.sim.studies.device_units`)."""
     from rlgsim.sim.report import Table
+    from rlgsim.sim.studies.device_units import coefficient_units, in_preset_units
+    units = coefficient_units(path) if path is not None else {}
+    rows = []
+    for k, v in coefficients.items():
+        if worth_showing(k) and v != 0.0:
+            value, unit = in_preset_units(k, v, units.get(k, ""))
+            rows.append({"coefficient": k, "value": value, "unit": unit})
     rep.heading("Drawn device parameters (truth)", 2)
-    rep.table(Table.from_records("Device coefficients", [
-        {"coefficient": k, "value": v} for k, v in coefficients.items()
-        if worth_showing(k) and v != 0.0], csv_name="device_coefficients.csv"))
+    rep.table(Table.from_records("Device coefficients", rows,
+                                 csv_name="device_coefficients.csv"))
