@@ -135,3 +135,24 @@ def test_device_coefficients_carry_the_presets_units(demo_export):
     assert rows["gyro.bias.c1[z]"]["unit"] == "°/h/K"
     assert all(r["unit"] for r in rows.values())
     assert "rad/s" not in (demo_export / "report.md").read_text()
+
+
+def test_allan_figure_starts_at_the_sample_rate(demo_export):
+    import pathlib
+
+    from rlgsim.estimators.metrics import allan_deviation
+    from rlgsim.sim.studies.sample_rate import sample_rate_series
+    md = (demo_export / "report.md").read_text()
+    assert "from the sample rate (10 Hz" in md                 # demo_cycle: 10 Hz IMU
+    rs = type("RS", (), {})()                                  # a RunSeries-like stand-in
+    data = sorted(pathlib.Path(demo_export / "data").glob("demo_cycle*7002*.h5"))[0]
+    from rlgsim.ground.dataset_format import open_dataset
+    with open_dataset(data) as ds:
+        rs.coefficients = ds.coefficients()
+    rs.path, rs.time_s = data, np.arange(1, 51) * 100.0        # the first 50 windows
+    rate, y, m = sample_rate_series(rs, "z", 100.0)
+    assert (rate, m, y.size) == (10.0, 1000, 50_000)
+    ad = allan_deviation(y, rate, "octave")
+    assert ad.tau_s[0] == pytest.approx(0.1)
+    rs.path = demo_export / "report.md"                        # not a dataset: window series
+    assert sample_rate_series(rs, "z", 100.0) is None
