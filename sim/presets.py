@@ -226,7 +226,11 @@ def locate(ref: str, kind: str, *, base_dir: pathlib.Path | None = None,
     if not _NAME_RE.match(ref):
         raise _unknown_name(kind, ref, context)
     entry = _package_dir(kind).joinpath(f"{ref}.toml")
-    if not entry.is_file():
+    try:
+        found = entry.is_file()
+    except OSError:             # e.g. a name longer than the file system allows
+        found = False
+    if not found:
         raise _unknown_name(kind, ref, context)
     return ref, None, entry
 
