@@ -98,6 +98,8 @@ class GroupWriter:
         self._g = group
         self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
         self._dim_only: set[str] = set()             # growing dims without coordinate values
+        self._datasets: dict[str, h5py.Dataset] = {}  # name -> dataset (appends look up once)
+        self._rows: dict[str, int] = {}              # growing dim -> rows written so far
 
     @property
     def name(self) -> str:
@@ -194,13 +196,22 @@ class GroupWriter:
         m = n.pop()
         if m == 0:
             return
-        start = self._g[dim].shape[0]
+        # the hot path of a long run (one call per block and group): datasets looked up once,
+        # row counts kept here, and each slab handed to HDF5 with write_direct (the same HDF5
+        # calls as ``ds[a:b] = x``, without h5py's per-call selection parsing)
+        start = self._rows.get(dim)
+        if start is None:
+            start = self._rows[dim] = self._g[dim].shape[0]
         for v in names:
-            ds = self._g[v]
+            ds = self._datasets.get(v)
+            if ds is None:
+                ds = self._datasets[v] = self._g[v]
             ds.resize(start + m, axis=0)
-            ds[start:start + m] = rows[v]
+            ds.write_direct(np.ascontiguousarray(rows[v], dtype=ds.dtype),
+                            dest_sel=np.s_[start:start + m])
         if dim in self._dim_only:
             self._g[dim].resize(start + m, axis=0)
+        self._rows[dim] = start + m
 
 
 def remove_stale_temporaries(path: pathlib.Path) -> list[pathlib.Path]:
