@@ -58,9 +58,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from rlgsim.ground.dataset_format import ANOMALIES
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
 from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_list, get_str,
                                get_table)
+from rlgsim.sim.dataset_schema import DESCRIPTIONS, declare_anomalies
 from rlgsim.sim.rng import generator
 
 KINDS = ("mode_hop", "pulse_spikes", "imu_dropouts", "probe_glitches", "probe_stuck",
@@ -551,12 +553,6 @@ class Anomalies:
 
 # --------------------------------------------------------------------------- in a run
 
-#: Dataset group of the event record.
-GROUP = "anomalies"
-GROUP_DESCRIPTION = ("truth: every sensor anomaly of the run (mode hops, pulse spikes, IMU "
-                     "frame dropouts, probe glitches, stuck readings, probe dropouts), one row "
-                     "per event")
-
 
 class AnomalyRun:
     """The anomalies of one simulated run, shared by the stages that apply them (probes, IMU)
@@ -643,8 +639,8 @@ class AnomalyStage:
     every event the probe and IMU stages produced in that block. Dimension ``event``: time of
     the event [s], end [s], channel, kind, size and its units (docs/sensors.md)."""
 
-    group = GROUP
-    description = GROUP_DESCRIPTION
+    group = ANOMALIES
+    description = DESCRIPTIONS[ANOMALIES]
     needs_motion = False
 
     def __init__(self, run: AnomalyRun) -> None:
@@ -656,22 +652,7 @@ class AnomalyStage:
         return None if run is None else cls(run)
 
     def declare(self, g) -> None:
-        g.coordinate("event", growing=True, dtype=np.int64, units="1",
-                     description="event index in order of time")
-        g.variable("time", ("event",), units="s",
-                   description="start of the event: end of the first affected sample or "
-                               "thermal step, s since the start of the run")
-        g.variable("end", ("event",), units="s",
-                   description="end of the event (= time for single-sample events)")
-        g.variable("channel", ("event",), dtype=str,
-                   description="gyro axis or probe name the event affects")
-        g.variable("kind", ("event",), dtype=str,
-                   description="mode_hop_up, mode_hop_down, pulse_spike, imu_dropout, "
-                               "probe_glitch, probe_stuck or probe_dropout")
-        g.variable("size", ("event",), units="see size_units",
-                   description="bias step [deg/h], extra or lost pulses, replaced minus true "
-                               "reading [degC] or duration [s]")
-        g.variable("size_units", ("event",), dtype=str, description="unit of size")
+        declare_anomalies(g)                      # the schema room (sim/dataset_schema.py)
 
     def initial_state(self) -> int:
         return 0                                  # events written so far
@@ -688,9 +669,3 @@ class AnomalyStage:
                           "size_units": np.asarray(ev["units"], dtype=object)}}
         return rows, state + n
 
-
-def declare_sample_valid(g) -> None:
-    """The ``imu`` group's frame-validity flag (declared only when IMU dropouts are on)."""
-    g.variable("sample_valid", ("sample",), units="1", dtype=np.int8,
-               description="1 if the IMU frame reached the log, 0 if it was lost (its pulses "
-                           "are 0 here; the lost counts are in the anomalies group)")

@@ -16,7 +16,15 @@ probes      thermometer readings and the probes' properties       :func:`declare
 imu         pulses per sample, UHFO on the thermal grid           :func:`declare_imu`
 turntable   table angles on the thermal grid, table of motions    :func:`declare_turntable`
 truth       true sensor parameters and inputs, the drawn unit     :func:`declare_truth`
+anomalies   the sensor anomalies' event record (optional)         :func:`declare_anomalies`
 ==========  ====================================================  =============================
+
+Optional variables — parts a scenario switches on, named in
+:data:`~rlgsim.ground.dataset_format.OPTIONAL_VARIABLES` and declared only when the part is on,
+so runs without it keep their layout: the ``thermal`` group's heaters and further boundaries
+(:func:`declare_thermal_parts`), the ``imu`` group's frame-validity flag
+(:func:`declare_sample_valid`, IMU frame dropouts on) and the whole ``anomalies`` group
+(:func:`declare_anomalies`, written by :class:`rlgsim.sim.anomalies.AnomalyStage`).
 
 Units are UDUNITS spellings ("1" for dimensionless and flags, none for strings); times are s
 since the start of the run at the end of each thermal step (or IMU sample), absolute
@@ -48,6 +56,8 @@ DESCRIPTIONS: dict[str, str] = {
                    "table of motions (labels for calibration)",
     fmt.TRUTH: "ground truth: every true sensor parameter on the thermal grid, the true inputs "
                "and the drawn device realisation",
+    fmt.ANOMALIES: "truth: every sensor anomaly of the run (mode hops, pulse spikes, IMU frame "
+                   "dropouts, probe glitches, stuck readings, probe dropouts), one row per event",
 }
 
 _TIME = "time since the start of the run at the end of each thermal step"
@@ -129,6 +139,26 @@ def declare_thermal(g: GroupWriter, nominal, realised) -> None:
                    description="drawn factor: realised / nominal link conductance")
 
 
+def declare_thermal_parts(g: GroupWriter, network) -> None:
+    """The optional parts of the ``thermal`` group, declared after :func:`declare_thermal` and
+    only for the parts the simulated :class:`rlgsim.sim.thermal.ThermalNetwork` has (nothing
+    for a network without them, so such datasets keep their layout): ``heater``,
+    ``heater_power`` (time, heater) [W] held over the step ending at time; ``boundary``,
+    ``boundary_temperature`` (time, boundary) [°C] at time."""
+    if network.heaters:
+        g.coordinate("heater", [h.name for h in network.heaters],
+                     description="controlled heater of the network")
+        g.variable("heater_power", ("time", "heater"), units="W",
+                   description="power of the controlled heater, held over the step "
+                               "ending at time")
+    if network.boundaries:
+        g.coordinate("boundary", [b.name for b in network.boundaries],
+                     description="further boundary of the network (prescribed "
+                                 "temperature)")
+        g.variable("boundary_temperature", ("time", "boundary"), units="degC",
+                   description="temperature of the further boundary at time")
+
+
 # --------------------------------------------------------------------------- probes
 
 
@@ -185,6 +215,14 @@ def declare_imu(g: GroupWriter, realisation, *, rate_hz: float, step_s: float) -
         g.variable("uhfo", ("time", "gyro"), units="V", dtype=np.float32,
                    description="high-frequency-oscillator voltage of each gyro's "
                                "light-intensity loop as logged (read-out noise, ADC step)")
+
+
+def declare_sample_valid(g: GroupWriter) -> None:
+    """The ``imu`` group's frame-validity flag, declared after :func:`declare_imu` and only
+    when the device's ``[anomalies]`` table has IMU frame dropouts (:mod:`rlgsim.sim.anomalies`)."""
+    g.variable("sample_valid", ("sample",), units="1", dtype=np.int8,
+               description="1 if the IMU frame reached the log, 0 if it was lost (its pulses "
+                           "are 0 here; the lost counts are in the anomalies group)")
 
 
 def declare_turntable(g: GroupWriter, segments: Sequence[Any]) -> None:
@@ -302,3 +340,29 @@ def declare_truth(g: GroupWriter, realisation, *, seed: int, unit: int, rate_hz:
                    description="true angle increment ∫ω_ib^b dt over each sample interval")
         g.variable("dv", ("sample", "body"), units="m s-1",
                    description="true velocity increment ∫f^b dt over each sample interval")
+
+
+# --------------------------------------------------------------------------- anomalies
+
+
+def declare_anomalies(g: GroupWriter) -> None:
+    """The ``anomalies`` group (only with an active ``[anomalies]`` device table; written by
+    :class:`rlgsim.sim.anomalies.AnomalyStage`): one row per event along the growing
+    dimension ``event`` — start and end [s], channel, kind, size and the unit of the size
+    (docs/sensors.md)."""
+    g.coordinate("event", growing=True, dtype=np.int64, units="1",
+                 description="event index in order of time")
+    g.variable("time", ("event",), units="s",
+               description="start of the event: end of the first affected sample or "
+                           "thermal step, s since the start of the run")
+    g.variable("end", ("event",), units="s",
+               description="end of the event (= time for single-sample events)")
+    g.variable("channel", ("event",), dtype=str,
+               description="gyro axis or probe name the event affects")
+    g.variable("kind", ("event",), dtype=str,
+               description="mode_hop_up, mode_hop_down, pulse_spike, imu_dropout, "
+                           "probe_glitch, probe_stuck or probe_dropout")
+    g.variable("size", ("event",), units="see size_units",
+               description="bias step [deg/h], extra or lost pulses, replaced minus true "
+                           "reading [degC] or duration [s]")
+    g.variable("size_units", ("event",), dtype=str, description="unit of size")

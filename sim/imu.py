@@ -53,8 +53,8 @@ from rlgsim.sim import pulses as pulse_counter
 from rlgsim.sim.accelerometer import AccelerometerModel, Accelerometers
 from rlgsim.sim.accelerometer import phase_increments as accel_increments
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
-from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_imu, declare_truth,
-                                       declare_turntable)
+from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_imu, declare_sample_valid,
+                                       declare_truth, declare_turntable)
 from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
@@ -559,8 +559,7 @@ class ImuStage:
         r, sim = self.realisation, self.sim
         declare_imu(writers[IMU], r, rate_hz=sim.rate_hz, step_s=sim.step_s)
         if sim.anomalies is not None and sim.anomalies.model.imu_dropout_rate_per_h > 0:
-            from rlgsim.sim.anomalies import declare_sample_valid
-            declare_sample_valid(writers[IMU])
+            declare_sample_valid(writers[IMU])           # frame dropouts on
         declare_turntable(writers[TURNTABLE], self.turntable_segments)
         declare_truth(writers[TRUTH], r, seed=self.scenario.seed, unit=self.unit,
                       rate_hz=sim.rate_hz, step_s=sim.step_s,

@@ -32,9 +32,11 @@ Adding a stage (issue 3: the IMU) — write a class with
 
 and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. The
 shipped groups are declared in one room, :mod:`rlgsim.sim.dataset_schema` (a new group goes
-there, its names into :data:`rlgsim.ground.dataset_format.VARIABLES`, and its prose into
-docs/dataset.md). :class:`ProbeStage` is the worked example. A stage that writes several
-groups (the IMU: ``imu``, ``turntable``, ``truth``) sets ``groups = {name: description}``
+there, its names into :data:`rlgsim.ground.dataset_format.VARIABLES` — or
+:data:`~rlgsim.ground.dataset_format.OPTIONAL_VARIABLES` for a part a scenario switches on —
+and its prose into docs/dataset.md). :class:`ProbeStage` is the worked example. A stage that
+writes several groups (the IMU: ``imu``, ``turntable``, ``truth``) sets
+``groups = {name: description}``
 instead of ``group``/``description``; its ``declare`` then receives ``{name: group_writer}`` and
 its ``block`` returns ``{name: rows}``.
 """
@@ -52,7 +54,7 @@ from threadpoolctl import threadpool_limits
 from rlgsim.ground.dataset_format import PROBES, THERMAL
 from rlgsim.sim.dataset import DatasetWriter, GroupWriter, check_writable
 from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_probes, declare_thermal,
-                                       write_timeline)
+                                       declare_thermal_parts, write_timeline)
 from rlgsim.sim.rng import generator
 from rlgsim.sim.schedule import Timeline, build_timeline
 from rlgsim.sim.thermal_integrator import ThermalIntegrator
@@ -123,7 +125,7 @@ class ThermalPart:
 
     def declare(self, g: GroupWriter) -> None:
         declare_thermal(g, self.nominal, self.network)
-        self.integrator.declare_extras(g)     # heaters, boundaries: only when the preset has them
+        declare_thermal_parts(g, self.network)   # heaters, boundaries: only when it has them
 
     def initial_state(self) -> Any:
         ambient = float(self.timeline.setpoint(np.array([0.0]))[0])

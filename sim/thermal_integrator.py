@@ -299,26 +299,11 @@ class ThermalIntegrator:
 
     # ----------------------------------------------------------------- dataset record
 
-    def declare_extras(self, g: Any) -> None:
-        """Declare, in the ``thermal`` group, the records of the optional parts this network
-        has (nothing for a network without them, so such datasets keep their layout):
-        ``heater_power`` (time, heater) [W] held over the step ending at time, and
-        ``boundary_temperature`` (time, boundary) [°C] at time."""
-        if self.heaters:
-            g.coordinate("heater", [h.name for h in self.heaters],
-                         description="controlled heater of the network")
-            g.variable("heater_power", ("time", "heater"), units="W",
-                       description="power of the controlled heater, held over the step "
-                                   "ending at time")
-        if self.boundaries:
-            g.coordinate("boundary", [b.name for b in self.boundaries],
-                         description="further boundary of the network (prescribed "
-                                     "temperature)")
-            g.variable("boundary_temperature", ("time", "boundary"), units="degC",
-                       description="temperature of the further boundary at time")
-
     def extra_rows(self) -> dict[str, np.ndarray]:
-        """The rows of :meth:`declare_extras` for the last :meth:`propagate` call."""
+        """The dataset rows of the optional parts for the last :meth:`propagate` call:
+        ``heater_power`` (m, heaters) [W] held over each step and ``boundary_temperature``
+        (m, boundaries) [°C] at each step's end, only for the parts the network has (declared
+        by :func:`rlgsim.sim.dataset_schema.declare_thermal_parts`)."""
         out: dict[str, np.ndarray] = {}
         if self.heaters:
             out["heater_power"] = self.last_heater_power_w.copy()

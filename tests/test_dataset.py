@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import FORMAT, open_dataset
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim import dataset
@@ -62,6 +63,22 @@ def test_every_group_opens_with_xarray_h5netcdf(quick_file):
                 assert "description" in var.attrs, (g, name)
                 if var.dtype.kind == "f":
                     assert var.attrs.get("units"), (g, name)
+
+
+def test_quickstart_writes_the_format_names_and_only_its_boundary(quick_file):
+    """The quickstart's device has no heaters and no [anomalies]; its thermal preset has one
+    further boundary (the laboratory). Every group is one of VARIABLES', its names in
+    VARIABLES' order (device-dependent ones may be absent), followed by exactly the boundary's
+    optional names (tests/test_dataset_optional.py: a run with every part on)."""
+    optional = {fmt.THERMAL: ["boundary", "boundary_temperature"]}
+    assert set(optional[fmt.THERMAL]) <= set(fmt.OPTIONAL_VARIABLES[fmt.THERMAL])
+    with open_dataset(quick_file) as ds:
+        assert ds.groups() == list(fmt.VARIABLES)
+        for group in ds.groups():
+            names = [v.name for v in ds.variables(group)]
+            assert names == ([n for n in fmt.VARIABLES[group] if n in names]
+                             + optional.get(group, [])), group
+        assert ds.strings(fmt.THERMAL, "boundary") == ["lab"]
 
 
 def test_thermal_group_contents(quick_file):

@@ -36,9 +36,9 @@ import numpy as np
 from rlgsim.ground.errors import UserInputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_ATTR", "VERSION_ATTR", "SEGMENT_DETAILS",
-           "TIMELINE", "THERMAL", "PROBES", "IMU", "TURNTABLE", "TRUTH", "CALIBRATION", "TIME",
-           "SAMPLE", "VARIABLES", "MissingVariableError", "VariableInfo", "open_dataset",
-           "Dataset"]
+           "TIMELINE", "THERMAL", "PROBES", "IMU", "TURNTABLE", "TRUTH", "ANOMALIES",
+           "CALIBRATION", "TIME", "SAMPLE", "VARIABLES", "OPTIONAL_VARIABLES",
+           "MissingVariableError", "VariableInfo", "open_dataset", "Dataset"]
 
 #: Root attribute :data:`FORMAT_ATTR` of every rlgsim dataset holds this marker.
 FORMAT = "rlgsim dataset"
@@ -65,6 +65,7 @@ PROBES = "probes"          #: thermometer readings on the thermal grid (what har
 IMU = "imu"                #: pulses per sample, UHFO on the thermal grid (what hardware logs)
 TURNTABLE = "turntable"    #: table angles on the thermal grid and the table of motions
 TRUTH = "truth"            #: true sensor parameters, true inputs, the drawn unit
+ANOMALIES = "anomalies"    #: the sensor anomalies' event record (only with ``[anomalies]``)
 CALIBRATION = "calibration"  #: added by ``rlgsim calibrate`` (one row per calibration window)
 
 # ---- dimension names shared by several groups
@@ -72,7 +73,9 @@ TIME = "time"              #: thermal grid: end of each thermal step [s]
 SAMPLE = "sample"          #: IMU sample axis (no stored coordinate)
 
 #: Every variable (coordinates included) of each group the simulator writes, in the order it
-#: declares them; optional ones (accelerometers, UHFO, per-sample truth) are listed too.
+#: declares them; the device-dependent ones (accelerometers, UHFO, per-sample truth) are listed
+#: too. Parts a scenario switches on (heaters, boundaries, anomalies) are in
+#: :data:`OPTIONAL_VARIABLES`.
 #: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_imu.py checks it).
 VARIABLES: dict[str, tuple[str, ...]] = {
     TIMELINE: ("segment", "t0", "t1", "track", "label", "details", "breakpoint", "setpoint_time",
@@ -92,6 +95,24 @@ VARIABLES: dict[str, tuple[str, ...]] = {
             "accel_scale_factor_pos", "accel_scale_factor_neg", "accel_installation",
             "accel_white_sigma", "uhfo_true", "uhfo_u0", "dtheta_step", "dv_step", "sample",
             "dtheta", "dv"),
+}
+
+#: Variables (coordinates included) written only when the scenario switches a part on, per
+#: group, in the order they are declared — after the group's :data:`VARIABLES` names, and the
+#: group :data:`ANOMALIES` after every group of :data:`VARIABLES`. A dataset holds a part's
+#: names all together or none of them; a run without the part keeps exactly the layout of
+#: :data:`VARIABLES` (docs/dataset.md):
+#:
+#: * ``thermal``: ``heater``, ``heater_power`` — the thermal preset has ``[thermal.heaters]``;
+#:   ``boundary``, ``boundary_temperature`` — it has ``[thermal.boundaries]``;
+#: * ``imu``: ``sample_valid`` — the device's ``[anomalies]`` table has IMU frame dropouts;
+#: * ``anomalies`` (the whole group) — the device has an active ``[anomalies]`` table.
+#:
+#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_dataset_optional.py).
+OPTIONAL_VARIABLES: dict[str, tuple[str, ...]] = {
+    THERMAL: ("heater", "heater_power", "boundary", "boundary_temperature"),
+    IMU: ("sample_valid",),
+    ANOMALIES: ("event", "time", "end", "channel", "kind", "size", "size_units"),
 }
 
 
