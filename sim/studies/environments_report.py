@@ -643,14 +643,20 @@ def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: 
                   colour: dict[str, str], plt) -> None:
     """Overlapping Allan deviation before and after compensation (allantools)."""
     from rlgsim.estimators import metrics as M
+    from rlgsim.sim.studies.sample_rate import sample_rate_series
     fig, axes = _grid(len(results), plt)
-    rate = 1.0 / config.window_s
+    rates = set()
     for ax, r in zip(axes, results):
         rs, p = r.tests[0], r.predictions[r.tests[0].label]
-        series = ([("raw", rs.y, {"color": "0.5"})]
-                  + [(n, rs.y - p[n], {"color": colour[n]}) for n in names]
-                  + [(ORACLE, rs.y - p[ORACLE], {"color": "k", "ls": "--"})])
-        for label, x, style in series:
+        fast = sample_rate_series(rs, config.gyro, config.window_s)
+        rate = 1.0 / config.window_s if fast is None else fast[0]
+        rates.add(None if fast is None else rate)
+        series = ([("raw", np.zeros(rs.y.size), {"color": "0.5"})]
+                  + [(n, p[n], {"color": colour[n]}) for n in names]
+                  + [(ORACLE, p[ORACLE], {"color": "k", "ls": "--"})])
+        for label, pred, style in series:
+            # y − ŷ at the window rate, or at the sample rate with ŷ held per window
+            x = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
             if x.size >= 8:
                 ad = M.allan_deviation(x, rate, "octave")
                 ax.loglog(ad.tau_s, ad.adev, marker="o", ms=2, lw=0.8, label=label, **style)
@@ -661,8 +667,10 @@ def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: 
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=6)
     fig.tight_layout()
+    start = ("from the sample rate (ŷ held over each window)" if None not in rates
+             else f"from the {config.window_s:g} s means")
     rep.figure(fig, "allan_deviation", "Overlapping Allan deviation (allantools) of each test "
-                                       "run before and after compensation.")
+                                       f"run before and after compensation, {start}.")
 
 
 def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: float,
