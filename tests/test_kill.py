@@ -155,7 +155,8 @@ def temporaries(folder: pathlib.Path) -> list[str]:
 
 
 def test_kill_run(tmp_path):
-    (tmp_path / "long.toml").write_text(SCENARIO.replace("duration_h = 2.0", "duration_h = 8"))
+    # 48 h at 100 Hz: a few seconds of writing, time to kill it (8 h could finish first)
+    (tmp_path / "long.toml").write_text(SCENARIO.replace("duration_h = 2.0", "duration_h = 48"))
     out = tmp_path / "long.h5"
     kids = kill_when(["run", "long.toml", "-o", "long.h5", "-q"], tmp_path,
                      lambda me: any(p.stat().st_size > 2 << 20
