@@ -146,7 +146,9 @@ def test_study_reusing_a_dataset_with_nan_probe_readings(tmp_path, capsys):
 ATTRS = ["rlgsim_format_version", "duration_s", "thermal_step_s", "sample_rate_hz", "seed",
          "block_s", "software_version"]
 VALUES = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-2**62, 2**62),
-                   st.text(max_size=8), st.just(b"\xff\xfe"))
+                   # HDF5 cannot store a NUL in a string attribute (h5py refuses
+                   # it while the test damages the file): any other text
+                   st.text(max_size=8).filter(lambda v: "\x00" not in v), st.just(b"\xff\xfe"))
 
 
 @settings(max_examples=40, deadline=None,
