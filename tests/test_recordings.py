@@ -451,3 +451,16 @@ def test_hdf5_and_parquet_tables_of_other_tools_with_column_mapping(tmp_path):
     (tmp_path / "alone.toml").write_text('[recording]\nsample_rate_hz = 10\n'
                                          'data = "log2.parquet"\n')
     np.testing.assert_array_equal(load_recording(tmp_path / "alone.toml").time_s, t)
+
+
+def test_paper000_system_refuses_a_recording_in_one_line(tmp_path, capsys):
+    """The turntable campaign recipe needs simulated calibration windows: a recording named as
+    its scenario is one line, exit 2, saying so."""
+    _single_gyro_csv(tmp_path / "run.csv", 1, hours=1.0)
+    (tmp_path / "p0.toml").write_text("[study]\nname = 'p0'\nrecipe = 'paper000_system'\n"
+                                      "[campaign]\nscenario = 'run.csv'\n")
+    assert main(["study", str(tmp_path / "p0.toml"), "-o", str(tmp_path / "out"),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "campaign.scenario" in err
+    assert "'run.csv' is a recording" in err and "simulated turntable campaign" in err

@@ -56,6 +56,7 @@ from rlgsim.sim.studies.compensators import (EQUATION_KINDS, ORACLE, RAW, Compen
 from rlgsim.sim.studies.fitting import Fitted, fit_all
 from rlgsim.sim.studies.report_text import (before_check, definitions, device_coefficients_section,
                                              fmt, truth_score_tables)
+from rlgsim.sim.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
 from rlgsim.sim.studies.runs import LoadedRun, RunSeries, load_experiment, worth_showing
 from rlgsim.sim.studies.scoring import has_truth, score_run, series_stability
 from rlgsim.sim.studies.study_tables import FeatureSpec, RunSpec, parse_experiment, parse_metrics
@@ -178,7 +179,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     rep.heading("Runs, seeds and software", 2)
     rep.bullets([f"rlgsim {software_version()}; recipe bias_compensation; unit {unit}"]
                 + [f"{'train' if s in config.train else 'test'} run {s.label}: "
-                   f"{_origin(runs[s.key])}, {runs[s.key].series.y.size} windows of "
+                   f"{run_origin(runs[s.key])}, {runs[s.key].series.y.size} windows of "
                    f"{config.window_s:g} s, raw bias stability "
                    f"{_raw_stability(runs[s.key].series, config):.5f} °/h"
                    for s in dict.fromkeys(config.train + config.test)]
@@ -192,16 +193,9 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     rep.heading("Definitions", 2)
     rep.bullets(definitions())
     truth = has_truth(rs_test)
-    recorded = [s.label for s in dict.fromkeys(config.train + config.test)
-                if runs[s.key].scenario is None]
+    recorded = recorded_labels(runs, config.train + config.test)
     if recorded:
-        rep.paragraph(f"Recorded runs (docs/recordings.md): {', '.join(recorded)}. A recording "
-                      f"has no ground truth, so "
-                      + ("the truth-based scores (rmse_true, mae_true, r2_true, resid_std_true, "
-                         "law_resid_std, the oracle) are absent (—) and the rankings are judged "
-                         "by the paper's score only; every paper-style table is computed as "
-                         "for a simulated run." if not truth else
-                         "only the simulated test run is scored against the truth."))
+        rep.paragraph(recordings_paragraph(recorded, truth))
 
     # -- correlation (paper 001 Table 1)
     rep.heading("Correlation of the bias with the inputs (paper 001 Table 1)", 2)
@@ -300,15 +294,6 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     if rs_test.coefficients:
         device_coefficients_section(rep, rs_test.coefficients, rs_test.path)
     return rep
-
-
-def _origin(run: LoadedRun) -> str:
-    """Where a run's data come from: its scenario and seeds and dataset, or its recording."""
-    if run.scenario is None:
-        return f"recording {run.series.path.name} (no truth)"
-    return (f"scenario {run.scenario.name}, seed {run.series.seed}, device_seed "
-            f"{run.series.device_seed}, dataset {run.series.path.name} "
-            f"({'reused' if run.reused else 'simulated'})")
 
 
 def _run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSeries,

@@ -46,8 +46,9 @@ def fit_environment(env: Environment, config: Config, loaded: dict, unit: int,
     """Fit every compensator on the environment's train runs and score it on its test runs."""
     train = [loaded[s.key].series for s in env.train]
     Xtr, ytr = stack(train)
-    random_state = random_state_for(loaded[env.train[0].key]
-                                    .scenario.seed, unit)
+    first = loaded[env.train[0].key]           # a recording has no scenario: its seed is 0
+    random_state = random_state_for(first.scenario.seed if first.scenario is not None
+                                    else first.series.seed, unit)
     fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress,
                      desc=f"fitting {env.name}")
     train_after = {f.spec.name: float(np.mean([stability(rs.y - predict(f, rs), config)

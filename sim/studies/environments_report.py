@@ -23,8 +23,9 @@ from rlgsim.sim.studies.environment_fits import EnvResult, stability
 from rlgsim.sim.studies.environment_tables import Config
 from rlgsim.sim.studies.fitting import Fitted, fit, predict
 from rlgsim.sim.studies.report_text import definitions, device_coefficients_section, fmt
+from rlgsim.sim.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
 from rlgsim.sim.studies.runs import DEG_PER_H_PER_RAD_PER_S, RunSeries, gyro_white_sigma, stack
-from rlgsim.sim.studies.scoring import scores
+from rlgsim.sim.studies.scoring import has_truth, scores
 
 #: Paper 002's ranking, best first (§4.2, Table 1, §5): kind, label.
 LADDER = (("rbf_modified", "modified RBFNN"), ("rbf", "RBFNN"), ("mlr_bic", "MLR"))
@@ -93,7 +94,10 @@ def _by_kind(res: EnvResult, kind: str, key: str = "stability_after") -> Fitted 
 
 
 def _verdict(a: float, b: float, tol: float, weak: bool) -> str:
-    """Does 'a better than b' (lower) hold? ``weak``: the claim is 'not worse than'."""
+    """Does 'a better than b' (lower) hold? ``weak``: the claim is 'not worse than'. "—"
+    when either is not a number (the truth of a recorded run)."""
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return "—"
     if abs(a - b) <= tol:
         return "holds (tie)" if weak else "tie"
     return "holds" if a < b else "does NOT hold"
@@ -151,23 +155,28 @@ def _overall(results: list[EnvResult], checks: list[ClaimCheck]) -> list[str]:
         n = len(cs)
         ok_s = sum(c.by_stability.startswith("holds") for c in cs)
         ok_t = sum(c.by_truth.startswith("holds") for c in cs)
+        n_t = sum(c.by_truth != "—" for c in cs)
         ties = sum("tie" in c.by_stability for c in cs)
         a_s = float(np.mean([c.stab[0] for c in cs]))
         b_s = float(np.mean([c.stab[1] for c in cs]))
-        a_t = float(np.mean([c.truth[0] for c in cs]))
-        b_t = float(np.mean([c.truth[1] for c in cs]))
+        known = [c for c in cs if c.by_truth != "—"]
+        a_t = float(np.mean([c.truth[0] for c in known])) if known else math.nan
+        b_t = float(np.mean([c.truth[1] for c in known])) if known else math.nan
         tol = TIE_REL * float(np.mean([r.scores[RAW]["stability_after"] for r in results]))
         both_worse = [c.env for c in cs if c.by_stability.startswith("holds")
                       and min(c.stab) > (1 + TIE_REL) * c.raw]
         out.append(
             f"Paper: {claim}. Ours: holds by bias stability in {ok_s} of {n} environments"
-            f"{f' ({ties} of them ties)' if ties else ''}, by the truth (std of ŷ − b) in "
-            f"{ok_t} of {n}."
+            f"{f' ({ties} of them ties)' if ties else ''}, "
+            + (f"by the truth (std of ŷ − b) in {ok_t} of {n_t}"
+               + (f" (the other {n - n_t} are recordings, no truth)" if n_t < n else "")
+               if n_t else "no truth (recordings)") + "."
             + (f" Where it holds in {', '.join(both_worse)}, both models are worse than no "
                "compensation." if both_worse else "")
             + f" Over all environments (means): σ after {a_s:.5f} vs {b_s:.5f} °/h "
-              f"— {_verdict(a_s, b_s, tol, weak)}; std(ŷ − b) {a_t:.5f} vs {b_t:.5f} °/h — "
-              f"{_verdict(a_t, b_t, tol, weak)}.")
+              f"— {_verdict(a_s, b_s, tol, weak)}"
+            + (f"; std(ŷ − b) {a_t:.5f} vs {b_t:.5f} °/h — {_verdict(a_t, b_t, tol, weak)}"
+               if known else "") + ".")
     return out
 
 
@@ -272,12 +281,15 @@ def _why_models(results: list[EnvResult], budgets: dict[str, NoiseBudget]) -> li
                      f"{_span([float(r.train[0].y.size) for r, _ in rows], '.0f')} train windows.")
         if worse:
             text += (f" Worse than no compensation in {', '.join(r.env.name for r, _ in worse)}"
-                     ": its in-sample gain is fitted noise that does not repeat on the test run "
-                     "— by the truth its learnt law is off by std "
-                     + ", ".join(f"{r.scores[f.spec.name]['law_resid_std']:.2e}" for r, f in worse)
-                     + " °/h where the true law varies by std "
-                     + ", ".join(_span([budgets[r.env.name].law], ".1e") for r, _ in worse)
-                     + " °/h.")
+                     ": its in-sample gain is fitted noise that does not repeat on the test run")
+            known = [(r, f) for r, f in worse if r.env.name in budgets]
+            text += ((" — by the truth its learnt law is off by std "
+                      + ", ".join(f"{r.scores[f.spec.name]['law_resid_std']:.2e}"
+                                  for r, f in known)
+                      + " °/h where the true law varies by std "
+                      + ", ".join(_span([budgets[r.env.name].law], ".1e") for r, _ in known)
+                      + " °/h" + (" (recordings elsewhere: no truth)" if len(known) < len(worse)
+                                  else "")) if known else "") + "."
         out.append(text)
     return out
 
@@ -462,7 +474,8 @@ def _fits_table(results: list[EnvResult], times: dict[tuple[str, str], float]) -
 def _claims_table(checks: list[ClaimCheck]) -> Table:
     recs = [{"claim (paper)": c.claim, "environment": c.env, "compared": f"{c.a} vs {c.b}",
              "σ after °/h": f"{c.stab[0]:.5f} vs {c.stab[1]:.5f}", "by σ after": c.by_stability,
-             "std(ŷ − b) °/h": f"{c.truth[0]:.5f} vs {c.truth[1]:.5f}",
+             "std(ŷ − b) °/h": (f"{c.truth[0]:.5f} vs {c.truth[1]:.5f}"
+                                if c.by_truth != "—" else None),
              "by the truth": c.by_truth} for c in checks]
     return Table.from_records("The paper's ranking, environment by environment", recs,
                               csv_name="ranking_checks.csv",
@@ -537,8 +550,10 @@ def _mlr_terms(results: list[EnvResult], config: Config) -> str | None:
         for r, f in other:
             pm, ours = _paper_mlr(r, f, config), r.per_test[r.tests[0].label][f.spec.name]
             parts.append(f"{r.env.name}: σ after {pm['stability_after']:.5f} vs ours "
-                         f"{ours['stability_after']:.5f} °/h, law error "
-                         f"{pm['law_resid_std']:.5f} vs {ours['law_resid_std']:.5f} °/h")
+                         f"{ours['stability_after']:.5f} °/h"
+                         + (f", law error {pm['law_resid_std']:.5f} vs "
+                            f"{ours['law_resid_std']:.5f} °/h"
+                            if np.isfinite(ours["law_resid_std"]) else ""))
         text += (" The paper's model refitted on the same train runs, on the test run (paper's "
                  "vs BIC's): " + "; ".join(parts) + ".")
         consts = [r.env.name for r, f in other if not f.model.terms_]
@@ -657,7 +672,7 @@ def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: 
         for label, pred, style in series:
             # y − ŷ at the window rate, or at the sample rate with ŷ held per window
             x = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
-            if x.size >= 8:
+            if x.size >= 8 and np.all(np.isfinite(x)):      # no oracle on a recording
                 ad = M.allan_deviation(x, rate, "octave")
                 ax.loglog(ad.tau_s, ad.adev, marker="o", ms=2, lw=0.8, label=label, **style)
         ax.set_title(r.env.name, fontsize=9)
@@ -683,11 +698,9 @@ def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: 
             for s in specs:
                 ld = loaded[s.key]
                 rs = ld.series
-                out.append(f"{env.name}, {role}: scenario {ld.scenario.name}, seed {rs.seed}, "
-                           f"device_seed {rs.device_seed}, first {s.skip_s / 3600:g} h dropped, "
-                           f"{rs.y.size} windows of {config.window_s:g} s, raw σ "
-                           f"{stability(rs.y, config):.5f} °/h, dataset {rs.path.name} "
-                           f"({'reused' if ld.reused else 'simulated'})")
+                out.append(f"{env.name}, {role}: {run_origin(ld)}, first "
+                           f"{s.skip_s / 3600:g} h dropped, {rs.y.size} windows of "
+                           f"{config.window_s:g} s, raw σ {stability(rs.y, config):.5f} °/h")
     out.append(f"bias stability σ: std (ddof={config.ddof}) of {config.cluster_s:g} s means; "
                f"improvement factor = σ before / σ after (paper 002 Table 1)")
     out.append(f"wall time: data {t_data:.1f} s, data and fits {t_total:.1f} s (before the report)")
@@ -717,6 +730,11 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
     rep.bullets(_run_bullets(study, config, loaded, unit, t_data, t_total))
     rep.heading("Definitions", 2)
     rep.bullets(_definitions())
+    truth = [r for r in results if all(has_truth(t) for t in r.tests)]
+    recorded = recorded_labels(loaded, tuple(s for env in config.environments
+                                             for s in env.train + env.test))
+    if recorded:
+        rep.paragraph(recordings_paragraph(recorded, len(truth) == len(results)))
 
     rep.heading("Table 1 re-created", 2)
     times = _fit_times(results)
@@ -726,9 +744,14 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
     rep.table(before_table)
 
     rep.heading("Truth-based scores (what the paper could not measure)", 2)
-    rep.table(_truth_table(results))
-    budgets = {r.env.name: _budget(r, config) for r in results}
-    rep.table(_budget_table(results, budgets))
+    absent = [r.env.name for r in results if r not in truth]
+    if absent:
+        rep.paragraph(f"Absent for {', '.join(absent)}: the test runs are recordings, which "
+                      f"have no ground truth (no oracle floor, no noise budget).")
+    budgets = {r.env.name: _budget(r, config) for r in truth}
+    if truth:
+        rep.table(_truth_table(truth))
+        rep.table(_budget_table(truth, budgets))
     rep.table(_fits_table(results, times))
     eqs = [f"{r.env.name}, {f.spec.name}:  {f.model.equation('B')}"
            for r in results for f in r.fitted if f.spec.kind in EQUATION_KINDS]
@@ -743,7 +766,8 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
         for para in _overall(results, checks):
             rep.paragraph(para)
     rep.heading("Why", 3)
-    for para in _why_noise(results, budgets, config.window_s) + _why_models(results, budgets):
+    for para in ((_why_noise(truth, budgets, config.window_s) if truth else [])
+                 + _why_models(results, budgets)):
         rep.paragraph(para)
     sens = _sensitivity(results, config, SPREADS)
     if sens is not None:
@@ -754,8 +778,10 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
         rep.paragraph(f"The paper gives no receptive field for either network. Refitted with "
                       f"spread {', '.join(f'{x:g}' for x in SPREADS)}, 'modified RBFNN ≥ "
                       f"RBFNN' holds by σ after in {ok} of {len(sens.rows)} (environment, "
-                      f"spread) pairs and by the truth in {ok_t}: between the two networks the "
-                      "unstated setting weighs as much as the method.")
+                      f"spread) pairs"
+                      + (f" and by the truth in {ok_t}" if truth else " (no truth: recordings)")
+                      + ": between the two networks the unstated setting weighs as much as "
+                        "the method.")
         rep.table(sens)
     for para in (_running_time(results, times), _mlr_terms(results, config)):
         if para:
@@ -767,6 +793,7 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     _figures(rep, results, config)
-    device_coefficients_section(rep, results[0].tests[0].coefficients,
-                                results[0].tests[0].path)
+    if results[0].tests[0].coefficients:
+        device_coefficients_section(rep, results[0].tests[0].coefficients,
+                                    results[0].tests[0].path)
     return rep

@@ -61,8 +61,9 @@ from rlgsim.sim.studies.compensators import ORACLE, RAW, CompensatorSpec, parse_
 from rlgsim.sim.studies.fitting import Fitted, fit_all
 from rlgsim.sim.studies.report_text import (before_check, definitions, device_coefficients_section,
                                              fmt, truth_score_tables)
+from rlgsim.sim.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
 from rlgsim.sim.studies.runs import LoadedRun, load_experiment, worth_showing
-from rlgsim.sim.studies.scoring import score_run
+from rlgsim.sim.studies.scoring import has_truth, score_run
 from rlgsim.sim.studies.study_tables import (FeatureSpec, RunSpec, parse_experiment, parse_metrics,
                                              str_list)
 
@@ -350,20 +351,22 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     bullets = [f"rlgsim {software_version()}; recipe gradient_selection; unit {unit}"]
     for s in dict.fromkeys(config.train + config.test):
         ld = runs[s.key]
-        rs, scenario, reused = ld.series, ld.scenario, ld.reused
+        rs = ld.series
         role = "train" if s in config.train else "test"
         stab = per_test.get(s.label, {}).get(RAW, {}).get("stability_before")
-        bullets.append(f"{role} run {s.label}: scenario {scenario.name}, seed {rs.seed}, "
-                       f"device_seed {rs.device_seed}, {rs.y.size} windows of "
+        bullets.append(f"{role} run {s.label}: {run_origin(ld)}, {rs.y.size} windows of "
                        f"{config.window_s:g} s"
-                       + (f", raw STD {stab:.5f} °/h" if stab is not None else "")
-                       + f", dataset {rs.path.name} ({'reused' if reused else 'simulated'})")
+                       + (f", raw STD {stab:.5f} °/h" if stab is not None else ""))
     bullets += [f"STD: std (ddof={config.ddof}) of {config.cluster_s:g} s cluster means of "
                 "the bias (paper 003 eq. 11)",
                 f"wall time: data {t_data:.1f} s, total {t_total:.1f} s"]
     rep.bullets(bullets)
     rep.heading("Definitions", 2)
     rep.bullets(definitions())
+    truth = {s.label: has_truth(runs[s.key].series) for s in config.test}
+    recorded = recorded_labels(runs, config.train + config.test)
+    if recorded:
+        rep.paragraph(recordings_paragraph(recorded, all(truth.values())))
 
     if corr is not None:
         _correlation_section(rep, config, corr, _train_network(config, runs))
@@ -371,7 +374,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         _selection_section(rep, listings)
     for pt in config.paper_tables:
         _paper_table_section(rep, pt, per_test[pt.test])
-    _truth_section(rep, config, fitted, per_test)
+    _truth_section(rep, config, fitted, per_test, truth)
     rep.heading("Ranking: the paper's claim against ours", 2)
     network = _train_network(config, runs)
     for para in _rankings(config, per_test, fitted, Xtr, runs, network):
@@ -379,7 +382,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     _series_attachments(rep, config, runs, predictions)
     _figures(rep, config, runs, per_test, predictions, fitted, corr)
     first = runs[config.test[0].key].series
-    device_coefficients_section(rep, first.coefficients, first.path)
+    if first.coefficients:
+        device_coefficients_section(rep, first.coefficients, first.path)
     return rep
 
 
@@ -555,8 +559,18 @@ def _paper_table_section(rep: Report, pt: PaperTable, sc: dict) -> None:
         rep.paragraph(before_check(t["stability_before"], pt.before))
 
 
-def _truth_section(rep: Report, config: Config, fitted: list[Fitted], per_test) -> None:
-    truth_score_tables(rep, per_test)
+def _truth_section(rep: Report, config: Config, fitted: list[Fitted], per_test,
+                   truth: dict[str, bool]) -> None:
+    scored = {label: t for label, t in per_test.items() if truth[label]}
+    if scored:
+        truth_score_tables(rep, scored)
+    else:
+        rep.heading("Truth-based scores", 2)
+    absent = [label for label in per_test if not truth[label]]
+    if absent:
+        rep.paragraph(f"Absent for {', '.join(absent)}: "
+                      f"{'the test run is a recording' if len(absent) == 1 else 'recordings'}, "
+                      f"which {'has' if len(absent) == 1 else 'have'} no ground truth.")
     recs = [{"compensator": f.spec.name, "kind": f.spec.kind, "inputs": ", ".join(f.spec.inputs),
              "fit time s": fmt(f.fit_s), **{k: fmt(v) for k, v in f.hyper.items()}}
             for f in fitted]
@@ -592,19 +606,27 @@ def _rankings(config: Config, per_test, fitted: list[Fitted], Xtr, runs=None,
         sc = per_test[pt.test]
         t, p = sc[pt.traditional], sc[pt.proposed]
         raw, floor = sc[RAW]["stability_after"], sc[ORACLE]["stability_after"]
-        margin = (t["stability_after"] - p["stability_after"]) / max(raw - floor, 1e-12) * 100
+        known = bool(np.isfinite(floor))          # a recorded test run: no oracle, no truth
+        margin = (t["stability_after"] - p["stability_after"]) / max(
+            raw - (floor if known else 0.0), 1e-12) * 100
         verdict = ("a tie" if abs(margin) < 0.5 else "holds" if margin > 0
                    else "does NOT hold")
-        truth = p["resid_std_true"] < t["resid_std_true"]
         text = (f"{pt.title}: paper {pt.proposed} > {pt.traditional}. Ours on {pt.test}: "
-                f"{p['stability_after']:.5f} vs {t['stability_after']:.5f} °/h (raw {raw:.5f}, "
-                f"oracle floor {floor:.5f}) — {verdict} by STD (margin {margin:+.1f} % of "
-                f"raw − floor); by the truth (std of ŷ − b) {p['resid_std_true']:.5f} vs "
-                f"{t['resid_std_true']:.5f} °/h, {'holds' if truth else 'does not hold'}; "
-                f"error of the learnt law alone {p['law_resid_std']:.5f} vs "
-                f"{t['law_resid_std']:.5f} °/h. Above the floor: {pt.traditional} "
-                f"{t['stability_after'] - floor:+.5f}, {pt.proposed} "
-                f"{p['stability_after'] - floor:+.5f} °/h.")
+                f"{p['stability_after']:.5f} vs {t['stability_after']:.5f} °/h (raw {raw:.5f}"
+                + (f", oracle floor {floor:.5f}) — {verdict} by STD (margin {margin:+.1f} % of "
+                   f"raw − floor)" if known else
+                   f"; a recording: no oracle floor, no truth) — {verdict} by STD (margin "
+                   f"{margin:+.1f} % of raw)"))
+        if known:
+            truth = p["resid_std_true"] < t["resid_std_true"]
+            text += (f"; by the truth (std of ŷ − b) {p['resid_std_true']:.5f} vs "
+                     f"{t['resid_std_true']:.5f} °/h, {'holds' if truth else 'does not hold'}; "
+                     f"error of the learnt law alone {p['law_resid_std']:.5f} vs "
+                     f"{t['law_resid_std']:.5f} °/h. Above the floor: {pt.traditional} "
+                     f"{t['stability_after'] - floor:+.5f}, {pt.proposed} "
+                     f"{p['stability_after'] - floor:+.5f} °/h.")
+        else:
+            text += "."
         if pt.after.get(pt.traditional) and pt.after.get(pt.proposed):
             text += (f" The paper's {pt.traditional} leaves "
                      f"{pt.after[pt.traditional] / pt.after[pt.proposed]:.1f}× the STD of its "
@@ -632,8 +654,9 @@ def _rankings(config: Config, per_test, fitted: list[Fitted], Xtr, runs=None,
                          "extra gradients carry; a test programme that mixes the thermal "
                          "excitations differently from the train run exposes it, and the "
                          "three-point model extrapolates.")
-            text += " " + _decider_text(ft, fp, runs[test_spec.key].series.coefficients,
-                                        network)
+            if known:
+                text += " " + _decider_text(ft, fp, runs[test_spec.key].series.coefficients,
+                                            network)
         out.append(text)
     out.append("Nothing here was tuned to reproduce the paper's ranking: the device and thermal "
                "presets were fitted to the paper's measurements, Table 3 and the raw STDs "
@@ -762,7 +785,7 @@ def _figures(rep: Report, config: Config, runs, per_test, predictions, fitted, c
                                + [(ORACLE, preds[ORACLE], dict(color="k", ls="--"))]):
             # y − ŷ at the window rate, or at the sample rate with ŷ held per window
             series = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
-            if series.size < 8:
+            if series.size < 8 or not np.all(np.isfinite(series)):
                 continue
             ad = M.allan_deviation(series, rate, "octave")
             ax.loglog(ad.tau_s, ad.adev, marker="o", ms=3, label=n, **style)

@@ -136,6 +136,12 @@ def check(study) -> Config:
         compensate=get_bool(system, "compensate", sctx, True))
     if not cfg.scenario.strip():
         raise cctx.error("scenario", "value '' not allowed; give a scenario name or path")
+    from rlgsim.sim.recordings import recording_path
+    if recording_path(cfg.scenario, study.base_dir, str(study.source)) is not None:
+        raise cctx.error("scenario", f"{cfg.scenario!r} is a recording; the paper000_system "
+                                     f"recipe needs a simulated turntable campaign (its "
+                                     f"calibration windows and the truth), so it takes "
+                                     f"scenarios only (docs/recordings.md)")
     return cfg
 
 

@@ -15,6 +15,9 @@ inputs are the window means and least-squares slopes of the probe readings and t
 the truth series are NaN: a recording has none, so the truth-based scores are absent and the
 report says so. Windows holding a dropout, or not powered throughout (``power_on``), are
 dropped.
+
+The recipes that take recordings (bias_compensation, gradient_selection, environments) describe
+them in their reports with :func:`run_origin` and :func:`recordings_paragraph`.
 """
 
 from __future__ import annotations
@@ -27,7 +30,8 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.gyro_axis import choose_gyro
 from rlgsim.ground.recording import Recording, load_recording
 
-__all__ = ["check_recording_run", "recording_series"]
+__all__ = ["check_recording_run", "recorded_labels", "recording_series", "recordings_paragraph",
+           "run_origin"]
 
 
 def _axis(rec: Recording, gyro: str | None, where: str) -> str:
@@ -127,3 +131,31 @@ def recording_series(path: pathlib.Path, config, label: str, ctx, skip_s: float 
                 time_s=((np.arange(n_win) + 1) * W)[keep], y=y[keep], true_bias=nan,
                 true_random=nan.copy(), X=Columns({k: v[keep] for k, v in cols.items()}),
                 earth_deg_per_h=earth, coefficients={})
+
+
+# ------------------------------------------------------------------------------ report text
+def run_origin(run) -> str:
+    """Where a run's data come from (``run`` a :class:`~rlgsim.sim.studies.runs.LoadedRun`):
+    its scenario, seeds and dataset, or its recording."""
+    if run.scenario is None:
+        return f"recording {run.series.path.name} (no truth)"
+    return (f"scenario {run.scenario.name}, seed {run.series.seed}, device_seed "
+            f"{run.series.device_seed}, dataset {run.series.path.name} "
+            f"({'reused' if run.reused else 'simulated'})")
+
+
+def recorded_labels(runs: dict, specs) -> list[str]:
+    """Labels of the runs among ``specs`` (RunSpecs, each once) that are recordings."""
+    return [s.label for s in dict.fromkeys(specs) if runs[s.key].scenario is None]
+
+
+def recordings_paragraph(labels: list[str], truth: bool) -> str:
+    """The report's paragraph on recorded runs: what is absent and why. ``truth``: whether
+    every test run still carries the truth (only train runs are recordings)."""
+    return (f"Recorded runs (docs/recordings.md): {', '.join(labels)}. A recording has no "
+            f"ground truth, so "
+            + ("the truth-based scores (rmse_true, mae_true, r2_true, resid_std_true, "
+               "law_resid_std, the oracle) are absent (—) and the rankings are judged by the "
+               "paper's score only; every paper-style table is computed as for a simulated "
+               "run." if not truth else
+               "only the simulated test runs are scored against the truth."))

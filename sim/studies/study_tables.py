@@ -229,15 +229,21 @@ def check_features_on_devices(study: Study, runs: tuple[RunSpec, ...], spec: Fea
             raise fctx.error("uhfo", f"device {device.name!r} logs no UHFO")
 
 
+#: The recipes whose train/test runs may be recordings (docs/recordings.md): they read only
+#: window series (:mod:`rlgsim.sim.studies.recording_runs`). paper000_system needs a simulated
+#: turntable campaign and refuses a recording in its own check.
+RECORDING_RECIPES = ("bias_compensation", "gradient_selection", "environments")
+
+
 def check_scenarios(study: Study, runs: tuple[RunSpec, ...]) -> None:
     """Every run's scenario must exist and parse (message names the study key); a recording
-    (docs/recordings.md) is a run of the bias_compensation recipe only."""
+    (docs/recordings.md) is a run of the recipes in :data:`RECORDING_RECIPES` only."""
     from rlgsim.sim.recordings import recording_path
     for spec in runs:
         if recording_path(spec.ref, study.base_dir, str(study.source)) is not None:
-            if study.recipe != "bias_compensation":
+            if study.recipe not in RECORDING_RECIPES:
                 raise spec.ctx.error("", f"run {spec.ref!r} is a recording; recordings are runs "
-                                         f"of the bias_compensation recipe (studies demo, "
-                                         f"paper001), not yet of {study.recipe}")
+                                         f"of the {', '.join(RECORDING_RECIPES)} recipes, not "
+                                         f"of {study.recipe}")
             continue
         scenario_for(study, spec.ref, ctx=spec.ctx)
