@@ -751,15 +751,25 @@ class _Builder:
             raise ctx.error(name, f"{what} name {name!r} not allowed; use letters, digits and "
                                   f"'_', starting with a letter (and not '{CHAMBER_AIR}')")
 
-    def _materials(self, table: Mapping[str, Any], ctx: Ctx) -> dict[str, Material]:
-        out = {}
+    def _entries(self, table: Mapping[str, Any], ctx: Ctx, keys: tuple[str, ...],
+                 what: str | None = None):
+        """``(name, spec, its Ctx)`` of each named sub-table (a material, boundary, heater):
+        a table with only ``keys``, whose ``description``/``source`` are strings; ``what``
+        also checks the name (:meth:`_check_name`)."""
         for name, spec in table.items():
+            if what is not None:
+                self._check_name(name, ctx, what)
             c = ctx.child(name)
             if not isinstance(spec, Mapping):
                 raise ctx.error(name, "expected a table")
-            check_known_keys(spec, _MATERIAL_KEYS, c)
+            check_known_keys(spec, keys, c)
             get_str(spec, "source", c, "")
             get_str(spec, "description", c, "")
+            yield name, spec, c
+
+    def _materials(self, table: Mapping[str, Any], ctx: Ctx) -> dict[str, Material]:
+        out = {}
+        for name, spec, c in self._entries(table, ctx, _MATERIAL_KEYS):
             out[name] = Material(
                 name=name,
                 density_kg_per_m3=get_float(spec, "density_kg_per_m3", c, min=0.0,
@@ -785,14 +795,7 @@ class _Builder:
         return self.materials[name]
 
     def _boundaries(self, table: Mapping[str, Any], ctx: Ctx) -> None:
-        for name, spec in table.items():
-            self._check_name(name, ctx, "boundary")
-            c = ctx.child(name)
-            if not isinstance(spec, Mapping):
-                raise ctx.error(name, "expected a table")
-            check_known_keys(spec, _BOUNDARY_KEYS, c)
-            get_str(spec, "description", c, "")
-            get_str(spec, "source", c, "")
+        for name, spec, c in self._entries(table, ctx, _BOUNDARY_KEYS, "boundary"):
             b = Boundary(name=name,
                          temperature_c=get_float(spec, "temperature_c", c, min=-100.0,
                                                  max=200.0),
@@ -806,14 +809,7 @@ class _Builder:
 
     def _heaters(self, table: Mapping[str, Any], ctx: Ctx) -> tuple[Heater, ...]:
         out = []
-        for name, spec in table.items():
-            self._check_name(name, ctx, "heater")
-            c = ctx.child(name)
-            if not isinstance(spec, Mapping):
-                raise ctx.error(name, "expected a table")
-            check_known_keys(spec, _HEATER_KEYS, c)
-            get_str(spec, "description", c, "")
-            get_str(spec, "source", c, "")
+        for name, spec, c in self._entries(table, ctx, _HEATER_KEYS, "heater"):
 
             def node(key: str, default: Any = None) -> int:
                 if default is not None and key not in spec:
