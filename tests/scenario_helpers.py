@@ -33,3 +33,83 @@ def quickstart() -> dict:
 def scenario(d: dict, source: str = "test.toml") -> Scenario:
     """Parse a scenario dict (device names resolve against the shipped presets)."""
     return parse_scenario(to_toml(d), source, base_dir=SCENARIOS)
+
+
+# Small scenarios and a study shared by the CLI-level tests (Monte Carlo, kill -9, damaged data).
+
+#: A 942 s turntable calibration (19 positions) of the IMU preset during a 0.5 °C/min ramp.
+CAL_SCENARIO = """
+name = "cal"
+device = "rlg_imu_000"
+seed = 3
+duration_s = 942
+[acquisition]
+sample_rate_hz = 100
+[chamber]
+start_c = 20.0
+[[chamber.segments]]
+type = "ramp"
+to_c = 30.0
+rate_c_per_min = 0.5
+[turntable]
+program = "calibration19"
+dwell_s = 20.0
+first_dwell_s = 30.0
+"""
+
+#: A short temperature cycle of the paper-001 gyro (about 1 s per unit); the middle hold lasts
+#: ``HOLD`` minutes (:func:`tiny_cycle`).
+_TINY_CYCLE = """
+name = "tiny_cycle"
+device = "trplg_001"
+seed = 11
+[acquisition]
+sample_rate_hz = 1
+thermal_step_s = 5
+[chamber]
+start_c = 20.0
+[[chamber.segments]]
+type = "hold"
+duration_min = 20
+[[chamber.segments]]
+type = "ramp"
+to_c = 40.0
+rate_c_per_min = 1.0
+[[chamber.segments]]
+type = "hold"
+duration_min = HOLD
+[[chamber.segments]]
+type = "ramp"
+to_c = 20.0
+rate_c_per_min = 1.0
+"""
+
+
+def tiny_cycle(hold_min: float = 40) -> str:
+    """The short cycle with a middle hold of ``hold_min`` minutes (scenario ``tiny_cycle``)."""
+    return _TINY_CYCLE.replace("HOLD", f"{hold_min:g}")
+
+
+TINY_SCENARIO = tiny_cycle()
+#: A study with the real recipe on the short cycle (train seed 21, test seed 22, one LS fit).
+TINY_STUDY = """
+[study]
+name = "tiny"
+recipe = "bias_compensation"
+device_seed = 5
+[data]
+train = [{ scenario = "tiny_cycle.toml", seed = 21 }]
+test = [{ scenario = "tiny_cycle.toml", seed = 22 }]
+window_s = 100
+[features]
+temperature = "g.A"
+uhfo = true
+[[compensator]]
+name = "LS quadratic T, U"
+kind = "polynomial"
+inputs = ["T", "U"]
+params = { degree = 2 }
+[metrics]
+cluster_s = 100
+baseline = "raw"
+"""

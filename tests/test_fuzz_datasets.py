@@ -18,31 +18,14 @@ from hypothesis import strategies as st
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.cli.main import main
+from scenario_helpers import CAL_SCENARIO
 
-CAL = """
-name = "cal"
-device = "rlg_imu_000"
-seed = 3
-duration_s = 942
-[acquisition]
-sample_rate_hz = 100
-[chamber]
-start_c = 20.0
-[[chamber.segments]]
-type = "ramp"
-to_c = 30.0
-rate_c_per_min = 0.5
-[turntable]
-program = "calibration19"
-dwell_s = 20.0
-first_dwell_s = 30.0
-"""
 
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory) -> pathlib.Path:
     folder = tmp_path_factory.mktemp("ds")
-    (folder / "cal.toml").write_text(CAL)
+    (folder / "cal.toml").write_text(CAL_SCENARIO)
     assert main(["run", str(folder / "cal.toml"), "-o", str(folder / "cal.h5"), "-q"]) == 0
     return folder / "cal.h5"
 

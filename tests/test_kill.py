@@ -14,76 +14,13 @@ import sys
 import time
 
 import psutil
-import pytest
+from scenario_helpers import CAL_SCENARIO, TINY_STUDY, tiny_cycle
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 SCENARIO = (ROOT / "scenarios" / "quickstart.toml").read_text()
 
-CAL_SCENARIO = """
-name = "cal"
-device = "rlg_imu_000"
-seed = 3
-duration_s = 942
-[acquisition]
-sample_rate_hz = 100
-[chamber]
-start_c = 20.0
-[[chamber.segments]]
-type = "ramp"
-to_c = 30.0
-rate_c_per_min = 0.5
-[turntable]
-program = "calibration19"
-dwell_s = 20.0
-first_dwell_s = 30.0
-"""
 
-TINY_SCENARIO = """
-name = "tiny_cycle"
-device = "trplg_001"
-seed = 11
-[acquisition]
-sample_rate_hz = 1
-thermal_step_s = 5
-[chamber]
-start_c = 20.0
-[[chamber.segments]]
-type = "hold"
-duration_min = 20
-[[chamber.segments]]
-type = "ramp"
-to_c = 40.0
-rate_c_per_min = 1.0
-[[chamber.segments]]
-type = "hold"
-duration_min = HOLD
-[[chamber.segments]]
-type = "ramp"
-to_c = 20.0
-rate_c_per_min = 1.0
-"""
-TINY_STUDY = """
-[study]
-name = "tiny"
-recipe = "bias_compensation"
-device_seed = 5
-[data]
-train = [{ scenario = "tiny_cycle.toml", seed = 21 }]
-test = [{ scenario = "tiny_cycle.toml", seed = 22 }]
-window_s = 100
-[features]
-temperature = "g.A"
-uhfo = true
-[[compensator]]
-name = "LS quadratic T, U"
-kind = "polynomial"
-inputs = ["T", "U"]
-params = { degree = 2 }
-[metrics]
-cluster_s = 100
-baseline = "raw"
-"""
 
 
 def _cmd(*args: str) -> list[str]:
@@ -201,7 +138,7 @@ def _table(path: pathlib.Path) -> list[dict[str, str]]:
 def test_kill_study(tmp_path):
     study = tmp_path / "study"
     study.mkdir()
-    (study / "tiny_cycle.toml").write_text(TINY_SCENARIO.replace("HOLD", "1500"))
+    (study / "tiny_cycle.toml").write_text(tiny_cycle(1500))
     (study / "tiny.toml").write_text(TINY_STUDY)
     out = tmp_path / "report"
     data = out / "data"
@@ -221,7 +158,7 @@ def test_kill_montecarlo(tmp_path):
     from rlgsim.sim.montecarlo import finished_units
     study = tmp_path / "study"
     study.mkdir()
-    (study / "tiny_cycle.toml").write_text(TINY_SCENARIO.replace("HOLD", "40"))
+    (study / "tiny_cycle.toml").write_text(tiny_cycle(40))
     (study / "tiny.toml").write_text(TINY_STUDY)
     out = tmp_path / "mc"
     n = 2

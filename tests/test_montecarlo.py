@@ -21,56 +21,12 @@ import pytest
 
 from rlgsim.sim.cli.main import main
 from rlgsim.sim.montecarlo import finished_units
+from scenario_helpers import TINY_SCENARIO, TINY_STUDY
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "studies" / "demo.toml"
 
 # A test-local study with the real recipe on a short cycle (about 1 s per unit).
-TINY_SCENARIO = """
-name = "tiny_cycle"
-device = "trplg_001"
-seed = 11
-[acquisition]
-sample_rate_hz = 1
-thermal_step_s = 5
-[chamber]
-start_c = 20.0
-[[chamber.segments]]
-type = "hold"
-duration_min = 20
-[[chamber.segments]]
-type = "ramp"
-to_c = 40.0
-rate_c_per_min = 1.0
-[[chamber.segments]]
-type = "hold"
-duration_min = 40
-[[chamber.segments]]
-type = "ramp"
-to_c = 20.0
-rate_c_per_min = 1.0
-"""
-TINY_STUDY = """
-[study]
-name = "tiny"
-recipe = "bias_compensation"
-device_seed = 5
-[data]
-train = [{ scenario = "tiny_cycle.toml", seed = 21 }]
-test = [{ scenario = "tiny_cycle.toml", seed = 22 }]
-window_s = 100
-[features]
-temperature = "g.A"
-uhfo = true
-[[compensator]]
-name = "LS quadratic T, U"
-kind = "polynomial"
-inputs = ["T", "U"]
-params = { degree = 2 }
-[metrics]
-cluster_s = 100
-baseline = "raw"
-"""
 
 
 def _tiny_study(folder: pathlib.Path) -> pathlib.Path:
