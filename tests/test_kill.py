@@ -67,6 +67,8 @@ def kill_when(args: list[str], cwd: pathlib.Path, ready, timeout_s: float = 120.
             time.sleep(0.02)
         assert proc.poll() is None, "the command finished before it could be killed"
         assert ready(me), "not ready in time"
+        for child in me.children(recursive=True):      # those that ready() saw, too
+            seen.setdefault(child.pid, child)
     finally:
         try:
             os.kill(proc.pid, signal.SIGKILL)
