@@ -23,36 +23,11 @@ from rlgsim.sim.montecarlo import (finished_units, results_csv, run_campaign, sc
                                    unit_path)
 
 from mc_toy_units import toy_unit
+from process_helpers import wait_gone
 
 TESTS = pathlib.Path(__file__).resolve().parent
 PAYLOAD = {"seed": 7}
 IDENTITY = {"kind": "toy", "seed": 7}
-
-
-def _alive(procs: list[psutil.Process]) -> list[psutil.Process]:
-    out = []
-    for p in procs:
-        try:
-            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
-                out.append(p)
-        except psutil.NoSuchProcess:
-            pass
-    return out
-
-
-def wait_gone(procs: list[psutil.Process], timeout_s: float = 15.0) -> list[psutil.Process]:
-    """The processes of ``procs`` still alive after ``timeout_s`` (killed, for cleanliness)."""
-    deadline = time.monotonic() + timeout_s
-    alive = _alive(procs)
-    while alive and time.monotonic() < deadline:
-        time.sleep(0.1)
-        alive = _alive(procs)
-    for p in alive:
-        try:
-            p.kill()
-        except psutil.NoSuchProcess:
-            pass
-    return alive
 
 
 def test_sigkill_of_the_coordinator_leaves_no_process(tmp_path):

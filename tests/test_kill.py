@@ -14,6 +14,7 @@ import sys
 import time
 
 import psutil
+from process_helpers import wait_gone
 from scenario_helpers import CAL_SCENARIO, TINY_STUDY, tiny_cycle
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -32,17 +33,6 @@ def _run(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
     assert r.returncode == 0, r.stderr
     assert "Traceback" not in r.stderr
     return r
-
-
-def _alive(procs):
-    out = []
-    for p in procs:
-        try:
-            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
-                out.append(p)
-        except psutil.NoSuchProcess:
-            pass
-    return out
 
 
 def kill_when(args: list[str], cwd: pathlib.Path, ready, timeout_s: float = 120.0
@@ -79,14 +69,8 @@ def kill_when(args: list[str], cwd: pathlib.Path, ready, timeout_s: float = 120.
 
 
 def assert_no_survivors(procs, timeout_s: float = 20.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    alive = _alive(procs)
-    while alive and time.monotonic() < deadline:
-        time.sleep(0.1)
-        alive = _alive(procs)
-    for p in alive:
-        p.kill()
-    assert not alive, [" ".join(p.cmdline())[:100] for p in alive]
+    left = wait_gone(procs, timeout_s)
+    assert not left, [p.pid for p in left]
 
 
 def temporaries(folder: pathlib.Path) -> list[str]:
