@@ -332,16 +332,23 @@ class ThermalNetwork:
         """Node temperatures [°C] at equilibrium with constant chamber air ``ambient_c`` [°C]
         (and the further boundaries at ``boundary_c``, default their value at t = 0): the
         solution of ``K T = g·T_air + Σ_b G_b T_b + u·P``."""
-        rhs = self.ambient_conductance_w_per_k * float(ambient_c) + float(powered) * self.power_w
-        if self.boundaries:
-            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
-                  else np.asarray(boundary_c, dtype=float).reshape(-1))
-            rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        rhs = self._steady_rhs(ambient_c, powered, boundary_c)
         if self.nonlinear_links:
             return self._steady_nonlinear(rhs, ambient_c, powered, boundary_c)[0]
         if self.heaters and float(powered) > 0:
             return self._steady_with_heaters(rhs)[0]
         return scipy.linalg.solve(self.stiffness_w_per_k(), rhs, assume_a="pos")
+
+    def _steady_rhs(self, ambient_c: float, powered: bool | float,
+                    boundary_c: Any) -> np.ndarray:
+        """Right-hand side [W] of the steady state: ``g·T_air + Σ_b G_b T_b + u·P`` (the
+        boundaries at ``boundary_c``, default their value at t = 0)."""
+        rhs = self.ambient_conductance_w_per_k * float(ambient_c) + float(powered) * self.power_w
+        if self.boundaries:
+            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
+                  else np.asarray(boundary_c, dtype=float).reshape(-1))
+            rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        return rhs
 
     def _steady_nonlinear(self, rhs: np.ndarray, ambient_c: float, powered: bool | float,
                           boundary_c: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -368,11 +375,7 @@ class ThermalNetwork:
         """The heaters' powers [W] (H,) in the steady state of :meth:`steady_state`."""
         if not self.heaters or float(powered) <= 0:
             return np.zeros(len(self.heaters))
-        rhs = self.ambient_conductance_w_per_k * float(ambient_c) + float(powered) * self.power_w
-        if self.boundaries:
-            Tb = (self.boundary_temperatures_c(0.0) if boundary_c is None
-                  else np.asarray(boundary_c, dtype=float).reshape(-1))
-            rhs = rhs + Tb @ self.boundary_conductance_w_per_k
+        rhs = self._steady_rhs(ambient_c, powered, boundary_c)
         if self.nonlinear_links:
             return self._steady_nonlinear(rhs, ambient_c, powered, boundary_c)[1]
         return self._steady_with_heaters(rhs)[1]
