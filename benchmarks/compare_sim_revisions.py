@@ -1,0 +1,169 @@
+"""Simulator throughput of this tree against an earlier revision, measured in one run.
+
+Issue 12 asks that the realism mechanisms (real chamber, anomalies, heaters, boundaries, …)
+leave ``benchmarks/bench_sim.py``'s throughput no more than 20 % below the build before them.
+This script times both builds on this machine in the same run, alternating them (old, new,
+old, new, …) so that a change of load hits both, and prints the median epochs/s of each and
+their ratio beside the target, with the machine and the load average.
+
+The earlier revision (default: the parent of the first commit that added
+``sim/chamber_controller.py`` or ``sim/anomalies.py`` — the start of the issue-12 work) is
+unpacked with ``git archive`` into a temporary folder (the repository is not touched) and run
+in a subprocess whose import path points there: the ``rlgsim`` namespace layout (``src/rlgsim``
+with ``sim/``, ``estimators/``, ``scenarios/`` mapped to ``rlgsim.sim``, …) is assembled from
+the archive with symbolic links; a revision from before the namespace move (top-level ``sim``
+and ``estimators`` packages) is imported as it was. Each build simulates its *own* shipped
+``paper000_ramp`` scenario and presets (what ``bench_sim.py`` of that build measures), cut to
+``--hours`` (default 12 h: 4.3 million epochs at 100 Hz) and written to HDF5.
+
+Usage: ``python benchmarks/compare_sim_revisions.py [--rev REV] [--hours H] [--rounds N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import shutil
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import io
+
+HERE = pathlib.Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from _machine import machine  # noqa: E402
+
+#: the largest slowdown issue 12 allows against the build before the realism mechanisms
+MAX_SLOWDOWN = 0.20
+
+#: run inside the subprocess: import whichever layout the tree has, simulate its own
+#: paper000_ramp cut to the given hours, print one JSON line
+DRIVER = r"""
+import json, os, sys, tempfile, time
+hours = float(sys.argv[1]); root = sys.argv[2]
+try:
+    from rlgsim.sim.scenario import parse_scenario
+    from rlgsim.sim.simulate import simulate
+except ImportError:                         # before the rlgsim namespace: top-level packages
+    from sim.scenario import parse_scenario
+    from sim.simulate import simulate
+text = open(os.path.join(root, "scenarios", "paper000_ramp.toml"), encoding="utf-8").read()
+text = f"duration_h = {hours}\n" + text     # a top-level key: before the first table
+sc = parse_scenario(text, "paper000_ramp.toml")
+epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
+tmp = tempfile.mkdtemp(prefix="rlgsim-cmp-")
+out = os.path.join(tmp, "run.h5")
+t0, c0 = time.perf_counter(), time.process_time()
+simulate(sc, out, progress=False)
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+size = os.path.getsize(out)
+os.unlink(out); os.rmdir(tmp)
+print(json.dumps({"epochs": epochs, "wall": wall, "cpu": cpu, "bytes": size,
+                  "file": sys.modules[simulate.__module__].__file__}))
+"""
+
+
+def git(*args: str) -> str:
+    return subprocess.run(["git", "-C", str(ROOT), *args], check=True, capture_output=True,
+                          text=True).stdout.strip()
+
+
+def default_revision() -> str:
+    """The parent of the first commit touching the issue-12 modules."""
+    first = git("log", "--format=%H", "--reverse", "--", "sim/chamber_controller.py",
+                "sim/anomalies.py").splitlines()
+    if not first:
+        raise SystemExit("no commit touches sim/chamber_controller.py or sim/anomalies.py; "
+                         "give --rev")
+    return git("rev-parse", f"{first[0]}^")
+
+
+def unpack(rev: str, dest: pathlib.Path) -> pathlib.Path:
+    """``git archive REV`` into ``dest/tree``; returns the folder to put on the import path."""
+    data = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev],
+                          check=True, capture_output=True).stdout
+    tree = dest / "tree"
+    tree.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+        tar.extractall(tree, filter="data")
+    if (tree / "src" / "rlgsim" / "__init__.py").exists():
+        # the namespace layout: rlgsim/ from src/rlgsim, its sim/estimators/scenarios linked in
+        path = dest / "path"
+        pkg = path / "rlgsim"
+        shutil.copytree(tree / "src" / "rlgsim", pkg)
+        for sub in ("sim", "estimators", "scenarios"):
+            if (tree / sub).is_dir() and not (pkg / sub).exists():
+                (pkg / sub).symlink_to(tree / sub, target_is_directory=True)
+        return path
+    return tree                                 # top-level sim, estimators
+
+
+def run(path: pathlib.Path, root: pathlib.Path, hours: float) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(path)
+    env["PYTHONDONTWRITEBYTECODE"] = "1"
+    proc = subprocess.run([sys.executable, "-c", DRIVER, str(hours), str(root)], env=env,
+                          capture_output=True, text=True, cwd=tempfile.gettempdir())
+    if proc.returncode != 0:
+        tail = (proc.stderr.strip().splitlines() or ["(no output)"])[-1]
+        raise SystemExit(f"the run of {root} failed: {tail}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rev", default=None, help="earlier revision (default: before issue 12)")
+    ap.add_argument("--hours", type=float, default=12.0, help="simulated hours per run")
+    ap.add_argument("--rounds", type=int, default=3, help="runs of each build (alternating)")
+    args = ap.parse_args(argv)
+    rev = git("rev-parse", args.rev) if args.rev else default_revision()
+    head = git("rev-parse", "HEAD")
+    dirty = bool(git("status", "--porcelain", "--", "sim", "src", "scenarios"))
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="rlgsim-rev-"))
+    try:
+        old_path = unpack(rev, tmp)
+        old_root = tmp / "tree"
+        new_path = tmp / "new"
+        new_pkg = new_path / "rlgsim"
+        shutil.copytree(ROOT / "src" / "rlgsim", new_pkg,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+        for sub in ("sim", "estimators", "scenarios"):
+            (new_pkg / sub).symlink_to(ROOT / sub, target_is_directory=True)
+        old, new = [], []
+        print(f"machine: {machine()}")
+        print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        for i in range(args.rounds):
+            o = run(old_path, old_root, args.hours)
+            n = run(new_path, ROOT, args.hours)
+            old.append(o)
+            new.append(n)
+            print(f"round {i + 1}: old {o['epochs'] / o['wall'] / 1e6:.2f} M epochs/s "
+                  f"({o['wall']:.2f} s, CPU {o['cpu']:.2f} s), new "
+                  f"{n['epochs'] / n['wall'] / 1e6:.2f} M epochs/s ({n['wall']:.2f} s, CPU "
+                  f"{n['cpu']:.2f} s); load {os.getloadavg()[0]:.2f}", flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    o_rate = statistics.median(r["epochs"] / r["wall"] for r in old)
+    n_rate = statistics.median(r["epochs"] / r["wall"] for r in new)
+    o_cpu = statistics.median(r["epochs"] / r["cpu"] for r in old)
+    n_cpu = statistics.median(r["epochs"] / r["cpu"] for r in new)
+    print(f"scenario: each build's own paper000_ramp, {args.hours:g} h at 100 Hz "
+          f"({old[0]['epochs']:,} epochs); files {old[0]['bytes'] / 1e6:.0f} MB (old), "
+          f"{new[0]['bytes'] / 1e6:.0f} MB (new)")
+    print(f"old: {rev[:10]} (before the issue-12 realism work unless --rev)")
+    print(f"new: {head[:10]}{' + uncommitted changes' if dirty else ''} (this tree)")
+    print(f"median throughput: old {o_rate / 1e6:.2f} M epochs/s, new {n_rate / 1e6:.2f} M "
+          f"epochs/s; new / old = {n_rate / o_rate:.2f}  (target >= {1 - MAX_SLOWDOWN:.2f})")
+    print(f"per CPU second (less sensitive to load): old {o_cpu / 1e6:.2f} M, new "
+          f"{n_cpu / 1e6:.2f} M epochs; new / old = {n_cpu / o_cpu:.2f}")
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
