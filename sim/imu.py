@@ -49,18 +49,16 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from rlgsim.sim import pulses as pulse_counter
 from rlgsim.sim.accelerometer import AccelerometerModel, Accelerometers
-from rlgsim.sim.accelerometer import phase_increments as accel_increments
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
 from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_imu, declare_sample_valid,
                                        declare_truth, declare_turntable)
 from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
-from rlgsim.sim.gyro import phase_increments as gyro_increments
 from rlgsim.sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
 from rlgsim.sim.rng import generator
+from rlgsim.sim.sensor_triad import count_pulses
 from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
 _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
@@ -335,17 +333,6 @@ class ImuSimulator:
                 n, dtype=np.float32, out=z[c])
         return z
 
-    @staticmethod
-    def _count(inc: np.ndarray, remainder: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pulses (n, C) int32 and new remainders from increments (C, n) (overwritten)."""
-        c, n = inc.shape
-        out = np.empty((n, c), dtype=np.int32)
-        new = np.zeros(c, dtype=np.int64)
-        for s in range(c):
-            out[:, s], new[s] = pulse_counter.count_fixed(pulse_counter.quantise(inc[s]),
-                                                          int(remainder[s]))
-        return out, new
-
     # ---- one block ------------------------------------------------------------------------
     def _inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
         """Everything block ``b`` needs that depends on no carried state: the motion's exact
@@ -437,9 +424,10 @@ class ImuSimulator:
         if an is not None:                      # mode hops: part of the true bias
             gp.bias = gp.bias + an.gyro_bias_offset(trace)
         dth_t = inputs["dth_t"]
-        inc = gyro_increments(gp.scale_factor, gp.bias, gp.installation, dth_t, inputs["zg"],
-                              self.gyro_white_sigma, self.sample_dt, idx, power, g.axis_idx)
-        gyro_pulses, g_rem = self._count(inc, state.gyro_remainder)
+        gyro_pulses, g_rem = count_pulses(state.gyro_remainder, gp.scale_factor, gp.bias,
+                                          gp.installation, dth_t, inputs["zg"],
+                                          self.gyro_white_sigma, self.sample_dt, idx, power,
+                                          g.axis_idx)
         valid = None
         if an is not None:                      # read-out spikes, lost frames (after counting)
             k0_sample = int(math.floor(k0 * dt * self.rate_hz + 1e-9))   # first sample
@@ -456,11 +444,11 @@ class ImuSimulator:
         dv_t = inputs["dv_t"]
         if acc is not None:
             ap = acc.parameters(nodes, start, dt, slow[:, self.n_gyro:])
-            inc = accel_increments(ap.scale_factor_pos, ap.scale_factor_neg, ap.bias,
-                                   ap.installation, dv_t, inputs["za"],
-                                   self.accel_white_sigma, self.sample_dt, idx, power,
-                                   acc.axis_idx)
-            accel_pulses, a_rem = self._count(inc, state.accel_remainder)
+            accel_pulses, a_rem = count_pulses(state.accel_remainder, ap.scale_factor_pos,
+                                               ap.bias, ap.installation, dv_t, inputs["za"],
+                                               self.accel_white_sigma, self.sample_dt, idx,
+                                               power, acc.axis_idx,
+                                               scale_factor_neg=ap.scale_factor_neg)
             if valid is not None and not valid.all():     # lost frames lose every channel
                 accel_pulses = an.other_pulses(valid, k0_sample, self.rate_hz, accel_pulses,
                                                acc.axes)

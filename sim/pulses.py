@@ -41,15 +41,24 @@ MAX_SAMPLE_PULSES = float(2**31 - 2)
 MAX_BLOCK_PULSES = float(2**33 - 2)
 
 
-def check_range(inc: np.ndarray) -> None:
+def check_range(inc: np.ndarray, scale: float = 1.0) -> None:
     """Refuse increments the counter cannot represent exactly — NaN or infinite, more than
     :data:`MAX_SAMPLE_PULSES` in one sample or :data:`MAX_BLOCK_PULSES` in one block — with a
     one-line :class:`~rlgsim.ground.errors.UserInputError` (a device preset whose scale factor,
-    bias or temperature law gives an absurd rate), instead of wrapping around silently."""
-    if inc.size == 0:
+    bias or temperature law gives an absurd rate), instead of wrapping around silently.
+    ``scale`` (a power of two) when ``inc`` holds the increments already multiplied by it.
+
+    Fast path: the largest |increment| (two reductions, no temporary); the sum of |increments|
+    is computed only when the peak times the count could exceed the block limit."""
+    n = inc.size
+    if n == 0:
         return
-    total = float(np.abs(inc).sum())
-    if total <= MAX_BLOCK_PULSES and float(np.abs(inc).max()) <= MAX_SAMPLE_PULSES:
+    peak = max(float(inc.max()), -float(inc.min()))          # NaN: both tests below fail
+    if peak <= MAX_SAMPLE_PULSES * scale and peak * n <= MAX_BLOCK_PULSES * scale:
+        return
+    total = float(np.abs(inc).sum()) / scale                # exact: scale is a power of two
+    peak = float(np.abs(inc).max()) / scale
+    if total <= MAX_BLOCK_PULSES and peak <= MAX_SAMPLE_PULSES:
         return
     from rlgsim.ground.errors import UserInputError
 
@@ -57,7 +66,6 @@ def check_range(inc: np.ndarray) -> None:
         raise UserInputError("pulse counter: a sample's phase increment is not finite (NaN or "
                              "infinite); check the device preset's scale factors, biases and "
                              "temperature-law coefficients")
-    peak = float(np.abs(inc).max())
     raise UserInputError(
         f"pulse counter: {peak:.3g} pulses in one sample ({total:.3g} in one block) cannot be "
         f"counted: at most {MAX_SAMPLE_PULSES:.3g} per sample and {MAX_BLOCK_PULSES:.3g} per "
@@ -74,9 +82,11 @@ def quantise(inc: np.ndarray) -> np.ndarray:
     return inc.astype(np.int64)
 
 
-def count_fixed(q: np.ndarray, remainder: int) -> tuple[np.ndarray, int]:
+def count_fixed(q: np.ndarray, remainder: int, out: np.ndarray | None = None
+                ) -> tuple[np.ndarray, int]:
     """Pulses (n,) int32 and the new remainder for fixed-point increments ``q`` (n,) int64
-    (overwritten) and the carried ``remainder`` ∈ [0, 2^30)."""
+    (overwritten) and the carried ``remainder`` ∈ [0, 2^30); ``out`` (n,) int32 (may be a
+    strided column of a larger array) receives the pulses when given."""
     n = q.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int32), int(remainder)
@@ -84,10 +94,21 @@ def count_fixed(q: np.ndarray, remainder: int) -> tuple[np.ndarray, int]:
     np.cumsum(q, out=q)                                # Φ_j
     last = int(q[-1])
     np.right_shift(q, FRACTION_BITS, out=q)            # c_j
-    pulses = np.empty(n, dtype=np.int32)
+    pulses = np.empty(n, dtype=np.int32) if out is None else out
     np.subtract(q[1:], q[:-1], out=pulses[1:], casting="unsafe")
     pulses[0] = q[0]
     return pulses, last - (int(q[-1]) << FRACTION_BITS)
+
+
+def count_scaled(scaled: np.ndarray, remainder: int, out: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, int]:
+    """:func:`count_fixed` of increments given already multiplied by :data:`ONE` (float64,
+    overwritten): the same pulses as ``count_fixed(quantise(inc), remainder)`` when
+    ``scaled = inc·2^30`` — a product with a power of two is exact, so a caller can fold
+    2^30 into its last multiplication (the scale factor) and save a pass over the samples."""
+    check_range(scaled, float(ONE))
+    np.rint(scaled, out=scaled)
+    return count_fixed(scaled.astype(np.int64), remainder, out)
 
 
 def count(inc: np.ndarray, remainder: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

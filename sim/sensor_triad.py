@@ -174,20 +174,63 @@ class SensorTriad:
 
 # --------------------------------------------------------------------------- the equation
 
+def _by_step(x: np.ndarray, idx: np.ndarray | int) -> np.ndarray:
+    """A per-sample array (n,) viewed as (m, r) when every step holds ``r = idx`` samples, so a
+    per-step value broadcasts over its samples without a repeated copy (:func:`_held`)."""
+    return x.reshape(-1, idx) if isinstance(idx, int) else x
+
+
+def _held(values: np.ndarray, idx: np.ndarray | int) -> np.ndarray:
+    """Per-step ``values`` (m,) in the shape that meets :func:`_by_step` of a sample array."""
+    return values[:, None] if isinstance(idx, int) else values[idx]
+
+
 def row_times(u: np.ndarray, tmp: np.ndarray, row: np.ndarray, x_t: np.ndarray, own: int,
               idx: np.ndarray | int) -> None:
     """u = (row_x·x_x + row_y·x_y) + row_z·x_z per sample, the row (m, 3) held over each step.
 
     Column ``own`` (the sensor's own axis, −1: none) is exactly 1 (:func:`installation_rows`),
     so its product is the input itself — the same float64 result without the multiplication."""
+    ub, tb = _by_step(u, idx), _by_step(tmp, idx)
     for j in range(3):
-        dst = u if j == 0 else tmp
+        dst = ub if j == 0 else tb
         if j == own:
-            np.copyto(dst, x_t[j])
+            np.copyto(dst, _by_step(x_t[j], idx))
         else:
-            np.multiply(expand(row[:, j], idx), x_t[j], out=dst)
+            np.multiply(_held(row[:, j], idx), _by_step(x_t[j], idx), out=dst)
         if j:
             u += tmp
+
+
+def _channel(u: np.ndarray, tmp: np.ndarray, s: int, scale_factor: np.ndarray, a: np.ndarray,
+             installation: np.ndarray, x_t: np.ndarray, z: np.ndarray | None,
+             sigma: np.ndarray, idx: np.ndarray | int, own: int,
+             scale_factor_neg: np.ndarray | None, off: np.ndarray | None,
+             scale: float) -> None:
+    """Channel ``s``'s increments × ``scale`` into ``u`` (n,) (see :func:`phase_increments`;
+    ``a`` = D·Δt, ``off`` the samples while unpowered or None). ``scale`` a power of two
+    multiplies the scale factor first: K·2^k is exact and so is every product with it."""
+    row_times(u, tmp, installation[:, s], x_t, own, idx)
+    ub = _by_step(u, idx)
+    ub += _held(a[:, s], idx)
+    if z is not None:
+        np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
+        u += tmp
+    k = scale_factor[:, s] * scale if scale != 1.0 else scale_factor[:, s]
+    if scale_factor_neg is None:
+        ub *= _held(k, idx)
+    else:
+        kn = scale_factor_neg[:, s] * scale if scale != 1.0 else scale_factor_neg[:, s]
+        ub *= np.where(ub >= 0, _held(k, idx), _held(kn, idx))
+    if off is not None:
+        u[off] = 0.0
+
+
+def _unpowered(power: np.ndarray | None, idx: np.ndarray | int) -> np.ndarray | None:
+    """Samples taken while the device is off (their increments are zero), or None."""
+    if power is None or np.all(power > 0):
+        return None
+    return expand(power, idx) <= 0
 
 
 def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: np.ndarray,
@@ -209,24 +252,46 @@ def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: n
     Per sample, in this order (float64): ``u = ((E_x·x_x + E_y·x_y) + E_z·x_z) + D·Δt``,
     ``u = u + σ·z`` (σ·z in float64 from the float32 z), ``inc = K·u``.
     """
+    return _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx, power,
+                       own_axis, scale_factor_neg, 1.0)
+
+
+def _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx, power,
+                own_axis, scale_factor_neg, scale, channel_done=None) -> np.ndarray:
     a = bias * sample_dt
     n = x_t.shape[1]
     c = bias.shape[1]
     own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
-    out = np.empty((c, n))
+    off = _unpowered(power, idx)
+    out = np.empty((c, n)) if channel_done is None else np.empty((1, n))
     tmp = np.empty(n)
     for s in range(c):
-        u = out[s]
-        row_times(u, tmp, installation[:, s], x_t, own[s], idx)
-        u += expand(a[:, s], idx)
-        if z is not None:
-            np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
-            u += tmp
-        if scale_factor_neg is None:
-            u *= expand(scale_factor[:, s], idx)
-        else:
-            u *= np.where(u >= 0, expand(scale_factor[:, s], idx),
-                          expand(scale_factor_neg[:, s], idx))
-    if power is not None and not np.all(power > 0):
-        out[:, expand(power, idx) <= 0] = 0.0
+        u = out[s] if channel_done is None else out[0]
+        _channel(u, tmp, s, scale_factor, a, installation, x_t, z, sigma, idx, own[s],
+                 scale_factor_neg, off, scale)
+        if channel_done is not None:
+            channel_done(s, u)
     return out
+
+
+def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarray,
+                 installation: np.ndarray, x_t: np.ndarray, z: np.ndarray | None,
+                 sigma: np.ndarray, sample_dt: float, idx: np.ndarray | int,
+                 power: np.ndarray | None = None, own_axis: np.ndarray | None = None,
+                 scale_factor_neg: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Pulses (n, C) int32 and the new remainders (C,) int64 of one block: the increments of
+    :func:`phase_increments` counted by :mod:`rlgsim.sim.pulses` with the carried
+    ``remainder`` (C,) — bit for bit ``pulses.count_fixed(pulses.quantise(inc), r)`` per
+    channel, computed one channel at a time in one reused buffer with the fixed-point factor
+    2^30 folded into the scale factor (exact: a power of two)."""
+    from rlgsim.sim import pulses as counter
+    n, c = x_t.shape[1], bias.shape[1]
+    out = np.empty((n, c), dtype=np.int32)
+    new = np.zeros(c, dtype=np.int64)
+
+    def done(s: int, u: np.ndarray) -> None:
+        _, new[s] = counter.count_scaled(u, int(remainder[s]), out[:, s])
+    _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx, power,
+                own_axis, scale_factor_neg, float(counter.ONE), done)
+    return out, new
