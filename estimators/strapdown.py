@@ -47,9 +47,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rlgsim.ground.earth import earth_rate_enu, normal_gravity
-from rlgsim.ground.frames import (cross_rows, dcm_to_quat, quat_cumprod, quat_from_rotvec,
-                                  quat_mul, quat_rotate, quat_to_dcm, rotate_about,
-                                  rotation_matrix)
+from rlgsim.estimators._strapdown_kernel import strapdown_loop
+from rlgsim.ground.frames import dcm_to_quat, quat_to_dcm, rotation_matrix
 # also imported from here by rlgsim.estimators.kalman_calibration
 from rlgsim.ground.frames import body_to_enu as table_attitude  # noqa: F401
 from rlgsim.ground.frames import skew  # noqa: F401
@@ -171,37 +170,26 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, dt_s: float, c0: np.ndarray,
     back across them (its linear-rate model does not hold over a rate step).
     See the module docstring for the algorithms.
     """
-    dtheta = np.asarray(dtheta, dtype=float)
-    dv = np.asarray(dv, dtype=float)
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    dv = np.ascontiguousarray(dv, dtype=float)
     n = dtheta.shape[0]
     w_ie = earth_rate_enu(latitude_deg)
     g = normal_gravity(latitude_deg, height_m) if gravity is None else float(gravity)
     # two-sample coning (Savage 2007 eq. 7.1.1.1-11 with the linear-rate model), no reach-back
-    # across the commanded rate steps
-    prev_th = np.empty_like(dtheta)
-    prev_th[0] = dtheta[0]
-    prev_th[1:] = dtheta[:-1]
+    # across the commanded rate steps; quaternion recursion; velocity: rotation correction
+    # exact for a constant rate over the sample (the inverse SO(3) Jacobian, ΔV = Δv + ½α×Δv +
+    # (1/12)α×(α×Δv)), into i0 with the attitude at the sample start, then into ENU at the
+    # sample middle — one compiled pass over the samples (estimators/_strapdown_kernel.py)
+    is_break = np.zeros(n, dtype=np.bool_)
     if breaks is not None and len(breaks):
         b = np.asarray(breaks, dtype=np.intp)
-        b = b[(b > 0) & (b < n)]
-        prev_th[b] = dtheta[b]
-    phi = dtheta + cross_rows(prev_th, dtheta) / 12.0
-    q = quat_from_rotvec(phi)
-    q[0] = quat_mul(dcm_to_quat(c0), q[0])
-    q_bi = quat_cumprod(q)                                   # body → i0 at sample ends
+        is_break[b[(b > 0) & (b < n)]] = True
+    w = -w_ie
+    rate = float(np.linalg.norm(w))
+    k_axis = w / rate if rate > 0 else np.zeros(3)
+    q_bi, v = strapdown_loop(dtheta, dv, float(dt_s), dcm_to_quat(c0), is_break, k_axis, rate,
+                             float(g))
     t = (np.arange(n) + 1.0) * dt_s
-    # velocity: rotation correction exact for a constant rate over the sample (the inverse
-    # SO(3) Jacobian, ΔV = Δv + ½α×Δv + (1/12)α×(α×Δv)), into i0 with the attitude at the
-    # sample start, then into ENU at the sample middle
-    a_dv = cross_rows(dtheta, dv)
-    dV = dv + 0.5 * a_dv + cross_rows(dtheta, a_dv) / 12.0
-    q_start = np.empty_like(q_bi)
-    q_start[0] = dcm_to_quat(c0)
-    q_start[1:] = q_bi[:-1]
-    dv_i = quat_rotate(q_start, dV)
-    dv_n = rotate_about(-w_ie, t - 0.5 * dt_s, dv_i)
-    dv_n[:, 2] -= g * dt_s
-    v = np.cumsum(dv_n, axis=0)
     if v0 is not None:
         v += np.asarray(v0, float)
     return NavSolution(t, q_bi, v, np.asarray(c0, float), w_ie)

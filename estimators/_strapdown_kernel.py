@@ -1,0 +1,100 @@
+"""Compiled inner loop of :func:`rlgsim.estimators.strapdown.navigate` (numba).
+
+The strapdown recursion is sequential (each attitude is the previous one times the sample's
+rotation), so numpy can only vectorise it with a blocked scan and many temporary (n, 3) and
+(n, 4) arrays: ~65 ms for a 40-min window at 100 Hz, twice per calibration window. One pass
+over the samples in compiled code does the same arithmetic in ~3 ms.
+
+The algorithms are those of ``navigate`` (its docstring and the strapdown module docstring):
+two-sample coning correction without reach-back across the commanded rate steps (Savage 2007
+eq. 7.1.1.1-11), quaternion update q_k = q_{k-1} ⊗ exp(φ_k/2) with the product normalised on
+output, the exact constant-rate velocity rotation correction ΔV = Δv + ½Δθ×Δv +
+(1/12)Δθ×(Δθ×Δv) rotated into i0 with the attitude at the sample start and into ENU with the
+Earth rotation to the sample middle (Rodrigues), gravity removed, velocity summed in sample
+order. Equal to the numpy formulation to rounding (tests/test_strapdown.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def strapdown_loop(dtheta, dv, dt_s, q0, is_break, k_axis, rate, g):  # pragma: no cover
+    """Attitude quaternions body → i0 at sample ends (n, 4) and ENU velocity (n, 3) [m/s].
+
+    ``dtheta``, ``dv`` (n, 3) increments [rad, m/s]; ``q0`` (4,) attitude at the start of
+    sample 0 (body → ENU = i0 at t = 0); ``is_break`` (n,) bool: no coning reach-back into
+    sample k; ``k_axis`` (3,) unit axis and ``rate`` [rad/s] of the i0 → ENU rotation
+    (−ω_ie); ``g`` gravity [m/s²] (Up component removed)."""
+    n = dtheta.shape[0]
+    q_out = np.empty((n, 4))
+    v_out = np.empty((n, 3))
+    aw, ax, ay, az = q0[0], q0[1], q0[2], q0[3]          # running product (unnormalised)
+    sw, sx, sy, sz = q0[0], q0[1], q0[2], q0[3]          # attitude at the sample start
+    kx, ky, kz = k_axis[0], k_axis[1], k_axis[2]
+    vx = vy = vz = 0.0
+    for k in range(n):
+        tx, ty, tz = dtheta[k, 0], dtheta[k, 1], dtheta[k, 2]
+        if k == 0 or is_break[k]:
+            px, py, pz = tx, ty, tz
+        else:
+            px, py, pz = dtheta[k - 1, 0], dtheta[k - 1, 1], dtheta[k - 1, 2]
+        # coning-corrected rotation vector φ = Δθ + (Δθ_prev × Δθ)/12
+        fx = tx + (py * tz - pz * ty) / 12.0
+        fy = ty + (pz * tx - px * tz) / 12.0
+        fz = tz + (px * ty - py * tx) / 12.0
+        a = math.sqrt(fx * fx + fy * fy + fz * fz)
+        cw = math.cos(0.5 * a)
+        s = math.sin(0.5 * a) / a if a != 0.0 else 0.5     # sin(a/2)/a
+        bx, by, bz = s * fx, s * fy, s * fz
+        # running product ⊗ exp(φ/2)
+        nw = aw * cw - ax * bx - ay * by - az * bz
+        nx = aw * bx + ax * cw + ay * bz - az * by
+        ny = aw * by - ax * bz + ay * cw + az * bx
+        nz = aw * bz + ax * by - ay * bx + az * cw
+        aw, ax, ay, az = nw, nx, ny, nz
+        norm = math.sqrt(aw * aw + ax * ax + ay * ay + az * az)
+        q_out[k, 0] = aw / norm
+        q_out[k, 1] = ax / norm
+        q_out[k, 2] = ay / norm
+        q_out[k, 3] = az / norm
+        # velocity increment with the rotation correction (body)
+        ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
+        cx = ty * uz - tz * uy
+        cy = tz * ux - tx * uz
+        cz = tx * uy - ty * ux
+        ex = ty * cz - tz * cy
+        ey = tz * cx - tx * cz
+        ez = tx * cy - ty * cx
+        Vx = ux + 0.5 * cx + ex / 12.0
+        Vy = uy + 0.5 * cy + ey / 12.0
+        Vz = uz + 0.5 * cz + ez / 12.0
+        # into i0 with the attitude at the sample start: V + w t + u × t, t = 2 u × V
+        t1 = 2.0 * (sy * Vz - sz * Vy)
+        t2 = 2.0 * (sz * Vx - sx * Vz)
+        t3 = 2.0 * (sx * Vy - sy * Vx)
+        ix = Vx + sw * t1 + (sy * t3 - sz * t2)
+        iy = Vy + sw * t2 + (sz * t1 - sx * t3)
+        iz = Vz + sw * t3 + (sx * t2 - sy * t1)
+        # into ENU: rotation about k by rate × (sample middle time)
+        if rate != 0.0:
+            ang = rate * ((k + 1.0) * dt_s - 0.5 * dt_s)
+            ca, sa = math.cos(ang), math.sin(ang)
+            kv = ix * kx + iy * ky + iz * kz
+            ox = ix * ca + (ky * iz - kz * iy) * sa + kv * kx * (1.0 - ca)
+            oy = iy * ca + (kz * ix - kx * iz) * sa + kv * ky * (1.0 - ca)
+            oz = iz * ca + (kx * iy - ky * ix) * sa + kv * kz * (1.0 - ca)
+        else:
+            ox, oy, oz = ix, iy, iz
+        vx += ox
+        vy += oy
+        vz += oz - g * dt_s
+        v_out[k, 0] = vx
+        v_out[k, 1] = vy
+        v_out[k, 2] = vz
+        sw, sx, sy, sz = q_out[k, 0], q_out[k, 1], q_out[k, 2], q_out[k, 3]
+    return q_out, v_out
