@@ -410,7 +410,8 @@ class ThermalIntegrator:
             for j in range(b.shape[1]):
                 g += np.multiply.outer(self._c_b[j], b[:-1, j])
                 g += np.multiply.outer(self._c_db[j], db[:, j])
-        W = np.empty((n, m))
+        # modal rows by step (m, n): the stepwise loop writes one contiguous row per step
+        W = np.empty((m, n)).T
         if self.heaters or self.nonlinear_links:
             hstate = self._stepwise_loop(w0, g, u, W, hstate, hpower, air_k,
                                          None if b is None else b[:-1])
@@ -440,6 +441,8 @@ class ThermalIntegrator:
             sp0, tg = self._h_sp.tolist(), self._h_tg.tolist()
             track = any(x != 0.0 for x in tg)
             I = [float(x) for x in integ]
+            heat = [np.empty_like(w0) for _ in range(H)]   # cols[j]·P for the last P used
+            heat_p = [None] * H
         else:
             I = []
         nl = bool(self.nonlinear_links)
@@ -447,14 +450,25 @@ class ThermalIntegrator:
             from rlgsim.sim.thermal import nonlinear_flow_w
             rows, ncols, ends = self._nl_rows, self._nl_cols, self._nl_ends
             q = np.zeros(self._nl_n)
-        w = w0.copy()
+        # The per-step Python overhead is the cost here (hundreds of thousands of steps in a
+        # long run): each step's modal state is computed in place in its own contiguous row
+        # of W.T (no copies), the powered flags are read as Python values, and a heater's
+        # heat vector cols[j]·P is recomputed only when P changes (a saturated or idle heater
+        # holds it for hours) — the same floating-point operations in the same order.
+        WT = W.T
         gT = np.ascontiguousarray(g.T)
-        tmp = np.empty_like(w)
+        on = (np.asarray(u) > 0).tolist()
+        # the sensors and nonlinear ends read the state through a strided vector, as they
+        # always did: numpy's matrix-vector product of a one-row matrix rounds differently for
+        # a contiguous vector (another kernel), and the stored bytes must not change
+        scratch = np.empty((w0.size, 2))
+        read = scratch[:, 0]
         ws = w0
+        wr = w0
         for k in range(g.shape[1]):
             dq = None
             if nl:                              # residual heat at the start of the step
-                tn = (rows @ ws).tolist()
+                tn = (rows @ wr).tolist()
                 q[:] = 0.0
                 for ia, ib, ln in ends:
                     if ib >= 0:
@@ -468,15 +482,17 @@ class ThermalIntegrator:
                     if ib >= 0:
                         q[ib] += f
                 dq = ncols @ q
-            if H and u[k] > 0:
-                ts = (rs @ ws).tolist()
-                tt = (rt @ ws).tolist() if track else None
-            np.multiply(mu, w, out=w)
+            powered = on[k]
+            if H and powered:
+                ts = (rs @ wr).tolist()
+                tt = (rt @ wr).tolist() if track else None
+            w = WT[k]
+            np.multiply(mu, ws, out=w)
             w += gT[k]
             if dq is not None:
                 w += dq
             if H:
-                if u[k] > 0:
+                if powered:
                     for j in range(H):
                         sp = sp0[j] + tg[j] * tt[j] if track else sp0[j]
                         e = sp - ts[j]
@@ -485,12 +501,15 @@ class ThermalIntegrator:
                         I[j] = I[j] + ki[j] * e + aw[j] * (P - v)
                         power_out[k, j] = P
                         if P != 0.0:
-                            np.multiply(cols[j], P, out=tmp)
-                            w += tmp
+                            if heat_p[j] != P:
+                                np.multiply(cols[j], P, out=heat[j])
+                                heat_p[j] = P
+                            w += heat[j]
                 else:                           # unpowered: controller off and reset
                     for j in range(H):
                         I[j] = 0.0
                         power_out[k, j] = 0.0
-            W[:, k] = w
-            ws = W[:, k]
+            ws = w
+            read[:] = w
+            wr = read
         return np.array(I) if H else integ
