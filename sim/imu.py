@@ -339,7 +339,7 @@ class ImuSimulator:
         increments (and their transposes), the white-noise normals and the slow-noise and UHFO
         drives. A pure function of (b, k0, m, n) — so it can be computed ahead, in the prefetch
         thread, without changing a byte."""
-        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz)
+        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
         g, acc, uh = self.r.gyros, self.r.accels, self.r.uhfo
         out: dict[str, Any] = {
             "motion": mb, "dth_t": np.ascontiguousarray(mb.dtheta_rad.T),
@@ -468,9 +468,8 @@ class ImuSimulator:
                                        "dv": motion_block.dv_m_per_s}
         # turntable angles and motion index at the end of each thermal step
         if n:
-            last = _last_sample_of_step(idx, m, n)
-            outer, inner = motion_block.outer_deg[last], motion_block.inner_deg[last]
-            segment = motion_block.segment[last]
+            last = _last_sample_of_step(idx, m, n)       # the table at those samples' ends
+            outer, inner, segment = self.motion.angles(motion_block.t_s[last])
         else:                        # no sample in the block: the table at each step's end
             outer, inner, segment = self.motion.angles(trace.t_s)
         rows["turntable"] = {"time": {

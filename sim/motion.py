@@ -213,10 +213,14 @@ class Motion:
         o, i, _ = self.angles(t_s)
         return body_to_enu(o, i)
 
-    def increments(self, t0_s: float, n: int, rate_hz: float) -> MotionBlock:
+    def increments(self, t0_s: float, n: int, rate_hz: float, *, angles: bool = True
+                   ) -> MotionBlock:
         """Exact Δθ and Δv for ``n`` samples at ``rate_hz`` starting at ``t0_s`` (on the grid).
 
         Sample j covers [(k0 + j)/f, (k0 + j + 1)/f) with k0 = round(t0_s·f).
+        ``angles=False`` leaves ``outer_deg``, ``inner_deg`` and ``segment`` None (a caller
+        that needs the table at a few sample ends asks :meth:`angles` for those ``t_s``: the
+        same values, element by element).
         """
         if n < 0 or rate_hz <= 0:
             raise ValueError(f"need n >= 0 and rate_hz > 0, got n={n}, rate_hz={rate_hz}")
@@ -258,6 +262,8 @@ class Motion:
             first = np.searchsorted(pts[:-1], edges[:-1])
             dth = np.add.reduceat(dth, first, axis=0)
             dv = np.add.reduceat(dv, first, axis=0)
+        if not angles:
+            return MotionBlock(dth, dv, None, None, None, edges[1:])
         outer, inner, segment = self.angles(edges[1:])
         return MotionBlock(dth, dv, outer, inner, segment, edges[1:])
 
