@@ -252,8 +252,11 @@ class Motion:
             split = ~(is_edge[:-1] & is_edge[1:])
             delta[split] = b[split] - a[split]
         seg = np.clip(self._locate(a, "right") - 1, 0, self._m - 1)
-        dth = np.empty((a.size, 3))
-        dv = np.empty((a.size, 3))
+        # stored axis by axis, (3, n), and handed out as (n, 3) views: each component is
+        # computed as one long run (a (k, 3) layout made the static products loop over 3
+        # elements at a time) and the IMU stage takes the rows it needs without a copy
+        dth = np.empty((3, a.size)).T
+        dv = np.empty((3, a.size)).T
         cut = np.flatnonzero(np.diff(seg)) + 1
         for lo, hi in zip(np.r_[0, cut], np.r_[cut, a.size]):
             j = int(seg[lo])
@@ -274,8 +277,8 @@ class Motion:
         if w == 0.0:
             aw = self._coef["w"][0][j]
             af = self._coef["f"][0][j]
-            np.multiply(delta[:, None], aw, out=dth)
-            np.multiply(delta[:, None], af, out=dv)
+            np.multiply(aw[:, None], delta, out=dth.T)
+            np.multiply(af[:, None], delta, out=dv.T)
             return
         ts = self._t0[j]
         h = 0.5 * delta
