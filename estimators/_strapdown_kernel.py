@@ -98,3 +98,24 @@ def strapdown_loop(dtheta, dv, dt_s, q0, is_break, k_axis, rate, g):  # pragma: 
         v_out[k, 2] = vz
         sw, sx, sy, sz = q_out[k, 0], q_out[k, 1], q_out[k, 2], q_out[k, 3]
     return q_out, v_out
+
+
+@njit(cache=True, nogil=True)
+def compensate_loop(gyro_pulses, accel_pulses, inv_k_g, d_g, inv_e_g, inv_k_pos, inv_k_neg,
+                    d_a, inv_e_a, dt_s):  # pragma: no cover - tested through SensorModel
+    """Δθ = E_g⁻¹ (N_g / K_g − D_g Δt) and Δv = E_a⁻¹ (N_a / K_a^± − D_a Δt) per sample, K_a^±
+    by the sign of the accelerometer pulse count (:meth:`SensorModel.compensate`)."""
+    n = gyro_pulses.shape[0]
+    dtheta = np.empty((n, 3))
+    dv = np.empty((n, 3))
+    yg = np.empty(3)
+    ya = np.empty(3)
+    for k in range(n):
+        for j in range(3):
+            yg[j] = gyro_pulses[k, j] * inv_k_g[j] - d_g[j] * dt_s
+            na = accel_pulses[k, j]
+            ya[j] = na * (inv_k_pos[j] if na >= 0 else inv_k_neg[j]) - d_a[j] * dt_s
+        for i in range(3):
+            dtheta[k, i] = inv_e_g[i, 0] * yg[0] + inv_e_g[i, 1] * yg[1] + inv_e_g[i, 2] * yg[2]
+            dv[k, i] = inv_e_a[i, 0] * ya[0] + inv_e_a[i, 1] * ya[1] + inv_e_a[i, 2] * ya[2]
+    return dtheta, dv

@@ -97,6 +97,7 @@ from typing import Sequence
 import numpy as np
 from scipy.linalg import expm
 
+from rlgsim.estimators._kalman_kernel import filter_loop, rerun_loop
 from rlgsim.estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
                                   earth_rate_enu, navigate, normal_gravity, rotation_matrix,
                                   skew, table_attitude)
@@ -508,37 +509,12 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     n_meas = int(mask.sum())
     gains = np.empty((n_meas, n_x, 3))
     s_inv = np.empty((n_meas, 3, 3))
-    z_all = v_meas / 1e-3
+    z_all = np.ascontiguousarray(v_meas / 1e-3)
     nis = np.empty(n_meas)
-    j = 0
-    for k in range(n_steps):
-        fd = f_dyn[k]
-        # predict: x ← F x, P ← F P Fᵀ + Q (rows, then columns, of the dynamic block)
-        x[:nd] = fd @ x
-        P[:nd] = fd @ P
-        P[:, :nd] = P @ fd.T
-        q_dd[0:6, 0:6] = qs[k]
-        if full_q:
-            Q[0:6, 0:6] = qs[k]
-            P += Q
-        else:
-            P[:nd, :nd] += q_dd
-        if mask[k]:
-            # update with H = [0 I 0] on δv (internal rows 3:6), Joseph form
-            S = P[3:6, 3:6].copy()
-            S[0, 0] += r2
-            S[1, 1] += r2
-            S[2, 2] += r2
-            si = np.linalg.inv(S)
-            K = P[:, 3:6] @ si
-            y = z_all[k] - x[3:6]
-            x += K @ y
-            A = P - K @ P[3:6]
-            P = A + (r2 * K - A[:, 3:6]) @ K.T
-            gains[j] = K
-            s_inv[j] = si
-            nis[j] = y @ si @ y
-            j += 1
+    nz_idx, nz_cnt = _nonzero_columns(f_dyn)
+    P = np.ascontiguousarray(P)
+    filter_loop(f_dyn, nz_idx, nz_cnt, np.ascontiguousarray(qs), q_dd, np.ascontiguousarray(Q),
+                full_q, mask, z_all, float(r2), P, x, gains, s_inv, nis)
     x_out = x[pos]
     P_out = P[np.ix_(pos, pos)]
     z = v_meas[mask]
@@ -550,28 +526,33 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     return x_out, P_out, diag
 
 
+def _nonzero_columns(f_dyn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The non-zero columns (over all steps) of each moving row of F, as a padded index array
+    and counts: the compiled loops skip the rest."""
+    nz = np.any(f_dyn != 0.0, axis=0)
+    nz_cnt = nz.sum(axis=1).astype(np.intp)
+    nz_idx = np.zeros((nz.shape[0], max(int(nz_cnt.max()), 1)), dtype=np.intp)
+    for r in range(nz.shape[0]):
+        nz_idx[r, :nz_cnt[r]] = np.flatnonzero(nz[r])
+    return nz_idx, nz_cnt
+
+
 def rerun_filter(lin: Linearisation, nav: NavSolution, x0: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray, dict]:
     """The filter pass of :func:`run_filter` with the gains of ``lin`` (a pass near the same
     linearisation point): x_k = F_k x_{k−1} + K_k (z_k − H F_k x_{k−1}). Returns x, the
     covariance of ``lin`` and the diagnostics (NIS with ``lin``'s innovation covariances)."""
     n_x = lin.order.size
-    n_steps, nd = lin.f_dyn.shape[0], lin.n_dyn
+    n_steps = lin.f_dyn.shape[0]
     x_init = np.zeros(n_x)
     if x0 is not None:
         x_init[:N_STATES] = x0
     x = x_init[lin.order]
-    z_all = nav.v[(np.arange(n_steps) + 1) * lin.per_step - 1] / 1e-3
-    f_dyn, gains, mask = lin.f_dyn, lin.gains, lin.mask
-    ys = np.empty((gains.shape[0], 3))
-    j = 0
-    for k in range(n_steps):
-        x[:nd] = f_dyn[k] @ x
-        if mask[k]:
-            y = z_all[k] - x[3:6]
-            x += gains[j] @ y
-            ys[j] = y
-            j += 1
+    z_all = np.ascontiguousarray(nav.v[(np.arange(n_steps) + 1) * lin.per_step - 1] / 1e-3)
+    mask = lin.mask
+    ys = np.empty((lin.gains.shape[0], 3))
+    nz_idx, nz_cnt = _nonzero_columns(lin.f_dyn)
+    j = rerun_loop(lin.f_dyn, nz_idx, nz_cnt, lin.gains, mask, z_all, x, ys)
     z = z_all[mask] * 1e-3
     nis = np.einsum("ki,kij,kj->k", ys, lin.s_inv, ys)
     diag = dict(n_measurements=int(j), nis=float(np.mean(nis)) if j else float("nan"),
