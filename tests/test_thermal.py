@@ -31,14 +31,29 @@ def load_preset(name: str) -> dict:
         return tomllib.load(fh)
 
 
-def network(name: str) -> ThermalNetwork:
-    data = load_preset(name)
-    return ThermalNetwork.from_config(data["thermal"], Ctx(f"{name}.toml", "thermal"))
+def network(name: str, *, heaters: bool = True, lab_swing: bool = True) -> ThermalNetwork:
+    """A shipped preset's network; ``heaters=False`` leaves out its controlled heaters (the
+    linear network, for the tests of the exact linear integrator — the heaters' own loop is
+    checked against solve_ivp in test_thermal_heaters.py), ``lab_swing=False`` holds its further
+    boundaries (the laboratory) at their mean temperature."""
+    data = load_preset(name)["thermal"]
+    if not heaters:
+        data.pop("heaters", None)
+    if not lab_swing:
+        for b in data.get("boundaries", {}).values():
+            b.pop("amplitude_c", None)
+    return ThermalNetwork.from_config(data, Ctx(f"{name}.toml", "thermal"))
 
 
 @pytest.fixture(scope="module")
 def imu() -> ThermalNetwork:
     return network("rlg_imu")
+
+
+@pytest.fixture(scope="module")
+def imu_linear() -> ThermalNetwork:
+    """rlg_imu without its thermostat: the linear network."""
+    return network("rlg_imu", heaters=False)
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +75,8 @@ def small_network() -> ThermalNetwork:
 
 
 @pytest.mark.parametrize("name, instances", [("rlg_imu", ("gx", "gy", "gz")),
-                                             ("rlg_single", ("g",))])
+                                             ("rlg_single", ("g",)),
+                                             ("rlg_002_fixture", ("g",))])
 def test_presets_have_the_documented_nodes(name, instances):
     net = network(name)
     for inst in instances:
@@ -72,19 +88,30 @@ def test_presets_have_the_documented_nodes(name, instances):
         assert net.power_w[net.index(f"{inst}.discharge")] == pytest.approx(0.588)
         assert net.power_w[net.index(f"{inst}.preamp")] == pytest.approx(0.784)
         assert net.power_w[net.index(f"{inst}.ballast_D")] == pytest.approx(0.027)
-        assert net.power_w[net.index(f"{inst}.ballast_E")] == pytest.approx(0.027)
+        # rlg_002_fixture's nominal unit: the anode-E ballast at the +5 % tolerance edge
+        e = 1.05 if name == "rlg_002_fixture" else 1.0
+        assert net.power_w[net.index(f"{inst}.ballast_E")] == pytest.approx(0.027 * e)
     for node in ("electronics", "housing_air"):
         net.index(node)
     if name == "rlg_imu":
         for node in ("ax", "ay", "az", "base"):
             net.index(node)
         assert 35 <= net.n_nodes <= 45
+        # the IMU's temperature control (docs/thermal.md §4.3): base plate, 50 °C, 10 W
+        (h,) = net.heaters
+        assert (h.node, h.sensor) == (net.index("base"), net.index("base"))
+        assert (h.setpoint_c, h.max_power_w) == (50.0, 10.0)
+    if name == "rlg_002_fixture":
+        # the mount path (docs/thermal.md §4.2a): base plate, fixture, the laboratory
+        for node in ("base", "table"):
+            net.index(node)
+        assert net.boundary_names == ("lab",)
     # Zerodur capacity from paper 003 Table 1: ρ·c·V of the 1.126 cm³ gain area
     i = net.index(f"{instances[0]}.discharge")
     assert net.capacitance_j_per_k[i] == pytest.approx(2530 * 800 * 1.126e-6)
 
 
-@pytest.mark.parametrize("name", ["rlg_imu", "rlg_single"])
+@pytest.mark.parametrize("name", ["rlg_imu", "rlg_single", "rlg_002_fixture"])
 def test_gain_area_sits_3_to_4_degC_above_non_gain(name):
     """Paper 003 FEM: gain area ≈ 3.5 °C above the non-gain area at 20 °C ambient."""
     net = network(name)
@@ -94,22 +121,28 @@ def test_gain_area_sits_3_to_4_degC_above_non_gain(name):
         non_gain = np.mean([T[net.index(f"{inst}.{k}")] for k in NON_GAIN])
         assert 3.0 <= gain - non_gain <= 4.0
         assert T[net.index(f"{inst}.discharge")] > gain       # the source is the hottest glass
-    # unpowered: everything at the chamber air
-    np.testing.assert_allclose(net.steady_state(20.0, False), 20.0, atol=1e-12)
+    # unpowered, the laboratory (if any) at the chamber's temperature: everything at the air
+    lab = np.full(len(net.boundaries), 20.0)
+    np.testing.assert_allclose(net.steady_state(20.0, False, lab), 20.0, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", ["rlg_imu", "rlg_single"])
+@pytest.mark.parametrize("name", ["rlg_imu", "rlg_single", "rlg_002_fixture"])
 def test_steady_state_heat_balance(name):
-    """Power on, constant chamber: heat to the chamber air equals the injected power."""
-    net = network(name)
+    """Power on, constant chamber (and laboratory): heat to the chamber air and the laboratory
+    equals the injected power, the thermostat's included (rlg_imu: at its 10 W limit at 20 °C)."""
+    net = network(name, lab_swing=False)
     integ = ThermalIntegrator(net, 1.0, 60.0)
     state = integ.initial_state(20.0, True)
     states, _ = integ.propagate(state, np.full(3601, 20.0), np.ones(3600))
     T = states[-1, 1:]
-    P = net.total_power_w(True)
-    assert abs(net.heat_to_ambient_w(T, 20.0) - P) <= 1e-9 * P
+    heater = integ.last_heater_power_w[-1] if net.heaters else None
+    P = net.total_power_w(True) + (float(np.sum(heater)) if net.heaters else 0.0)
+    lab = net.boundary_temperatures_c(0.0)
+    out = net.heat_to_ambient_w(T, 20.0) + net.heat_to_boundaries_w(T, lab)
+    assert abs(out - P) <= 1e-9 * P
     # and per node: C dT/dt = 0 to the same relative accuracy
-    assert np.max(np.abs(net.derivative(T, 20.0, True) * net.capacitance_j_per_k)) <= 1e-9 * P
+    dT = net.derivative(T, 20.0, True, lab, heater)
+    assert np.max(np.abs(dT * net.capacitance_j_per_k)) <= 1e-9 * P
     # the propagation stays on the steady state
     np.testing.assert_allclose(T, net.steady_state(20.0, True), rtol=0, atol=1e-10)
 
@@ -182,8 +215,10 @@ def test_exact_integration_matches_solve_ivp_over_a_chamber_ramp():
     assert np.max(np.abs(states - ref)) < 1e-6
 
 
-def test_exact_integration_matches_solve_ivp_on_the_imu(imu):
-    """The full 42-node IMU network through a 2 °C/min ramp with power-on."""
+def test_exact_integration_matches_solve_ivp_on_the_imu(imu_linear):
+    """The full 42-node IMU network (linear: without its thermostat) through a 2 °C/min ramp
+    with power-on."""
+    imu = imu_linear
     tau = 45.0
     integ = ThermalIntegrator(imu, 1.0, tau)
     m = 2400
@@ -284,10 +319,11 @@ def _exp_tail(t, a, b, tau):
 
 
 @pytest.mark.parametrize("name, lo_min, hi_min", [("rlg_imu", 20.0, 60.0),
-                                                  ("rlg_single", 15.0, 60.0)])
+                                                  ("rlg_single", 15.0, 60.0),
+                                                  ("rlg_002_fixture", 15.0, 60.0)])
 def test_warm_up_has_a_dominant_time_constant_of_tens_of_minutes(name, lo_min, hi_min):
     """Power on at 20 °C from the unpowered equilibrium; fit the tail of the block warm-up."""
-    net = network(name)
+    net = network(name, lab_swing=False)     # rlg_imu's thermostat stays at its limit at 20 °C
     integ = ThermalIntegrator(net, 1.0, 60.0)
     m = 8 * 3600
     states, _ = integ.propagate(integ.initial_state(20.0, False), np.full(m + 1, 20.0),
@@ -307,9 +343,11 @@ def test_warm_up_has_a_dominant_time_constant_of_tens_of_minutes(name, lo_min, h
                               abs=0.02)
 
 
-def test_block_lags_a_1_degC_per_min_ramp_by_the_predicted_amount(imu):
+def test_block_lags_a_1_degC_per_min_ramp_by_the_predicted_amount(imu_linear):
     """In a steady ramp at rate r each node trails the air by r·(K⁻¹C·1)_i (plus the air's own
-    lag r·τ_air behind the setpoint); for the IMU's gyro blocks that is ≈ 48 K at 1 °C/min."""
+    lag r·τ_air behind the setpoint); for the IMU's gyro blocks that is ≈ 48 K at 1 °C/min
+    (unpowered, so the thermostat is off: the linear network)."""
+    imu = imu_linear
     tau = 60.0
     integ = ThermalIntegrator(imu, 1.0, tau)
     r = 1.0 / 60.0                  # 1 °C/min in K/s
