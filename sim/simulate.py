@@ -11,9 +11,10 @@ thermal steps and of IMU samples, checked by the scenario loader). For block ``b
 
 Every carried state (thermal state, probe lags, later pulse remainders and noise-filter states)
 goes from block to block, and every random draw of block ``b`` comes from
-``rlgsim.sim.rng.generator(seed, unit, purpose, channel, b)``. The user's ``chunk_s`` only decides how
-many blocks are buffered before a write (memory stays bounded), so the stored arrays are the same
-whatever the chunk size.
+``rlgsim.sim.rng.generator(seed, unit, purpose, channel, b)``. Each block's rows go to a writer
+thread (:class:`_Appender`) that appends them in block order while the next block is computed;
+the user's ``chunk_s`` only bounds how many blocks may wait for it (memory stays bounded), so
+the stored arrays — and the file — are the same whatever the chunk size.
 
 Adding a stage (issue 3: the IMU) — write a class with
 
@@ -244,6 +245,68 @@ STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu
 # --------------------------------------------------------------------------- the run
 
 
+class _Appender:
+    """Appends each block's rows to the dataset in a writer thread, in block order.
+
+    HDF5 releases the GIL while it filters and writes (h5py's H5D calls), so the writes of
+    block ``b`` overlap the arithmetic of block ``b + 1`` on another core. The thread makes
+    exactly the calls the main thread would make, in the same order — one
+    :meth:`GroupWriter.append` per block, group and dimension, in the order the stages
+    produced them — so the file does not depend on the thread, nor on ``chunk_s``, which only
+    bounds how many blocks may wait (``max_blocks``: memory stays flat in the duration). An
+    error in the thread is raised in the main thread at the next :meth:`put` or at
+    :meth:`close`."""
+
+    def __init__(self, writers: dict[str, GroupWriter], max_blocks: int) -> None:
+        import queue
+        import threading
+        self._writers = writers
+        self._queue: "queue.Queue" = queue.Queue(maxsize=max(1, int(max_blocks)))
+        self._error: BaseException | None = None
+        self._cancelled = False
+        self._thread = threading.Thread(target=self._run, name="rlgsim-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            rows = self._queue.get()
+            if rows is None:
+                return
+            if self._error is not None or self._cancelled:
+                continue                        # drain: the main thread may be waiting
+            try:
+                for group, grows in rows:
+                    for dim, arrays in grows.items():
+                        self._writers[group].append(dim, arrays)
+            except BaseException as exc:        # raised again in the main thread
+                self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            exc, self._error = self._error, None
+            raise exc
+
+    def put(self, rows: list[tuple[str, dict[str, dict[str, np.ndarray]]]]) -> None:
+        """Queue one block's rows ``[(group, {dim: {variable: array}})]`` (waits while
+        ``max_blocks`` are queued). The arrays must not change afterwards."""
+        self._raise()
+        self._queue.put(rows)
+
+    def close(self) -> None:
+        """Wait until everything queued is written; raise the thread's error if any."""
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        self._raise()
+
+    def cancel(self) -> None:
+        """Stop the thread, dropping what is still queued (the run failed or was stopped)."""
+        if self._thread.is_alive():
+            self._cancelled = True
+            self._queue.put(None)
+            self._thread.join()
+
+
 def default_output(scenario) -> pathlib.Path:
     return pathlib.Path(f"{scenario.name}.h5")
 
@@ -253,8 +316,8 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
              ) -> pathlib.Path:
     """Simulate ``scenario`` and stream it to ``out_path`` (default ``./<name>.h5``).
 
-    ``chunk_s`` (default: the scenario's ``acquisition.chunk_s``) is how much simulated time is
-    buffered before each write; it never changes the stored arrays. ``should_stop`` is asked
+    ``chunk_s`` (default: the scenario's ``acquisition.chunk_s``) is how much simulated time may
+    wait for the writer thread (a memory bound); it never changes the stored arrays. ``should_stop`` is asked
     before every block; when it returns true the run stops with KeyboardInterrupt and its
     temporary file is deleted (the CLI's SIGTERM handler uses it). Returns the written path.
     """
@@ -312,36 +375,16 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                 writers[s.group] = w.group(s.group, s.description)
                 s.declare(writers[s.group])
         check_budget(w._file, scenario, out, n_steps=n_steps, steps_per_block=per_block,
-                     buffered_blocks=blocks_per_write, block_s=BLOCK_S,
+                     buffered_blocks=blocks_per_write + 1, block_s=BLOCK_S,
                      progress=progress)    # refuse what cannot fit (run_budget)
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]
-        buffers: dict[str, dict[str, dict[str, list]]] = {}
-
-        def buffer(group: str, rows: dict[str, dict[str, np.ndarray]]) -> None:
-            gb = buffers.setdefault(group, {})
-            for dim, arrays in rows.items():
-                db = gb.setdefault(dim, {})
-                for name, arr in arrays.items():
-                    db.setdefault(name, []).append(np.asarray(arr))
-
-        def flush() -> None:
-            # One append per block and group, in block order: the HDF5 calls — and so the
-            # file's bytes, chunk placement included — are the same whatever chunk_s.
-            blocks = max((len(v) for gb in buffers.values() for arrays in gb.values()
-                          for v in arrays.values()), default=0)
-            for i in range(blocks):
-                for group, gb in buffers.items():
-                    for dim, arrays in gb.items():
-                        if all(len(v) > i for v in arrays.values()):
-                            writers[group].append(dim, {k: v[i] for k, v in arrays.items()})
-            buffers.clear()
-
         bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
                    delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
         # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
         # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
         limits = threadpool_limits(limits=1, user_api="blas")
+        appender = _Appender(writers, blocks_per_write)
         try:
             for b in range(n_blocks):
                 if should_stop is not None and should_stop():
@@ -349,18 +392,18 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                 k0 = b * per_block
                 m = min(per_block, n_steps - k0)
                 trace, t_state = thermal.block(t_state, b, k0, m)
-                buffer(thermal.group, thermal.rows(trace))
+                rows = [(thermal.group, thermal.rows(trace))]
                 for i, s in enumerate(stages):
-                    rows, s_states[i] = s.block(s_states[i], b, trace, motion)
+                    srows, s_states[i] = s.block(s_states[i], b, trace, motion)
                     if hasattr(s, "groups"):
-                        for gname, grows in rows.items():
-                            buffer(gname, grows)
+                        rows.extend(srows.items())
                     else:
-                        buffer(s.group, rows)
-                if (b + 1) % blocks_per_write == 0 or b == n_blocks - 1:
-                    flush()
+                        rows.append((s.group, srows))
+                appender.put(rows)              # written in the writer thread, in block order
                 bar.update(round(m * step))
+            appender.close()
         finally:
+            appender.cancel()                   # an error or a stop: discard what is queued
             limits.restore_original_limits()
             bar.close()
     return out
