@@ -141,10 +141,15 @@ def screen(jac: np.ndarray, names: Sequence[str], *, max_corr: float = 0.99,
 
 def fit(fun: Callable[[np.ndarray], np.ndarray], x0: Sequence[float], names: Sequence[str],
         *, bounds: tuple = (-np.inf, np.inf), segments: int = 1, diff_step: float | None = None,
-        max_nfev: int | None = None, x_scale: str | np.ndarray = "jac", batches: int = 20
-        ) -> LsqFit:
+        max_nfev: int | None = None, x_scale: str | np.ndarray = "jac", batches: int = 20,
+        whitened: bool = False) -> LsqFit:
     """Minimise ``Σ fun(x)²`` from ``x0`` and return estimates with inflated standard errors
-    (``segments``: how many equal consecutive series the residual vector holds, for ρ)."""
+    (``segments``: how many equal consecutive series the residual vector holds, for ρ).
+
+    ``whitened``: ``fun`` returns residuals already divided by the Cholesky factor of their
+    modelled covariance (generalised least squares), so they are independent with unit
+    variance if the model holds: the covariance is ``(JᵀJ)⁻¹·max(1, s²)`` (the modelled one,
+    inflated when the residual is larger than modelled) and no batch means are taken."""
     x0 = np.asarray(x0, dtype=float)
     kw = {}
     if diff_step is not None:
@@ -153,8 +158,16 @@ def fit(fun: Callable[[np.ndarray], np.ndarray], x0: Sequence[float], names: Seq
                         max_nfev=max_nfev, **kw)
     r = np.asarray(res.fun, dtype=float)
     J = np.asarray(res.jac, dtype=float)
-    cov0, _ = covariance(J, r)
+    cov0, s2 = covariance(J, r)
     rho, _ = ar1_inflation(r, segments)
+    if whitened:
+        cov = cov0 * (max(s2, 1.0) / s2 if s2 > 0 else 1.0)
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        return LsqFit(names=tuple(names), x=np.asarray(res.x, dtype=float), se=se,
+                      corr=_corr(cov), residual=r,
+                      rms=float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0, rho=rho,
+                      inflation=float(np.sqrt(max(s2, 1.0))), n=r.size, p=x0.size, jac=J,
+                      nfev=int(res.nfev))
     cov = batch_means_covariance(J, r, segments, batches)
     se0 = np.sqrt(np.clip(np.diag(cov0), 0.0, None))
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))

@@ -95,6 +95,13 @@ class SelectedLaw:
     c_hat: float = 1.0
     #: averaged models: (base names, subset, coefficients, covariance, weight)
     models: tuple = ()
+    #: window residual of the refined law, prediction − target (not whitened)
+    residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: True when fitted by generalised least squares with a modelled noise covariance
+    gls: bool = False
+    #: {unseparable group: (lead term, combined coefficient in its units, standard error,
+    #: {member: slope on the lead})}
+    combined: dict = field(default_factory=dict)
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
@@ -144,14 +151,18 @@ def _separating_feature(names: Sequence[str]) -> str:
     return " and ".join(kinds) or "a programme that moves them independently"
 
 
-def _ols(y: np.ndarray, X: np.ndarray, batches: int) -> tuple[np.ndarray, np.ndarray,
-                                                              np.ndarray]:
+def _ols(y: np.ndarray, X: np.ndarray, batches: int, gls: bool = False
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Coefficients, batch-means sandwich covariance (never below the independent-residual
-    one) and residual of the least-squares fit of ``y`` on ``X``."""
+    one) and residual of the least-squares fit of ``y`` on ``X``. ``gls``: ``y`` and ``X`` are
+    whitened by the modelled noise covariance; the covariance is the modelled one,
+    ``(XᵀX)⁻¹·max(1, s²)``."""
     from rlgsim.estimators.identify.lsq_stats import batch_means_covariance, covariance
     beta = np.linalg.lstsq(X, y, rcond=None)[0]
     r = y - X @ beta
-    c0, _ = covariance(X, r)
+    c0, s2 = covariance(X, r)
+    if gls:
+        return beta, c0 * (max(s2, 1.0) / s2 if s2 > 0 else 1.0), r
     c1 = batch_means_covariance(X, r, 1, batches)
     d0, d1 = np.sqrt(np.clip(np.diag(c0), 0, None)), np.sqrt(np.clip(np.diag(c1), 0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -159,8 +170,12 @@ def _ols(y: np.ndarray, X: np.ndarray, batches: int) -> tuple[np.ndarray, np.nda
     return beta, c1 * np.outer(f, f), r
 
 
-def _overdispersion(r: np.ndarray, batches: int) -> float:
-    """ĉ = long-run variance (batch means) / variance of a residual series, at least 1."""
+def _overdispersion(r: np.ndarray, batches: int, gls: bool = False, p: int = 0) -> float:
+    """ĉ = long-run variance (batch means) / variance of a residual series, at least 1; for a
+    whitened residual (``gls``) its variance per degree of freedom, at least 1."""
+    if gls:
+        r = np.asarray(r, dtype=float)
+        return float(max(1.0, float(r @ r) / max(r.size - p, 1)))
     r = np.asarray(r, dtype=float) - np.mean(r)
     L = r.size // batches
     if L < 2:
@@ -174,10 +189,16 @@ def _overdispersion(r: np.ndarray, batches: int) -> float:
 MAX_VIF = 100.0
 
 
-def _corr_matrix(lcols: dict, names: Sequence[str]) -> dict:
+def _without(v: np.ndarray, ones: np.ndarray) -> np.ndarray:
+    """``v`` with its projection on the intercept column ``ones`` removed (centring, for an
+    intercept of ones; the whitened intercept under generalised least squares)."""
+    return v - ones * (float(v @ ones) / float(ones @ ones))
+
+
+def _corr_matrix(lcols: dict, names: Sequence[str], ones: np.ndarray) -> dict:
     if not names:
         return {"names": [], "R": np.zeros((0, 0))}
-    Z = np.column_stack([lcols[c] - lcols[c].mean() for c in names])
+    Z = np.column_stack([_without(lcols[c], ones) for c in names])
     Z = Z / np.linalg.norm(Z, axis=0)
     return {"names": list(names), "R": Z.T @ Z}
 
@@ -195,12 +216,14 @@ def _conditioned(R: dict, combo: Sequence[str]) -> bool:
     return bool(np.all(np.isfinite(vif)) and np.all(vif <= MAX_VIF))
 
 
-def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, batches):
+def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, batches,
+               gls=False):
     """Selection uncertainty of the linear subset (module docstring)."""
     n = y.size
-    R = _corr_matrix(lcols, lin_names)
-    _, _, r_best = _ols(y, np.column_stack([base] + [lcols[c] for c in chosen_lin]), batches)
-    c_hat = _overdispersion(r_best, batches)
+    R = _corr_matrix(lcols, lin_names, base[:, 0])
+    Xb = np.column_stack([base] + [lcols[c] for c in chosen_lin])
+    _, _, r_best = _ols(y, Xb, batches, gls)
+    c_hat = _overdispersion(r_best, batches, gls, Xb.shape[1])
     fits = []
     for size in range(0, min(max_linear, len(lin_names)) + 1):
         for combo in itertools.combinations(lin_names, size):
@@ -221,7 +244,7 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
     for i, wi in zip(keep, wk):
         combo = fits[i][1]
         X = np.column_stack([base] + [lcols[c] for c in combo])
-        beta, cov, _ = _ols(y, X, batches)
+        beta, cov, _ = _ols(y, X, batches, gls)
         models.append((tuple(base_names), tuple(combo), beta, cov, float(wi)))
     averaged = {}
     for name in list(base_names) + list(lin_names):
@@ -257,6 +280,7 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
                 edges[c].append((o, rr))
                 edges[o].append((c, rr))
     groups: list[tuple[tuple[str, ...], str]] = []
+    combined: dict = {}
     seen: set[str] = set()
     for c in undecided:                     # connected groups of terms that repeat each other
         if c in seen or not edges[c]:
@@ -274,13 +298,48 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
         seen.update(group)
         corr = ", ".join(f"{a}/{b} {rr:+.3f}" for (a, b), rr in pairs.items())
         incl = ", ".join(f"{g} {averaged[g][2]:.2f}" for g in group)
+        lead, value, se, slopes = _combined(group, averaged, base, lcols, chosen_lin, models)
+        combined[tuple(group)] = (lead, value, se, slopes)
+        per = ", ".join(f"{g} × {slopes[g]:.3g}" for g in group if g != lead)
         groups.append((tuple(group), (
             f"{', '.join(group)} cannot be separated by this recording (correlation of their "
             f"window features after the other chosen terms: {corr}; inclusion probabilities "
             f"{incl}): their separate coefficients are not identified and are reported "
-            f"model-averaged with the selection in their standard errors; "
+            f"model-averaged with the selection in their standard errors; what the recording "
+            f"does determine is their combined effect, in units of {lead}: {value:.4g} ± "
+            f"{se:.2g} (standard error, selection included; {per} {lead}-equivalents); "
             f"{_separating_feature(group)} would separate them")))
-    return averaged, tuple(groups), c_hat, tuple(models)
+    return averaged, tuple(groups), c_hat, tuple(models), combined
+
+
+def _combined(group, averaged, base, lcols, chosen_lin, models):
+    """The combined effect of an unseparable ``group`` of linear terms: the law's dependence
+    along the group's common direction, in units of its ``lead`` (the most often included)
+    term. Each member's feature, with the chosen law's other terms and the intercept removed,
+    is regressed on the lead's (slope ``s_i``, 1 for the lead); in every averaged model the
+    combined coefficient is ``Σ β_i s_i`` over the members it holds, with variance ``sᵀ Σ_β s``;
+    averaged over the models like a coefficient (mean, variance plus spread). Returns
+    ``(lead, value, standard error, {member: slope})``."""
+    lead = max(group, key=lambda g: (averaged[g][2], -list(group).index(g)))
+    others = [k for k in chosen_lin if k not in group]
+    Z = np.column_stack([base] + [lcols[k] for k in others])
+
+    def part(c):
+        return lcols[c] - Z @ np.linalg.lstsq(Z, lcols[c], rcond=None)[0]
+    rl = part(lead)
+    slopes = {g: (1.0 if g == lead else float(part(g) @ rl) / max(float(rl @ rl), 1e-300))
+              for g in group}
+    vals, vars_, ws = [], [], []
+    for bn, combo, beta, cov, wi in models:
+        names = list(bn) + list(combo)
+        idx = [names.index(g) for g in group if g in names]
+        s = np.array([slopes[names[i]] for i in idx])
+        vals.append(float(beta[idx] @ s) if idx else 0.0)
+        vars_.append(float(s @ cov[np.ix_(idx, idx)] @ s) if idx else 0.0)
+        ws.append(wi)
+    v, s2, w = np.array(vals), np.array(vars_), np.array(ws)
+    mean = float(w @ v)
+    return lead, mean, float(np.sqrt(w @ (s2 + (v - mean) ** 2))), slopes
 
 
 def _vif(base: np.ndarray, lcols: dict, chosen: list[str]) -> dict[str, float]:
@@ -288,7 +347,7 @@ def _vif(base: np.ndarray, lcols: dict, chosen: list[str]) -> dict[str, float]:
     for c in chosen:
         Z = np.column_stack([base] + [lcols[k] for k in chosen if k != c])
         r = lcols[c] - Z @ np.linalg.lstsq(Z, lcols[c], rcond=None)[0]
-        d = lcols[c] - lcols[c].mean()
+        d = _without(lcols[c], base[:, 0])
         out[c] = float(d @ d / max(float(r @ r), 1e-300))
     return out
 
@@ -308,22 +367,62 @@ def _refine_theta(y: np.ndarray, base: np.ndarray, t: Term, th0: np.ndarray) -> 
         return th0
 
 
+def _whitener(noise_cov: np.ndarray | None, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``v ↦ L⁻¹v`` with ``L`` the Cholesky factor of ``noise_cov`` (a relative jitter of
+    1e-10 on the diagonal if it is numerically singular); the identity without one."""
+    if noise_cov is None:
+        return lambda v: v
+    from scipy.linalg import cholesky, solve_triangular
+    C = np.asarray(noise_cov, dtype=float)
+    if C.shape != (n, n):
+        raise ValueError(f"noise_cov must be ({n}, {n}), got {C.shape}")
+    jitter = 0.0
+    for _ in range(6):
+        try:
+            L = cholesky(C + jitter * np.eye(n), lower=True)
+            break
+        except np.linalg.LinAlgError:
+            jitter = max(jitter * 100.0, 1e-10 * float(np.mean(np.diag(C))))
+    else:
+        raise ValueError("noise_cov is not positive definite")
+    return lambda v: solve_triangular(L, np.asarray(v, dtype=float), lower=True)
+
+
 def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int = 6,
-                 batches: int = 8) -> SelectedLaw:
-    """Choose terms by BIC (module docstring) and refine them jointly."""
+                 batches: int = 8, noise_cov: np.ndarray | None = None) -> SelectedLaw:
+    """Choose terms by BIC (module docstring) and refine them jointly.
+
+    ``noise_cov``: the modelled (n, n) covariance of the target's noise (e.g. the window
+    means of a gyro's flicker, :mod:`rlgsim.estimators.identify.window_noise`). With it every
+    fit is generalised least squares (Aitken 1935): target, intercept and every feature are
+    whitened by its Cholesky factor ``L`` (``L⁻¹y = L⁻¹Xβ + L⁻¹e``, independent unit-variance
+    errors if the model holds), the BIC, the weights and the collinearity measures are those
+    of the whitened problem, and the standard errors are the modelled ``(XᵀC⁻¹X)⁻¹`` (times the
+    whitened residual's variance when above 1) instead of batch means, which cannot see noise
+    slower than a batch."""
     y = np.asarray(y, dtype=float)
     if y.ndim != 1 or y.size < 3 or not np.all(np.isfinite(y)):
         raise ValueError("select_terms needs a finite 1-D target with at least 3 values")
-    ones = np.ones_like(y)
+    y_raw = y
+    white = _whitener(noise_cov, y.size)
+    gls = noise_cov is not None
+    ones = white(np.ones_like(y))
+    y = white(y)
     lin = [t for t in candidates if not t.k]
-    nonlin = [t for t in candidates if t.k]
     lcols = {t.name: np.asarray(t.feature(np.zeros(0)), dtype=float) for t in lin}
     lin = [t for t in lin if np.all(np.isfinite(lcols[t.name])) and np.ptp(lcols[t.name]) > 0]
+    raw_features = {t.name: t.feature for t in candidates}
+    if gls:
+        lcols = {k: white(v) for k, v in lcols.items()}
+        candidates = [Term(t.name, (lambda th, f=t.feature: white(f(th))), t.theta_names,
+                           t.grid, t.lower, t.upper) for t in candidates]
+        lin = [next(c for c in candidates if c.name == t.name) for t in lin]
+    nonlin = [t for t in candidates if t.k]
     # a column that repeats an earlier one exactly (two gradients of a symmetric twin: A−D and
     # A−E with D, E mirror nodes) carries nothing new: the earlier candidate stands for both
     unit = {}
     for t in list(lin):
-        v = lcols[t.name] - lcols[t.name].mean()
+        v = _without(lcols[t.name], ones)
         v = v / np.linalg.norm(v)
         if any(abs(float(v @ u)) > 1 - 1e-9 for u in unit.values()):
             lin.remove(t)
@@ -332,7 +431,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     by_name = {t.name: t for t in candidates}
     steps: list[tuple[str, float]] = []
 
-    R = _corr_matrix(lcols, [t.name for t in lin])
+    R = _corr_matrix(lcols, [t.name for t in lin], ones)
 
     def best_subset(fixed: list[np.ndarray], k_extra: int) -> tuple[float, list[str]]:
         base = np.column_stack([ones, *fixed])
@@ -392,7 +491,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     chosen = [c for c in (t.name for t in candidates) if c in lin_chosen or c in nl_chosen]
     cols = {**lcols, **nl_cols}
     names = ["intercept"] + chosen
-    X0 = np.column_stack([np.ones_like(y)] + [cols[c] for c in chosen])
+    X0 = np.column_stack([ones] + [cols[c] for c in chosen])
     beta0 = np.linalg.lstsq(X0, y, rcond=None)[0]
     x0 = list(beta0)
     lo = [-np.inf] * len(x0)
@@ -412,7 +511,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     x0a[fin_hi] = np.minimum(x0a[fin_hi], hi_a[fin_hi] - 1e-9 * (np.abs(hi_a[fin_hi]) + 1))
 
     def residual(x: np.ndarray) -> np.ndarray:
-        pred = np.full_like(y, x[0])
+        pred = x[0] * ones
         j = 1 + len(chosen)
         for i, c in enumerate(chosen):
             t = by_name[c]
@@ -423,16 +522,25 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
 
     if not any(by_name[c].k for c in chosen):
         # linear: one solve, statistics from the same machinery
-        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5, batches=batches)
+        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), max_nfev=5, batches=batches,
+                  whitened=gls)
     else:
-        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches)
+        res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches, whitened=gls)
+    # the law's residual in the target's own units (not whitened)
+    raw_pred = np.full_like(y_raw, res.x[0])
+    j = 1 + len(chosen)
+    for i, c in enumerate(chosen):
+        k = by_name[c].k
+        raw_pred = raw_pred + res.x[1 + i] * np.asarray(raw_features[c](res.x[j:j + k]),
+                                                        dtype=float)
+        j += k
     base = np.column_stack([ones] + [nl_cols[c] for c in nl_chosen])
-    averaged, groups, c_hat, models = _averaging(
+    averaged, groups, c_hat, models, combined = _averaging(
         y, base, ["intercept", *nl_chosen], [t.name for t in lin], lcols, lin_chosen,
-        max_linear, batches)
+        max_linear, batches, gls)
     for name in nl_chosen:                     # held at the choice: its own refined values
         averaged[name] = (float(res.x[names.index(name)]), float(res.se[names.index(name)]), 1.0)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
                        candidates=tuple(t.name for t in candidates), averaged=averaged,
                        unseparable=groups, vif=_vif(base, lcols, lin_chosen), c_hat=c_hat,
-                       models=models)
+                       models=models, residual=raw_pred - y_raw, gls=gls, combined=combined)

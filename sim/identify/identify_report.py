@@ -19,9 +19,14 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
         {"parameter": n, "estimate": float(v), "standard error": float(s),
          "unit": unit if n in ("intercept",) else ""}
         for n, v, s in zip(sel.fit.names, sel.fit.x, sel.fit.se)],
-        note=f"standard errors: sandwich with batch means, ×{sel.fit.inflation:.2f} the "
-             f"independent-residual value (residual lag-one correlation {sel.fit.rho:.2f}); "
-             f"given the chosen terms (selection uncertainty: next table)"))
+        note=(f"standard errors: generalised least squares with the window-mean covariance of "
+              f"the fitted noise model (white, flicker over the template's band, random walk, "
+              f"quantisation), ×{sel.fit.inflation:.2f} for a whitened residual larger than "
+              f"modelled; given the chosen terms (selection uncertainty: next table)"
+              if sel.gls else
+              f"standard errors: sandwich with batch means, ×{sel.fit.inflation:.2f} the "
+              f"independent-residual value (residual lag-one correlation {sel.fit.rho:.2f}); "
+              f"given the chosen terms (selection uncertainty: next table)")))
     if sel.averaged:
         rep.table(Table.from_records(f"{title}: model-averaged over the term subsets", [
             {"term": n, "model-averaged": v, "standard error (selection included)": se,
@@ -29,7 +34,8 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
              "VIF in the chosen law": sel.vif.get(n)}
             for n, (v, se, p) in sel.averaged.items()],
             note=f"BIC weights of every linear subset with the likelihood divided by the "
-                 f"overdispersion ĉ = {sel.c_hat:.2f} of the windows (flicker): the spread "
+                 f"overdispersion ĉ = {sel.c_hat:.2f} of the "
+                 f"{'whitened windows' if sel.gls else 'windows (flicker)'}: the spread "
                  f"of the coefficients across near-equally supported subsets is in the "
                  f"standard errors; a term out of a subset counts as 0"))
     for _, reason in sel.unseparable:
@@ -108,7 +114,7 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     tw = np.asarray(d.windows["time_s"]) / 3600
     y = np.asarray(d.windows["bias_deg_per_h"])
     ax.plot(tw, y, ".", ms=3, label="recorded (100 s windows)")
-    ax.plot(tw, y + laws.bias.fit.residual, lw=1, label="twin law")
+    ax.plot(tw, y + laws.bias.residual, lw=1, label="twin law")
     ax.set_xlabel("time [h]")
     ax.set_ylabel("bias [°/h]")
     ax.legend(fontsize=8)

@@ -39,6 +39,7 @@ import numpy as np
 from rlgsim.estimators.features import window_average
 from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
+from rlgsim.estimators.identify.window_noise import covariance_from_fit
 from rlgsim.sim.identify.recording_data import RecordingData
 
 __all__ = ["LawFit", "fit_laws", "law_prediction", "bias_features"]
@@ -186,13 +187,42 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     T = nodes_c[:, _node(block, bias_node, node_names)]
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
-    bias_sel = select_terms(y, _candidates(T, t_ref, step, win, law, extra))
-    per_step = law_prediction(bias_sel, _per_step(T, t_ref, step, extra))
-    rms = float(np.sqrt(np.mean(bias_sel.fit.residual ** 2)))
-    # ------------------------------------------------------------------ noise
-    noise = None
+    cands = _candidates(T, t_ref, step, win, law, extra)
+    per_step_terms = _per_step(T, t_ref, step, extra)
+    # first pass: ordinary least squares, whose residual gives the noise model ...
+    bias_sel = select_terms(y, cands)
+    per_step = law_prediction(bias_sel, per_step_terms)
+    noise = _noise(rec, per_step)
+    # ... then generalised least squares with the window-mean covariance of that noise
+    # (flicker memory included), and the noise again from what the final law leaves
+    if noise is not None:
+        band = _flicker_band(device)
+        starts = np.asarray(rec.windows["time_s"], dtype=float) - rec.window_s
+        cov = covariance_from_fit(noise, starts, rec.window_s, tau_min_s=band[0],
+                                  tau_max_s=band[1], per_decade=band[2])
+        bias_sel = select_terms(y, cands, noise_cov=cov)
+        per_step = law_prediction(bias_sel, per_step_terms)
+        noise = _noise(rec, per_step) or noise
+    rms = float(np.sqrt(np.mean(bias_sel.residual ** 2)))
+    return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
+                  uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
+                  noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
+                  per_step_bias_deg_per_h=per_step, gradient_pairs=pairs)
+
+
+def _flicker_band(device: dict) -> tuple[float, float, int]:
+    """The flicker band [s] and processes per decade of the device template's ``[noise]``
+    (the simulator's defaults 2 s, 10⁵ s, 2 when it names none): correlation times beyond the
+    record are not observable, so the template's band stands for the device's."""
+    tab = device.get("noise", {}) or {}
+    return (float(tab.get("flicker_tau_min_s", 2.0)), float(tab.get("flicker_tau_max_s", 1e5)),
+            int(tab.get("flicker_per_decade", 2)))
+
+
+def _noise(rec: RecordingData, per_step: np.ndarray) -> NoiseFit | None:
+    """Allan fit of the gyro rate per sample minus the law ``per_step`` (powered samples)."""
     f = rec.sample_rate_hz
-    per = int(round(f * step))
+    per = int(round(f * rec.step_s))
     rate = rec.rate_deg_per_h
     n_steps = min(per_step.size, rate.size // per)
     powered = np.repeat(rec.power[:n_steps] > 0.5, per)
@@ -200,13 +230,9 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     resid = resid[powered]
     resid = resid[np.isfinite(resid)]            # dropout samples (a gap joins its two sides)
     try:
-        noise = fit_allan(resid, f)
+        return fit_allan(resid, f)
     except ValueError:
-        noise = None
-    return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
-                  uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
-                  noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
-                  per_step_bias_deg_per_h=per_step, gradient_pairs=pairs)
+        return None
 
 
 def bias_features(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],

@@ -55,6 +55,7 @@ from typing import Any, Callable
 import numpy as np
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit, screen
+from rlgsim.estimators.identify.quantisation import quantised_covariance
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
 from rlgsim.sim.thermal import ThermalNetwork
@@ -303,6 +304,7 @@ class ThermalFit:
     nodes_c: np.ndarray
     probe_fit_c: np.ndarray
     notes: list[str] = field(default_factory=list)
+    se_quantised: dict = field(default_factory=dict)
 
 
 #: largest standard error of a log-multiplier still reported as identified (a factor e)
@@ -321,6 +323,44 @@ def _undetermined(res: LsqFit, names: list[str]) -> tuple[int, str] | None:
         return i, (f"standard error of its logarithm {res.se[i]:.2f} > {MAX_LOG_SE:g} (more than "
                    f"a factor e): the recording does not determine it")
     return None
+
+
+SCALE_REASON = ("multiplying every capacity, conductance and heat source by one factor leaves "
+                "every temperature unchanged (divide the heat equation by it): the overall scale "
+                "is invisible in temperatures; the capacities (masses and materials of the "
+                "design) are the best known of the three, so this one keeps the template's "
+                "value and the other multipliers are relative to it")
+
+
+def _overall_scale(names: list[str], residual: Callable[[list[str], np.ndarray], np.ndarray]
+                   ) -> int | None:
+    """Index of the capacity parameter to keep at the template when the recording cannot see
+    the network's overall scale, else ``None``.
+
+    Tested exactly rather than through the Jacobian's conditioning (whose near-degeneracies
+    would pick an arbitrary member): every capacity, conductance and heat-source multiplier
+    (not the probe lags nor the single-source refinements, which are relative to their
+    template's block-wide source) × 1.01 must change no probe reading by more than 10⁻⁷ °C. It holds
+    for a network of capacities, linear links, constant sources and fixed-temperature
+    boundaries; a controlled heater or a nonlinear link breaks it, and then nothing is pinned
+    here (the screen still refuses what the recording cannot separate). The capacity pinned
+    is the first one (the gyro block's, for a template with one)."""
+    # not the probe lags, nor the single-source refinements (relative to the block-wide one)
+    scale = [i for i, n in enumerate(names)
+             if not n.startswith("probe_lag.") and ".power." not in n]
+    caps = [i for i in scale if n_is_capacity(names[i])]
+    if not caps:
+        return None
+    x = np.zeros(len(names))
+    r0 = residual(names, x)
+    x[scale] = math.log(1.01)
+    if np.max(np.abs(residual(names, x) - r0)) > 1e-7:
+        return None
+    return caps[0]
+
+
+def n_is_capacity(name: str) -> bool:
+    return name.endswith(".capacity")
 
 
 def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
@@ -379,6 +419,10 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
 
     free = [p.name for p in params]
     refused: dict[str, str] = {}
+    pin = _overall_scale(free, lambda names, x: residual_for(names)(x))
+    if pin is not None:
+        refused[free[pin]] = SCALE_REASON
+        free.pop(pin)
     J = jac_at(free, np.zeros(len(free)))
     def optional(names: list[str]) -> list[bool]:
         return [n.count(".power.") > 0 for n in names]
@@ -408,6 +452,12 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         free.pop(i)
     mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
     rel_se = dict(zip(free, res.se)) if res is not None else {}
+    se_q = {}
+    if res is not None:
+        _, read_fit, *_ = model(mult)
+        cq = quantised_covariance(res.jac, read_fit[rows], mask, pr0.noise_sigma_c[cols],
+                                  pr0.resolution_c[cols])
+        se_q = dict(zip(free, np.sqrt(np.clip(np.diag(cq), 0, None))))
     nodes, fitted_read, net, pr, fitted = model(mult, full=True)
     _, template_read, *_ = model({}, full=True)
     fitted, changes = apply_multipliers(template, params, mult)
@@ -423,4 +473,5 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
     return ThermalFit(params=params, fit=res, multipliers=mult, rel_se=rel_se, refused=refused,
                       probe_names=tuple(probe_names), rms_template_c=rms(template_read),
                       rms_fitted_c=rms(fitted_read), fitted=fitted, changes=changes,
-                      network=net, probes=pr, nodes_c=nodes, probe_fit_c=fitted_read)
+                      network=net, probes=pr, nodes_c=nodes, probe_fit_c=fitted_read,
+                      se_quantised=se_q)
