@@ -19,7 +19,10 @@ linearisation point is within ``FilterSettings.reuse_tol`` (relative change of t
 window — reuses those gains. Gains are never carried from one window to the next: a window's
 estimates depend on its own pulses only, never on what the process calibrated before, so a
 campaign gives the same bytes for any number of worker processes and any window order
-(:func:`rerun_filter`: a fixed-gain, chord-Newton pass, 8 ms instead of 110 ms). The
+(:func:`rerun_filter`: a fixed-gain, chord-Newton pass). The step loops of both passes run
+compiled (numba, :mod:`rlgsim.estimators._kalman_kernel`: the same algebra without ~20 array
+calls per step, the zero columns of F skipped); a full pass of a 40-min window takes ~25 ms
+instead of ~100 ms, a fixed-gain pass ~2 ms. The
 navigation and the convergence test are unchanged, so the iteration still ends at the
 nonlinear fixed point to within the gains' mismatch: a few 1e-3 σ at the default 1e-3, σ within
 0.2 % (test_window_estimates_equal_their_values_before_the_speed_up).
