@@ -71,6 +71,7 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
     rng = np.random.default_rng(2017)
     zt, zl, zl_exact, rows, chosen = [], [], [], [], []
     z_avg, z_pred, z_pred_true, groups, t_sel, split = [], [], [], [], [], []
+    z_comb, outl = [], []
     true_law = {"c1": 3e-4, "rate": -0.01, "gradient[A-G]": 0.008}
     for u in range(n_units):
         folder = work / f"cov{u}"
@@ -82,10 +83,10 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
                                                      seed=500 + u), folder / "r.h5"))
         fit = fit_thermal(template, rec.air_c, rec.power, rec.step_s, rec.probe_names,
                           rec.probes_c)
-        for k, true in mult.items():
-            if k in fit.multipliers:
-                zt.append((math.log(fit.multipliers[k]) - math.log(true)) / fit.rel_se[k])
-                rows.append((u, k, true, fit.multipliers[k], fit.rel_se[k] * fit.multipliers[k]))
+        for k in fit.multipliers:           # every fitted one (not drawn: truth 1)
+            true = mult.get(k, 1.0)
+            zt.append((math.log(fit.multipliers[k]) - math.log(true)) / fit.rel_se[k])
+            rows.append((u, k, true, fit.multipliers[k], fit.rel_se[k] * fit.multipliers[k]))
         dev_law = {**dev_t, "gyro": {**dev_t["gyro"], "bias": BIAS}}
         t0 = time.perf_counter()
         laws = fit_laws(rec, fit.nodes_c, fit.network.node_names, dev_law)
@@ -95,6 +96,10 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
         groups.append("; ".join(" ~ ".join(g) for g, _ in sel.unseparable) or "-")
         for term, true in true_law.items():          # model-averaged: every unit, every term
             z_avg.append((sel.averaged[term][0] - true) / sel.averaged[term][1])
+        for group, (lead, value, se_c, slopes) in sel.combined.items():
+            true_c = sum(true_law.get(g, 0.0) * slopes[g] for g in group)
+            z_comb.append((value - true_c) / se_c)
+        outl.append(len(laws.outlier_windows_s))
         # the law's prediction (with selection uncertainty) on a programme it was not
         # identified from, against the true law of the same unit there
         rec_b = read_recording(IT.simulate(IT.scenario(folder, dev, programme=IT.PROGRAMME_B,
@@ -134,15 +139,21 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
     print(f"   bias-law terms chosen: {'; '.join(', '.join(c) for c in chosen)}")
     print(f"   the true terms (c1, rate, gradient[A-G]) exactly: {exact} of {n_units} units")
     print(f"   unseparable term groups reported per unit: {' | '.join(groups)}")
+    print(f"   windows left out as outliers per unit: {outl}")
     print(f"   law fit (selection + model averaging) per unit: "
           f"{np.median(t_sel):.2f} s median, {max(t_sel):.2f} s max")
     zp = np.concatenate(z_pred)
     per_unit = [float(np.sqrt(np.mean(z ** 2))) for z in z_pred]
+    print("   (±: binomial standard error of a fraction, √(p(1−p)/n), for independent "
+          "estimates; the prediction's windows are correlated within a unit, so its ± is "
+          "the spread of the per-unit fractions / √units instead)")
     for name, z in (("thermal multipliers", zt),
                     ("bias-law coefficients of the chosen law (its own standard errors)", zl),
                     ("the same when the true terms were chosen", zl_exact),
                     ("bias-law coefficients model-averaged (selection in the standard errors; "
                      "c1, rate, gradient[A-G] of every unit)", z_avg),
+                    ("combined effect of each unseparable group (truth: Σ true coefficient × "
+                     "slope on the lead)", z_comb),
                     (f"law prediction on another programme, per 100 s window ({zp.size} "
                      f"windows; windows of a unit are correlated)", zp),
                     ("the same with the unit's true thermal state on that programme (the law's "
@@ -151,8 +162,17 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
             print(f"   {name}: none")
             continue
         z = np.abs(z)
-        print(f"   {name}: {len(z)} estimates, |z| < 1: {np.mean(z < 1):.0%} (nominal 68 %), "
-              f"|z| < 2: {np.mean(z < 2):.0%} (nominal 95 %), largest |z| {z.max():.2f}")
+        if len(z) == zp.size and name.startswith(("law prediction", "the same with")):
+            parts = z_pred if name.startswith("law") else z_pred_true
+            pu = [np.abs(q) for q in parts]
+            e1 = np.std([np.mean(q < 1) for q in pu], ddof=1) / np.sqrt(len(pu))
+            e2 = np.std([np.mean(q < 2) for q in pu], ddof=1) / np.sqrt(len(pu))
+        else:
+            e1 = np.sqrt(np.mean(z < 1) * (1 - np.mean(z < 1)) / len(z))
+            e2 = np.sqrt(np.mean(z < 2) * (1 - np.mean(z < 2)) / len(z))
+        print(f"   {name}: {len(z)} estimates, |z| < 1: {np.mean(z < 1):.0%} ± {e1:.0%} "
+              f"(nominal 68 %), |z| < 2: {np.mean(z < 2):.0%} ± {e2:.0%} (nominal 95 %), "
+              f"largest |z| {z.max():.2f}")
     print(f"   law prediction on another programme: RMS of z per unit "
           f"{', '.join(f'{v:.2f}' for v in per_unit)} (nominal 1); with the true thermal "
           f"state {', '.join(f'{np.sqrt(np.mean(z ** 2)):.2f}' for z in z_pred_true)}")

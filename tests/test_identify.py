@@ -217,7 +217,16 @@ def test_recording_with_dropout_rows_is_identified(tmp_path):
     assert not {1100.0, 4100.0} & set(w["time_s"])
     kept = clean[~clean["time_s"].isin([1100.0, 4100.0])].reset_index(drop=True)
     pd.testing.assert_frame_equal(w, kept)
-    r = identify(gappy, tmp_path / "twin", device_template=str(dev),
+    # and a read-out spike (40 extra pulses in one sample, 0.19 °/h on its window): that
+    # window is left out of the bias law as an outlier, the others are kept
+    table.loc[2550, gyro] += 40
+    spiked = tmp_path / "spiked.csv"
+    table.to_csv(spiked, index=False)
+    spiked.with_suffix(".toml").write_text(csv.with_suffix(".toml").read_text())
+    r = identify(spiked, tmp_path / "twin", device_template=str(dev),
                  thermal_template="rlg_single")
     assert len(r.data.windows) == len(clean) - 2
     assert max(r.thermal.rms_fitted_c.values()) < 0.1
+    assert r.laws.outlier_windows_s == (2600.0,)
+    assert r.laws.bias.residual.size == len(clean) - 3
+    assert "left out as outliers" in (tmp_path / "twin" / "report.md").read_text()

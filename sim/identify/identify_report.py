@@ -56,9 +56,8 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
         f"`{thermal_name}` in {result.seconds:.1f} s. Files: `thermal.toml`, `device.toml`, "
         f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
         f"`rlgsim run {result.scenario_path.name}`).")
-    if d.has_motion:
-        rep.paragraph("The recording has turntable motion; the scale factor is not identified "
-                      "(kept from the template).")
+    from rlgsim.sim.identify.twin import scale_factor_line
+    rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")
     rep.heading("Thermal network")
     rows = []
     for p in th.params:
@@ -108,13 +107,18 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
         f"Law node `{laws.bias_node}`, t_ref {laws.t_ref_c:g} °C. Chosen terms: "
         f"{', '.join(laws.bias.terms) or 'none (constant)'}. Window residual RMS "
         f"{laws.bias_rms_deg_per_h:.5f} °/h against a raw window standard deviation of "
-        f"{laws.raw_std_deg_per_h:.5f} °/h.")
+        f"{laws.raw_std_deg_per_h:.5f} °/h."
+        + (f" {len(laws.outlier_windows_s)} window(s) left out as outliers (a whitened "
+           f"residual beyond 5.5: a read-out spike or a step the law does not hold), ending at "
+           + ", ".join(f"{t / 3600:.2f} h" for t in laws.outlier_windows_s) + "."
+           if laws.outlier_windows_s else ""))
     _law_tables(rep, laws.bias, "Bias law", "°/h")
     fig, ax = plt.subplots(figsize=(9, 3.5))
     tw = np.asarray(d.windows["time_s"]) / 3600
     y = np.asarray(d.windows["bias_deg_per_h"])
     ax.plot(tw, y, ".", ms=3, label="recorded (100 s windows)")
-    ax.plot(tw, y + laws.bias.residual, lw=1, label="twin law")
+    kept = ~np.isin(np.asarray(d.windows["time_s"]), laws.outlier_windows_s)
+    ax.plot(tw[kept], y[kept] + laws.bias.residual, lw=1, label="twin law")
     ax.set_xlabel("time [h]")
     ax.set_ylabel("bias [°/h]")
     ax.legend(fontsize=8)

@@ -64,6 +64,20 @@ class LawFit:
     raw_std_deg_per_h: float
     per_step_bias_deg_per_h: np.ndarray
     gradient_pairs: dict[str, tuple[str, str]]
+    #: end times [s] of the windows left out of the bias law as outliers
+    outlier_windows_s: tuple[float, ...] = ()
+
+
+#: |innovation| (whitened window residual) beyond which a window is left out of the bias law:
+#: 5.5 standard deviations, which independent Gaussian windows exceed once in 26 million, so
+#: a 20 h recording (720 windows) loses a sound window once in 36,000 recordings
+OUTLIER_Z = 5.5
+
+
+def _subset(cands: list[Term], keep: np.ndarray) -> list[Term]:
+    """The candidate terms on the windows ``keep`` only."""
+    return [Term(t.name, (lambda th, f=t.feature: np.asarray(f(th))[keep]), t.theta_names,
+                 t.grid, t.lower, t.upper) for t in cands]
 
 
 def _node(block: str, name: str, names: tuple[str, ...]) -> int:
@@ -187,6 +201,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     T = nodes_c[:, _node(block, bias_node, node_names)]
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
+    outliers: tuple[float, ...] = ()
     cands = _candidates(T, t_ref, step, win, law, extra)
     per_step_terms = _per_step(T, t_ref, step, extra)
     # first pass: ordinary least squares, whose residual gives the noise model ...
@@ -201,13 +216,21 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
         cov = covariance_from_fit(noise, starts, rec.window_s, tau_min_s=band[0],
                                   tau_max_s=band[1], per_decade=band[2])
         bias_sel = select_terms(y, cands, noise_cov=cov)
+        # windows the noise model cannot explain (a read-out spike, a step): left out once
+        bad = np.flatnonzero(np.abs(bias_sel.fit.residual) > OUTLIER_Z)
+        if bad.size:
+            keep = np.setdiff1d(np.arange(y.size), bad)
+            outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
+            bias_sel = select_terms(y[keep], _subset(cands, keep),
+                                    noise_cov=cov[np.ix_(keep, keep)])
         per_step = law_prediction(bias_sel, per_step_terms)
         noise = _noise(rec, per_step) or noise
     rms = float(np.sqrt(np.mean(bias_sel.residual ** 2)))
     return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
                   uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
                   noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
-                  per_step_bias_deg_per_h=per_step, gradient_pairs=pairs)
+                  per_step_bias_deg_per_h=per_step, gradient_pairs=pairs,
+                  outlier_windows_s=outliers)
 
 
 def _flicker_band(device: dict) -> tuple[float, float, int]:

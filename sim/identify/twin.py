@@ -133,6 +133,20 @@ def _law_header(sel) -> str:
     return "\n".join(lines)
 
 
+def scale_factor_line(data: RecordingData) -> str:
+    """The one line saying why the scale factor (and its temperature law) keeps the
+    template's values."""
+    if not data.has_motion:
+        return ("scale factor: kept from the template — the recording has no turntable motion; "
+                "a static gyro sees only the Earth rate's component on its axis (≈ 10 °/h), on "
+                "which a scale-factor change of 10 ppm is 10⁻⁴ °/h, indistinguishable from a "
+                "bias change; identifying it needs rate steps on a turntable at several "
+                "temperatures")
+    return ("scale factor: kept from the template — the recording has turntable motion, but "
+            "identifying the scale factor and its temperature law from rate steps is not "
+            "implemented")
+
+
 def _thermal_text(fit: ThermalFit, tname: str, source: str) -> tuple[dict, str]:
     comments = {}
     for path, (param, old, new) in fit.changes.items():
@@ -281,7 +295,7 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
                                  f"template: {dev_name}; bias and UHFO terms chosen by BIC, "
                                  f"noise from the Allan deviation of the law residual"
                                  + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
-                                    else ""))
+                                    else "") + "\n" + scale_factor_line(data))
     stext = _scenario_text(data, name)
     for text in (ttext, dtext, stext):
         tomllib.loads(text)                        # never write what cannot be read back
