@@ -58,7 +58,7 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
 from rlgsim.sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
 from rlgsim.sim.rng import generator
-from rlgsim.sim.sensor_triad import count_pulses
+from rlgsim.sim.sensor_triad import count_pulses, step_inputs
 from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
 _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
@@ -348,6 +348,10 @@ class ImuSimulator:
             "slow": self.slow.draws(b, m)}
         if acc is not None:
             out["za"] = self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
+        # steps at rest (one increment for all their samples): evaluated once per step
+        idx = sample_step_index(n, m, self.rate_hz, self.step_s)
+        out["steps_g"] = step_inputs(out["dth_t"], m, idx)
+        out["steps_a"] = step_inputs(out["dv_t"], m, idx) if acc is not None else None
         if uh is not None:
             out["uhfo"] = uh.draws(self.seed, self.unit, b, m)
         return out
@@ -427,7 +431,7 @@ class ImuSimulator:
         gyro_pulses, g_rem = count_pulses(state.gyro_remainder, gp.scale_factor, gp.bias,
                                           gp.installation, dth_t, inputs["zg"],
                                           self.gyro_white_sigma, self.sample_dt, idx, power,
-                                          g.axis_idx)
+                                          g.axis_idx, steps=inputs["steps_g"])
         valid = None
         if an is not None:                      # read-out spikes, lost frames (after counting)
             k0_sample = int(math.floor(k0 * dt * self.rate_hz + 1e-9))   # first sample
@@ -448,7 +452,8 @@ class ImuSimulator:
                                                ap.bias, ap.installation, dv_t, inputs["za"],
                                                self.accel_white_sigma, self.sample_dt, idx,
                                                power, acc.axis_idx,
-                                               scale_factor_neg=ap.scale_factor_neg)
+                                               scale_factor_neg=ap.scale_factor_neg,
+                                               steps=inputs["steps_a"])
             if valid is not None and not valid.all():     # lost frames lose every channel
                 accel_pulses = an.other_pulses(valid, k0_sample, self.rate_hz, accel_pulses,
                                                acc.axes)

@@ -202,20 +202,62 @@ def row_times(u: np.ndarray, tmp: np.ndarray, row: np.ndarray, x_t: np.ndarray, 
             u += tmp
 
 
+def step_inputs(x_t: np.ndarray, m: int, idx: np.ndarray | int
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """For the increments ``x_t`` (3, n) of a block of ``m`` steps: which steps hold the same
+    increment (bit for bit, all three axes) in every sample — the turntable at rest: a static
+    sample's increment depends only on the position — and each step's first sample (3, m).
+    None unless every step holds ``idx`` samples. :func:`count_pulses` evaluates the
+    measurement equation of such steps once per step: the same operations on the same
+    numbers, so the same result for every sample."""
+    if not isinstance(idx, int) or x_t.shape[1] != m * idx:
+        return None
+    xs = x_t.reshape(3, m, idx)
+    first = np.ascontiguousarray(xs[:, :, 0])
+    bits = xs.view(np.int64)                      # bit patterns: ±0 and NaN compared exactly
+    uniform = (bits == first.view(np.int64)[:, :, None]).all(axis=2).all(axis=0)
+    return uniform, first
+
+
 def _channel(u: np.ndarray, tmp: np.ndarray, s: int, scale_factor: np.ndarray, a: np.ndarray,
              installation: np.ndarray, x_t: np.ndarray, z: np.ndarray | None,
              sigma: np.ndarray, idx: np.ndarray | int, own: int,
              scale_factor_neg: np.ndarray | None, off: np.ndarray | None,
-             scale: float) -> None:
+             scale: float, steps: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Channel ``s``'s increments × ``scale`` into ``u`` (n,) (see :func:`phase_increments`;
     ``a`` = D·Δt, ``off`` the samples while unpowered or None). ``scale`` a power of two
-    multiplies the scale factor first: K·2^k is exact and so is every product with it."""
-    row_times(u, tmp, installation[:, s], x_t, own, idx)
-    ub = _by_step(u, idx)
-    ub += _held(a[:, s], idx)
-    if z is not None:
-        np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
-        u += tmp
+    multiplies the scale factor first: K·2^k is exact and so is every product with it.
+    ``steps`` (:func:`step_inputs`): the row products and the bias of a step whose samples
+    share one increment are computed once for the step, and only the noise per sample."""
+    if steps is not None:
+        uniform, first = steps
+        m = first.shape[1]
+        base = np.empty(m)
+        row_times(base, np.empty(m), installation[:, s], first, own, 1)
+        base += a[:, s]
+        ub = u.reshape(m, idx)
+        if z is not None:
+            np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
+            np.add(tmp.reshape(m, idx), base[:, None], out=ub)
+        else:
+            ub[...] = base[:, None]
+        moving = np.flatnonzero(~uniform)
+        if moving.size:                         # steps whose samples differ: sample by sample
+            k = moving.size * idx
+            x_m = x_t.reshape(3, m, idx)[:, moving].reshape(3, k)
+            um, tm = np.empty(k), np.empty(k)
+            row_times(um, tm, installation[moving, s], x_m, own, idx)
+            _by_step(um, idx)[...] += a[moving, s][:, None]
+            if z is not None:
+                um += tmp.reshape(m, idx)[moving].reshape(k)
+            ub[moving] = um.reshape(-1, idx)
+    else:
+        row_times(u, tmp, installation[:, s], x_t, own, idx)
+        ub = _by_step(u, idx)
+        ub += _held(a[:, s], idx)
+        if z is not None:
+            np.multiply(z[s], sigma[s], out=tmp, dtype=np.float64)
+            u += tmp
     k = scale_factor[:, s] * scale if scale != 1.0 else scale_factor[:, s]
     if scale_factor_neg is None:
         ub *= _held(k, idx)
@@ -257,7 +299,8 @@ def phase_increments(scale_factor: np.ndarray, bias: np.ndarray, installation: n
 
 
 def _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx, power,
-                own_axis, scale_factor_neg, scale, channel_done=None) -> np.ndarray:
+                own_axis, scale_factor_neg, scale, channel_done=None, steps=None
+                ) -> np.ndarray:
     a = bias * sample_dt
     n = x_t.shape[1]
     c = bias.shape[1]
@@ -268,7 +311,7 @@ def _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx,
     for s in range(c):
         u = out[s] if channel_done is None else out[0]
         _channel(u, tmp, s, scale_factor, a, installation, x_t, z, sigma, idx, own[s],
-                 scale_factor_neg, off, scale)
+                 scale_factor_neg, off, scale, steps)
         if channel_done is not None:
             channel_done(s, u)
     return out
@@ -278,13 +321,15 @@ def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarr
                  installation: np.ndarray, x_t: np.ndarray, z: np.ndarray | None,
                  sigma: np.ndarray, sample_dt: float, idx: np.ndarray | int,
                  power: np.ndarray | None = None, own_axis: np.ndarray | None = None,
-                 scale_factor_neg: np.ndarray | None = None
+                 scale_factor_neg: np.ndarray | None = None,
+                 steps: tuple[np.ndarray, np.ndarray] | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Pulses (n, C) int32 and the new remainders (C,) int64 of one block: the increments of
     :func:`phase_increments` counted by :mod:`rlgsim.sim.pulses` with the carried
     ``remainder`` (C,) — bit for bit ``pulses.count_fixed(pulses.quantise(inc), r)`` per
     channel, computed one channel at a time in one reused buffer with the fixed-point factor
-    2^30 folded into the scale factor (exact: a power of two)."""
+    2^30 folded into the scale factor (exact: a power of two). ``steps``: :func:`step_inputs`
+    of ``x_t`` (steps at rest evaluated once per step), or None."""
     from rlgsim.sim import pulses as counter
     n, c = x_t.shape[1], bias.shape[1]
     out = np.empty((n, c), dtype=np.int32)
@@ -293,5 +338,5 @@ def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarr
     def done(s: int, u: np.ndarray) -> None:
         _, new[s] = counter.count_scaled(u, int(remainder[s]), out[:, s])
     _increments(scale_factor, bias, installation, x_t, z, sigma, sample_dt, idx, power,
-                own_axis, scale_factor_neg, float(counter.ONE), done)
+                own_axis, scale_factor_neg, float(counter.ONE), done, steps)
     return out, new
