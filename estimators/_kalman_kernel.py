@@ -175,3 +175,58 @@ def rerun_loop(f_dyn, nz_idx, nz_cnt, gains, mask, z_all, x, ys):  # pragma: no 
             ys[j, 2] = y2
             j += 1
     return j
+
+
+@njit(cache=True, nogil=True)
+def input_transition(e_j, c, dtheta, dv, per_sub, h, gyro_mis, accel_mis):  # pragma: no cover
+    """Φ_ξp (K, 6, 24) = Σ_j expm(M (T − τ_j)) ∫_j B dt of
+    :func:`~rlgsim.estimators.kalman_calibration._transition_pieces`, with the sub-step sums of
+    the increments (Σ Δθ, Σ Δv⁺, Σ Δv⁻) taken here: ``e_j`` (m, 6, 6) the exponentials,
+    ``c`` (K·m, 3, 3) the attitude C_b^n at each sub-step middle, ``dtheta``/``dv`` (≥ K·m·
+    per_sub, 3) the increments, ``h`` the sub-step [s], ``gyro_mis``/``accel_mis`` (6, 2)/(3, 2)
+    the misalignment states' (row, column) of E_g and E_a. ∫_j B dt per sub-step (6, 24):
+    φ rows −C [h I | diag ΣΔθ | Γ-map(ΣΔθ)], δv rows C [h I | diag ΣΔv⁺ | diag ΣΔv⁻ |
+    L-map(ΣΔv)]."""
+    m = e_j.shape[0]
+    n_sub = c.shape[0]
+    n_steps = n_sub // m
+    out = np.zeros((n_steps, 6, 24))
+    b = np.zeros((6, 24))
+    th = np.empty(3)
+    vp = np.empty(3)
+    vn = np.empty(3)
+    for s in range(n_sub):
+        for a in range(3):
+            th[a] = 0.0
+            vp[a] = 0.0
+            vn[a] = 0.0
+        for q in range(s * per_sub, (s + 1) * per_sub):
+            for a in range(3):
+                th[a] += dtheta[q, a]
+                u = dv[q, a]
+                if u > 0.0:
+                    vp[a] += u
+                else:
+                    vn[a] += u
+        for r in range(3):
+            for a in range(3):
+                b[r, a] = -c[s, r, a] * h
+                b[r, 3 + a] = -c[s, r, a] * th[a]
+                b[3 + r, 12 + a] = c[s, r, a] * h
+                b[3 + r, 15 + a] = c[s, r, a] * vp[a]
+                b[3 + r, 18 + a] = c[s, r, a] * vn[a]
+            for col in range(gyro_mis.shape[0]):
+                b[r, 6 + col] = -c[s, r, gyro_mis[col, 0]] * th[gyro_mis[col, 1]]
+            for col in range(accel_mis.shape[0]):
+                j = accel_mis[col, 1]
+                b[3 + r, 21 + col] = c[s, r, accel_mis[col, 0]] * (vp[j] + vn[j])
+        k = s // m
+        jj = s - k * m
+        for r in range(6):
+            for q in range(6):
+                e = e_j[jj, r, q]
+                if e == 0.0:
+                    continue
+                for col in range(24):
+                    out[k, r, col] += e * b[q, col]
+    return out

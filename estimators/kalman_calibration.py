@@ -100,7 +100,7 @@ from typing import Sequence
 import numpy as np
 from scipy.linalg import expm
 
-from rlgsim.estimators._kalman_kernel import filter_loop, rerun_loop
+from rlgsim.estimators._kalman_kernel import filter_loop, input_transition, rerun_loop
 from rlgsim.estimators.strapdown import (ARCSEC, DEG, NavSolution, SensorModel, coarse_level,
                                   earth_rate_enu, navigate, normal_gravity, rotation_matrix,
                                   skew, table_attitude)
@@ -127,6 +127,8 @@ SCALE_WANDER = np.array(([DEG_PER_H] * 3 + [UG] * 3) * 3)
 #: Gyro misalignment states (row, column) of E_g, and accelerometer ones of E_a.
 GYRO_MIS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 ACCEL_MIS = ((1, 0), (2, 0), (2, 1))
+_GYRO_MIS_IDX = np.array(GYRO_MIS, dtype=np.intp)
+_ACCEL_MIS_IDX = np.array(ACCEL_MIS, dtype=np.intp)
 
 STATE_NAMES = (["phi_e", "phi_n", "phi_u", "dv_e", "dv_n", "dv_u"]
                + [f"gyro_bias_{a}" for a in "xyz"] + [f"gyro_sf_{a}" for a in "xyz"]
@@ -323,27 +325,13 @@ def _transition_pieces(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, per
     M[0:3, 0:3] = -skew(w_ie)
     M[3:6, 0:3] = F
     phi_xx, e_j = _exponentials(M.tobytes(), T, m)
-    # sub-step sums of the increments
-    th = dtheta[:used].reshape(n_sub, per_sub, 3).sum(1)
-    dvs = dv[:used].reshape(n_sub, per_sub, 3)
-    dv_pos = np.maximum(dvs, 0.0).sum(1)
-    dv_neg = np.minimum(dvs, 0.0).sum(1)
-    dv_all = dv_pos + dv_neg
     mid = np.arange(n_sub) * per_sub + max(per_sub // 2 - 1, 0)     # sample ending mid-sub-step
     c = nav.attitude(mid)
-    b = np.zeros((n_sub, 6, 24))
-    # φ rows: −C [h I | diag Δθ | Γ-map(Δθ)]
-    b[:, 0:3, 0:3] = -c * h
-    b[:, 0:3, 3:6] = -c * th[:, None, :]
-    for col, (i, j) in enumerate(GYRO_MIS):
-        b[:, 0:3, 6 + col] = -c[:, :, i] * th[:, j:j + 1]
-    # δv rows: C [h I | diag Δv⁺ | diag Δv⁻ | L-map(Δv)]
-    b[:, 3:6, 12:15] = c * h
-    b[:, 3:6, 15:18] = c * dv_pos[:, None, :]
-    b[:, 3:6, 18:21] = c * dv_neg[:, None, :]
-    for col, (i, j) in enumerate(ACCEL_MIS):
-        b[:, 3:6, 21 + col] = c[:, :, i] * dv_all[:, j:j + 1]
-    phi_xp = np.einsum("jab,kjbc->kac", e_j, b.reshape(n_steps, m, 6, 24), optimize=True)
+    # Σ_j expm(M (T − τ_j)) ∫_j B dt with the sub-step sums of the increments, compiled
+    # (estimators/_kalman_kernel.py; numpy's version built a (K·m, 6, 24) array first)
+    phi_xp = input_transition(e_j, np.ascontiguousarray(c), np.ascontiguousarray(dtheta[:used]),
+                              np.ascontiguousarray(dv[:used]), per_sub, h, _GYRO_MIS_IDX,
+                              _ACCEL_MIS_IDX)
     # process noise, closed form with C at the step middle
     c_step = c.reshape(n_steps, m, 3, 3)[:, m // 2]
     qg = np.einsum("kij,j,klj->kil", c_step, settings.arw_rad_per_sqrt_s ** 2, c_step)
