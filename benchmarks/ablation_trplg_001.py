@@ -63,7 +63,7 @@ def _no_airflow(th: str, dev: str) -> tuple[str, str]:
 
 
 def _no_mount(th: str, dev: str) -> tuple[str, str]:
-    th = re.sub(r"^mass_kg = [0-9.]+(\s+# fitted: mounting-plate mass)", r"mass_kg = 0.1\1", th,
+    th = re.sub(r"^mass_kg = [0-9.]+(\s+# judgement: mounting-plate mass)", r"mass_kg = 0.1\1", th,
                 flags=re.M)
     th = re.sub(r'\[\[thermal\.links\]\]\nbetween = \["plate", "lab"\]\n[^\n]*\n', "", th)
     return th, dev

@@ -73,3 +73,31 @@ def device_coefficients_section(rep, coefficients: dict[str, float], path=None) 
     rep.heading("Drawn device parameters (truth)", 2)
     rep.table(Table.from_records("Device coefficients", rows,
                                  csv_name="device_coefficients.csv"))
+
+
+def anomaly_events(paths) -> list[tuple[float, str, float, str]]:
+    """The labelled anomaly events (time [s], kind, size, size units) of the datasets at
+    ``paths`` (docs/sensors.md "Anomalies"); none for a dataset without the record (a
+    recording, or a device without ``[anomalies]``)."""
+    from rlgsim.ground.dataset_format import ANOMALIES, open_dataset
+    out = []
+    for path in paths:
+        with open_dataset(path) as ds:
+            if not ds.has(ANOMALIES, "kind"):
+                continue
+            out += list(zip(ds.read(ANOMALIES, "time").tolist(), ds.strings(ANOMALIES, "kind"),
+                            ds.read(ANOMALIES, "size").tolist(),
+                            ds.strings(ANOMALIES, "size_units")))
+    return out
+
+
+def weight_spread(scores: dict[str, float], groups: dict[str, list[str]]
+                  ) -> tuple[float, str]:
+    """Largest relative spread [%] of ``scores`` within a group (the four IR-LSSVM weights of
+    one input set: (max − min)/min of their bias stability) and that group's name."""
+    best, where = 0.0, ""
+    for name, members in groups.items():
+        v = [scores[m] for m in members]
+        if len(v) > 1 and min(v) > 0 and (max(v) - min(v)) / min(v) * 100 >= best:
+            best, where = (max(v) - min(v)) / min(v) * 100, name
+    return best, where
