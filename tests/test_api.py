@@ -67,7 +67,8 @@ def test_run_in_memory_and_tree_times(short, tmp_path, monkeypatch):
     np.testing.assert_allclose(imu["sample_time"].values, (np.arange(n) + 1) / 10.0,
                                rtol=1e-15, atol=1e-12)
     for name, node in tree.children.items():     # a time coordinate on every group
-        assert any(c in node.coords for c in ("time", "sample_time", "t0")), name
+        assert (any(c in node.coords for c in ("time", "sample_time", "t0"))
+                or (name == "anomalies" and "time" in node.data_vars)), name   # event record
     assert "details" in tree["timeline"] and "attrs" not in tree["timeline"].data_vars
     lazy = rlgsim.open_tree(path)
     np.testing.assert_array_equal(lazy["imu"]["gyro_pulses"].values,

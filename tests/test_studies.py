@@ -245,10 +245,11 @@ def test_an_edited_device_or_thermal_preset_is_simulated_again(tmp_path):
 
     shipped = ROOT / "scenarios"
     device = (shipped / "devices" / "trplg_001.toml").read_text()
-    assert 'thermal_preset = "rlg_single"' in device
-    (tmp_path / "dev.toml").write_text(device.replace('thermal_preset = "rlg_single"',
+    assert 'thermal_preset = "trplg_001_cabinet"' in device
+    (tmp_path / "dev.toml").write_text(device.replace('thermal_preset = "trplg_001_cabinet"',
                                                       'thermal_preset = "therm.toml"'))
-    (tmp_path / "therm.toml").write_text((shipped / "thermal" / "rlg_single.toml").read_text())
+    (tmp_path / "therm.toml").write_text(
+        (shipped / "thermal" / "trplg_001_cabinet.toml").read_text())
     (tmp_path / "run.toml").write_text(
         'name = "run"\ndevice = "dev.toml"\nseed = 5\n[acquisition]\nsample_rate_hz = 10\n'
         '[power]\non_at_s = 0\n[chamber]\nstart_c = 25.0\n[[chamber.segments]]\n'
