@@ -231,3 +231,28 @@ def test_generalised_least_squares_equals_statsmodels_and_covers_under_flicker()
           "OLS", np.mean(z_ols < 1), np.mean(z_ols < 2))
     assert 0.55 <= np.mean(z_gls < 1) and np.mean(z_gls < 2) >= 0.88
     assert np.mean(z_gls < 2) > np.mean(z_ols < 2)
+
+
+def test_quantised_reading_covariance_against_analytic_cases():
+    """rlgsim.estimators.identify.quantisation: the mean of quantised readings of a constant
+    temperature keeps the whole quantisation error (variance q²/12, not q²/12n: the error is
+    held), two probes with independent grid offsets halve it, and noise far above the
+    resolution dithers the error white ((σ² + q²/12)/n)."""
+    from rlgsim.estimators.identify.quantisation import quantised_covariance
+    n, q = 500, 0.0625
+    J = np.ones((n, 1))
+    soak = np.full((n, 1), 21.3)
+    ok = np.ones((n, 1), dtype=bool)
+    var = quantised_covariance(J, soak, ok, np.zeros(1), np.full(1, q), draws=2000)[0, 0]
+    assert var == pytest.approx(q ** 2 / 12, rel=0.1)
+    two = quantised_covariance(np.ones((2 * n, 1)), np.full((n, 2), 21.3), np.ones((n, 2), bool),
+                               np.zeros(2), np.full(2, q), draws=2000)[0, 0]
+    assert two == pytest.approx(q ** 2 / 24, rel=0.1)
+    sigma = 1.0
+    white = quantised_covariance(J, soak, ok, np.full(1, sigma), np.full(1, q), draws=2000)
+    assert white[0, 0] == pytest.approx((sigma ** 2 + q ** 2 / 12) / n, rel=0.1)
+    # a missing reading carries no error: half the samples masked, half the held error
+    half = ok.copy()
+    half[::2] = False
+    var2 = quantised_covariance(J, soak, half, np.zeros(1), np.full(1, q), draws=2000)[0, 0]
+    assert var2 == pytest.approx(q ** 2 / 48, rel=0.1)

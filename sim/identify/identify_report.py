@@ -82,10 +82,13 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                                      pairs or [{"a": "-", "b": "-", "correlation": None}],
                                      note="pairs with |r| > 0.8; above 0.99 a parameter is "
                                           "refused"))
-        rep.paragraph(f"Standard errors: sandwich covariance with batch means of the scores "
-                      f"(8 per probe), ×{th.fit.inflation:.2f} the independent-residual value "
-                      f"(residual lag-one correlation {th.fit.rho:.3f}); {th.fit.nfev} "
-                      f"evaluations of the network over the whole recording in the fit.")
+        rep.paragraph(f"Standard errors: the larger of two — the sandwich covariance with "
+                      f"batch means of the scores (8 per probe), ×{th.fit.inflation:.2f} the "
+                      f"independent-residual value (residual lag-one correlation "
+                      f"{th.fit.rho:.3f}), and the probes' error model (the template's "
+                      f"resolution and noise, the quantisation grid at a random offset) carried "
+                      f"through the Jacobian; {th.fit.nfev} evaluations of the network over the "
+                      f"whole recording in the last fit.")
     rep.table(Table.from_records("Probe residual RMS [°C]", [
         {"probe": n, "template": th.rms_template_c[n], "fitted twin": th.rms_fitted_c[n]}
         for n in th.probe_names]))

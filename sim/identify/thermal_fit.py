@@ -304,6 +304,9 @@ class ThermalFit:
     nodes_c: np.ndarray
     probe_fit_c: np.ndarray
     notes: list[str] = field(default_factory=list)
+    #: standard errors of the log-multipliers from the probes' error model alone
+    #: (:func:`rlgsim.estimators.identify.quantisation.quantised_covariance`); ``rel_se`` is
+    #: the larger of these and the batch-means sandwich (``fit.se``)
     se_quantised: dict = field(default_factory=dict)
 
 
@@ -437,8 +440,13 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         J = np.delete(J, i, axis=1)
     res = None
     x = np.zeros(len(free))
-    for _ in range(8):
+    # one refusal per refit, until the screen passes: every refusal is followed by a fit on
+    # the remaining parameters, so the estimates are always those of the reported set (the
+    # loop used to stop after 8 fits and could pair the last fit's values with a set that
+    # had lost one more name)
+    while True:
         if not free:
+            res = None
             break
         res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
                   segments=len(probe_names), diff_step=1e-6, batches=8)
@@ -450,14 +458,19 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         refused[free[i]] = why + " (at the fitted values)"
         x = np.delete(res.x, i)
         free.pop(i)
+    assert res is None or list(res.names) == free
     mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
     rel_se = dict(zip(free, res.se)) if res is not None else {}
     se_q = {}
     if res is not None:
+        # the probes' own error model (resolution, noise) carried through the Jacobian; the
+        # reported standard error is the larger of it and the batch means (which also see
+        # what the error model does not: a template family that cannot follow the unit)
         _, read_fit, *_ = model(mult)
         cq = quantised_covariance(res.jac, read_fit[rows], mask, pr0.noise_sigma_c[cols],
                                   pr0.resolution_c[cols])
         se_q = dict(zip(free, np.sqrt(np.clip(np.diag(cq), 0, None))))
+        rel_se = {k: max(v, se_q[k]) for k, v in rel_se.items()}
     nodes, fitted_read, net, pr, fitted = model(mult, full=True)
     _, template_read, *_ = model({}, full=True)
     fitted, changes = apply_multipliers(template, params, mult)
