@@ -21,7 +21,9 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
 4. pulse counting with carried remainders (:mod:`rlgsim.sim.pulses`).
 
 The state-free inputs of the next block (increments, normals, slow-noise and UHFO drives) are
-computed in a worker thread while the current block runs (:meth:`ImuSimulator._get_inputs`).
+computed in a worker thread while the current block runs (:meth:`ImuSimulator._get_inputs`),
+with the thermal steps at rest (every sample the same increment, bit for bit), whose
+measurement equation :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step.
 
 Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
 docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
