@@ -27,6 +27,9 @@ default / ``--fit``  the bias law's three coefficients the paper's inputs see di
     python benchmarks/fit_trplg_001.py                  Table 1 and raw stability, shipped presets
     python benchmarks/fit_trplg_001.py --fit            refit c1, rate, uhfo
     python benchmarks/fit_trplg_001.py --heater [--half-width K]
+    python benchmarks/fit_trplg_001.py --timing         simulation time of paper001_train at
+                                                        100 Hz with and without the heater
+                                                        (one process, alternating, best of 2)
     --thermal/--device PATH                              variants of the presets
 """
 
@@ -151,7 +154,6 @@ def simulate(tmp: pathlib.Path, thermal_text: str, device_text: str, *,
 
 def windows(path: pathlib.Path):
     """The study's window series (100 s, T from probe g.A, UHFO) of one run."""
-    from rlgsim.ground.errors import UserInputError  # noqa: F401  (the reader's errors)
     from rlgsim.sim.studies.runs import read_run
     from rlgsim.sim.studies.study_tables import FeatureSpec
     from rlgsim.sim.config import Ctx
@@ -203,8 +205,6 @@ def fit_law(thermal_text: str, device_text: str) -> dict[str, float]:
         path = simulate(tmp, thermal_text, device_with(device_text, dict.fromkeys(LAW_KEYS, 0.0)))
         rs = windows(path)
         Z = law_terms(path)
-    n = len(rs.y)
-    Z = Z[:n] if len(Z) >= n else Z
     keep = np.isin(np.arange(len(Z)) * 100.0 + 100.0, rs.time_s)
     Z = Z[keep]
 
@@ -251,10 +251,34 @@ def report(thermal_text: str, device_text: str, label: str = "shipped presets") 
     return f
 
 
+def timing(thermal_text: str, device_text: str, repeats: int = 2) -> None:
+    """Wall time of simulating paper001_train at 100 Hz with the heater and without it (the
+    heater makes the network run step by step, docs/thermal.md §1.2b)."""
+    import os
+
+    from _machine import machine
+    bare = re.sub(r"^\[thermal\.heaters\.[^\]]*\]\n(?:(?!\[).*\n|\n)*", "", thermal_text,
+                  count=1, flags=re.M)
+    best = {"with heater": np.inf, "without heater": np.inf}
+    load0 = os.getloadavg()[0]
+    for _ in range(repeats):
+        for label, th in (("with heater", thermal_text), ("without heater", bare)):
+            with tempfile.TemporaryDirectory() as d:
+                t0 = time.perf_counter()
+                simulate(pathlib.Path(d), th, device_text, rate_hz=100.0)
+                best[label] = min(best[label], time.perf_counter() - t0)
+    print(f"machine: {machine()}; load average {load0:.2f} → {os.getloadavg()[0]:.2f}")
+    print(f"paper001_train (25.67 h at 100 Hz), best of {repeats}: with heater "
+          f"{best['with heater']:.1f} s, without {best['without heater']:.1f} s, ratio "
+          f"{best['with heater'] / best['without heater']:.2f} (target: the paper001 study "
+          f"≤ 60 s cold on 2 cores, docs/studies.md)")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--fit", action="store_true")
     ap.add_argument("--heater", action="store_true")
+    ap.add_argument("--timing", action="store_true")
     ap.add_argument("--half-width", type=float, default=38.0,
                     help="cavity span [K] either side of the 25 °C lock point (--heater)")
     ap.add_argument("--thermal", type=pathlib.Path, default=THERMAL)
@@ -274,6 +298,9 @@ def main(argv: list[str] | None = None) -> int:
               f"(cavity {h['cavity_hi_c']:.1f} °C)")
         return 0
     thermal, device = a.thermal.read_text(), a.device.read_text()
+    if a.timing:
+        timing(thermal, device)
+        return 0
     if a.fit:
         fit_law(thermal, device)
         return 0
