@@ -20,6 +20,7 @@ the original: the Spearman rank correlation of the two rankings.
 
     python benchmarks/bench_identify.py [--units 2] [--coverage-units 10]
                                         [--presets trplg_001 rlg8_003] [--no-10hz]
+                                        [--jobs 1]
 """
 
 from __future__ import annotations
@@ -59,25 +60,26 @@ BIAS = {"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01, "c1_deg_per_h_per
         "gradients": [{"a": "A", "b": "G", "coeff_deg_per_h_per_k": 0.008}]}
 
 
-def coverage(n_units: int, work: pathlib.Path) -> None:
+TRUE_LAW = {"c1": 3e-4, "rate": -0.01, "gradient[A-G]": 0.008}
+
+
+def coverage_unit(task: tuple[int, dict, str]) -> dict:
+    """Simulate, identify and score one coverage unit ``(u, drawn multipliers, folder)``."""
+    from threadpoolctl import threadpool_limits
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.law_fit import fit_laws
+    from rlgsim.sim.identify.law_fit import bias_features, fit_laws
     from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.thermal_fit import fit_thermal
+    from rlgsim.sim.identify.thermal_fit import build, fit_thermal, twin_response
     import rlgsim
-    from rlgsim.sim.identify.law_fit import bias_features
-    from rlgsim.sim.identify.thermal_fit import build, twin_response
+    u, mult, path = task
+    folder = pathlib.Path(path)
+    folder.mkdir()
     template = presets.load_thermal_file("rlg_single").data
     dev_t = presets.load_device_file("trplg_001").data
-    rng = np.random.default_rng(2017)
-    zt, zl, zl_exact, rows, chosen = [], [], [], [], []
-    z_avg, z_pred, z_pred_true, groups, t_sel, split = [], [], [], [], [], []
-    z_comb, outl, zt_bm, zt_q = [], [], [], []
-    true_law = {"c1": 3e-4, "rate": -0.01, "gradient[A-G]": 0.008}
-    for u in range(n_units):
-        folder = work / f"cov{u}"
-        folder.mkdir()
-        mult = {k: float(np.exp(0.1 * rng.standard_normal())) for k in IT.IDENTIFIABLE}
+    out = {k: [] for k in ("zt", "zt_bm", "zt_q", "rows", "z_avg", "z_comb", "zl",
+                           "zl_exact")}
+    true_law = TRUE_LAW
+    with threadpool_limits(limits=1, user_api="blas"):
         dev = IT.device_truth(folder, IT.thermal_truth(folder, mult), bias=BIAS,
                               keep_uhfo=False, noise=dict(dev_t["noise"]))
         rec = read_recording(IT.simulate(IT.scenario(folder, dev, programme=IT.PROGRAMME_A,
@@ -87,23 +89,24 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
         for k in fit.multipliers:           # every fitted one (not drawn: truth 1)
             true = mult.get(k, 1.0)
             dz = math.log(fit.multipliers[k]) - math.log(true)
-            zt.append(dz / fit.rel_se[k])
-            zt_bm.append(dz / fit.fit.se[fit.fit.names.index(k)])
-            zt_q.append(dz / fit.se_quantised[k])
-            rows.append((u, k, true, fit.multipliers[k], fit.rel_se[k] * fit.multipliers[k]))
+            out["zt"].append(dz / fit.rel_se[k])
+            out["zt_bm"].append(dz / fit.fit.se[fit.fit.names.index(k)])
+            out["zt_q"].append(dz / fit.se_quantised[k])
+            out["rows"].append((u, k, true, fit.multipliers[k],
+                                fit.rel_se[k] * fit.multipliers[k]))
         dev_law = {**dev_t, "gyro": {**dev_t["gyro"], "bias": BIAS}}
         t0 = time.perf_counter()
         laws = fit_laws(rec, fit.nodes_c, fit.network.node_names, dev_law)
-        t_sel.append(time.perf_counter() - t0)
-        chosen.append(tuple(laws.bias.terms))
+        out["t_sel"] = time.perf_counter() - t0
+        out["chosen"] = tuple(laws.bias.terms)
         sel = laws.bias
-        groups.append("; ".join(" ~ ".join(g) for g, _ in sel.unseparable) or "-")
+        out["groups"] = "; ".join(" ~ ".join(g) for g, _ in sel.unseparable) or "-"
         for term, true in true_law.items():          # model-averaged: every unit, every term
-            z_avg.append((sel.averaged[term][0] - true) / sel.averaged[term][1])
+            out["z_avg"].append((sel.averaged[term][0] - true) / sel.averaged[term][1])
         for group, (lead, value, se_c, slopes) in sel.combined.items():
             true_c = sum(true_law.get(g, 0.0) * slopes[g] for g in group)
-            z_comb.append((value - true_c) / se_c)
-        outl.append(len(laws.outlier_windows_s))
+            out["z_comb"].append((value - true_c) / se_c)
+        out["outl"] = len(laws.outlier_windows_s)
         # the law's prediction (with selection uncertainty) on a programme it was not
         # identified from, against the true law of the same unit there
         rec_b = read_recording(IT.simulate(IT.scenario(folder, dev, programme=IT.PROGRAMME_B,
@@ -117,10 +120,10 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
         truth = np.asarray(w["true_bias_deg_per_h"] - w["true_random_deg_per_h"])
         truth = truth[np.searchsorted(np.asarray(w["time_s"]),
                                       np.asarray(rec_b.windows["time_s"]))]
-        z_pred.append((pred - truth) / pse)
+        out["z_pred"] = (pred - truth) / pse
         err = pred - truth
-        split.append((float(np.mean(err) / np.median(pse)),
-                      float(np.std(err) / np.median(pse))))
+        out["split"] = (float(np.mean(err) / np.median(pse)),
+                        float(np.std(err) / np.median(pse)))
         # the same law fed the unit's true thermal state there: the law's own uncertainty
         true_net, true_probes = build(presets.load_thermal_file(
             str(folder / "truth_thermal.toml")).data)
@@ -128,13 +131,40 @@ def coverage(n_units: int, work: pathlib.Path) -> None:
                                    rec_b.step_s)
         pred_t, pse_t = sel.predict(bias_features(rec_b, nodes_t, true_net.node_names,
                                                   dev_law, laws))
-        z_pred_true.append((pred_t - truth) / pse_t)
+        out["z_pred_true"] = (pred_t - truth) / pse_t
         for term, true in true_law.items():
             if term in laws.bias.terms:
                 z = (laws.bias.value(term) - true) / laws.bias.se(term)
-                zl.append(z)
+                out["zl"].append(z)
                 if set(laws.bias.terms) == set(true_law):
-                    zl_exact.append(z)
+                    out["zl_exact"].append(z)
+    return out
+
+
+def coverage(n_units: int, work: pathlib.Path, jobs: int = 1) -> None:
+    """Part A over ``n_units`` units (``jobs`` processes; the draws and the printed figures do
+    not depend on it)."""
+    rng = np.random.default_rng(2017)
+    tasks = [(u, {k: float(np.exp(0.1 * rng.standard_normal())) for k in IT.IDENTIFIABLE},
+              str(work / f"cov{u}")) for u in range(n_units)]
+    if jobs > 1:
+        import multiprocessing
+        with multiprocessing.get_context("spawn").Pool(jobs) as pool:
+            units = pool.map(coverage_unit, tasks, chunksize=1)
+    else:
+        units = [coverage_unit(t) for t in tasks]
+
+    def cat(key):
+        return [v for r in units for v in r[key]]
+    zt, zt_bm, zt_q, rows = cat("zt"), cat("zt_bm"), cat("zt_q"), cat("rows")
+    z_avg, z_comb, zl, zl_exact = cat("z_avg"), cat("z_comb"), cat("zl"), cat("zl_exact")
+    chosen = [r["chosen"] for r in units]
+    groups = [r["groups"] for r in units]
+    outl = [r["outl"] for r in units]
+    t_sel = [r["t_sel"] for r in units]
+    z_pred = [r["z_pred"] for r in units]
+    z_pred_true = [r["z_pred_true"] for r in units]
+    split = [r["split"] for r in units]
     print(f"\nA. coverage over {n_units} units (rlg_single, 4.9 h programme, trplg_001 noise)")
     print("   unit  multiplier                        drawn   recovered  std.err")
     for u, k, true, est, se in rows:
@@ -324,6 +354,7 @@ def main() -> None:
     ap.add_argument("--presets", nargs="*", default=["trplg_001", "rlg8_003"],
                     help="closed-loop presets (none: coverage only)")
     ap.add_argument("--no-10hz", action="store_true", help="skip the 10 Hz timing")
+    ap.add_argument("--jobs", type=int, default=1, help="processes for the coverage units")
     args = ap.parse_args()
     print("bench_identify:", machine())
     print(f"load average at start: {os.getloadavg()}")
@@ -332,7 +363,7 @@ def main() -> None:
         work = pathlib.Path(tmp)
         t0 = time.perf_counter()
         if args.coverage_units:
-            coverage(args.coverage_units, work)
+            coverage(args.coverage_units, work, args.jobs)
         for preset in args.presets:
             closed_loop(preset, args.units, work, times)
         if times:

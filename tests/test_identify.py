@@ -174,6 +174,27 @@ def test_short_gaps_of_the_chamber_air_are_bridged_and_long_ones_refused():
         _bridge(gappy, 1.0, "r.csv", "the chamber air")
 
 
+def test_probe_glitches_are_found_without_the_truth_record():
+    """A thermometer's power-on-reset value (85 °C) in single readings, also beside a gap and
+    at the end, is set missing; a fast but real ramp (5 K/min at 1 Hz) and probe noise are
+    not touched."""
+    from rlgsim.sim.identify.recording_data import screen_probe_glitches
+    rng = np.random.default_rng(9)
+    t = np.arange(4000.0)
+    temps = np.column_stack([20.0 + 5.0 / 60.0 * np.minimum(t, 500.0), 25.0 + 0.0 * t])
+    temps += rng.normal(0.0, 0.05, temps.shape)
+    clean = temps.copy()
+    temps[[100, 2500], 0] = 85.0
+    temps[1200, 1] = np.nan
+    temps[[1201, 3999], 1] = 85.0
+    out, n = screen_probe_glitches(temps)
+    assert n == 4
+    assert np.isnan(out[[100, 2500], 0]).all() and np.isnan(out[[1200, 1201, 3999], 1]).all()
+    keep = np.isfinite(out)
+    np.testing.assert_array_equal(out[keep], clean[keep])
+    assert screen_probe_glitches(clean)[1] == 0
+
+
 def test_recording_with_dropout_rows_is_identified(tmp_path):
     """Dropout rows (gyro, probe and chamber air missing): the window table leaves out the
     windows that hold one and keeps every other window as it was; identify accepts it."""

@@ -56,6 +56,9 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
         f"`{thermal_name}` in {result.seconds:.1f} s. Files: `thermal.toml`, `device.toml`, "
         f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
         f"`rlgsim run {result.scenario_path.name}`).")
+    if d.probe_glitches:
+        rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
+                      f"their ±5 neighbours were taken as glitches and left out.")
     from rlgsim.sim.identify.twin import scale_factor_line
     rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")
     rep.heading("Thermal network")

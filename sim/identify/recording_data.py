@@ -53,6 +53,8 @@ class RecordingData:
     windows: object
     window_s: float
     has_motion: bool
+    #: probe readings set missing as glitches (:func:`screen_probe_glitches`)
+    probe_glitches: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -79,6 +81,27 @@ def _bridge(x: np.ndarray, step: float, source: str, what: str) -> np.ndarray:
     out = x.copy()
     out[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
     return out
+
+
+#: a probe reading this far [K] from the median of its ±5 neighbours is a glitch: no probe
+#: of a gyro in a chamber moves 5 K in five samples, while a thermometer's power-on-reset
+#: value (85 °C for the DS18B20 class) or a bus error lands tens of kelvin away
+GLITCH_K = 5.0
+
+
+def screen_probe_glitches(temps: np.ndarray) -> tuple[np.ndarray, int]:
+    """``temps`` (m, p) with isolated glitches set missing (NaN), and how many: a reading
+    more than :data:`GLITCH_K` from the median of the 11 readings centred on it (missing
+    ones left out). A real recording has no truth record of its anomalies, so they are found
+    in the data; one wrong reading of 85 °C would otherwise dominate the least squares."""
+    import pandas as pd
+    med = pd.DataFrame(temps).rolling(11, center=True, min_periods=1).median().to_numpy()
+    bad = np.isfinite(temps) & (np.abs(temps - med) > GLITCH_K)
+    if not bad.any():
+        return temps, 0
+    out = temps.copy()
+    out[bad] = np.nan
+    return out, int(bad.sum())
 
 
 def _refuse(source: str, what: str) -> UserInputError:
@@ -162,6 +185,7 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     if span < MIN_SPAN_K:
         raise _refuse(source, f"no temperature excitation: the chamber air spans only "
                               f"{span:.2f} K")
+    temps, glitches = screen_probe_glitches(temps)
     good = np.isfinite(temps).mean(axis=0)
     if np.all(good < 0.5):
         raise _refuse(source, "the probes hold no usable readings")
@@ -177,4 +201,4 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     return RecordingData(source=source, step_s=step, t_s=t, probe_names=names, probes_c=temps,
                          air_c=air, power=powered.astype(float), uhfo_v=uhfo, gyro_axis=gyro,
                          sample_rate_hz=f, rate_deg_per_h=rate, windows=windows,
-                         window_s=window_s, has_motion=motion)
+                         window_s=window_s, has_motion=motion, probe_glitches=glitches)
