@@ -41,6 +41,17 @@ difference is then what the recording cannot determine, and the group is named i
 Refinement: every coefficient and every nonlinear parameter of the chosen terms are fitted
 together by :func:`rlgsim.estimators.identify.lsq_stats.fit`, whose standard errors are
 inflated for the residual autocorrelation (window series of a gyro bias carry flicker noise).
+
+Generalised least squares: given the modelled covariance C of the target's noise
+(``noise_cov``, e.g. :mod:`rlgsim.estimators.identify.window_noise` for the window means of a
+gyro's flicker), everything above runs on the problem whitened by the Cholesky factor of C —
+the BIC, the subset weights (ĉ then the whitened residual's variance per degree of freedom),
+the variance inflation factors, the unseparable groups — and the standard errors are the
+modelled ``(XᵀC⁻¹X)⁻¹`` instead of batch means.
+
+Combined effect of an unseparable group: the one thing the recording determines about it, the
+law's dependence along the members' common direction in units of the most included member
+(:func:`_combined`), with a model-averaged standard error.
 """
 
 from __future__ import annotations

@@ -27,7 +27,13 @@ correlation time come from the window residual (lag-one correlation ρ over a wi
 Noise: the gyro rate per sample minus the fitted law (per thermal step, held over its samples),
 powered samples only, into :func:`rlgsim.estimators.identify.allan_noise.fit_allan`.
 
-Selection and uncertainties: :func:`rlgsim.estimators.identify.term_selection.select_terms`.
+Selection and uncertainties: :func:`rlgsim.estimators.identify.term_selection.select_terms`,
+twice: by ordinary least squares, whose residual gives the noise fit, then by generalised least
+squares with the covariance of the window means that the fitted noise implies
+(:func:`rlgsim.estimators.identify.window_noise.covariance_from_fit`, the flicker band of the
+device template) — the flicker's long memory then counts in every standard error. A window whose
+whitened residual (its innovation) exceeds :data:`OUTLIER_Z` is left out once and the law
+refitted (``outlier_windows_s``); the noise is fitted again from what the final law leaves.
 """
 
 from __future__ import annotations
