@@ -39,7 +39,8 @@ TIE = 0.005          # as the study: closer than 0.5 % of the raw σ
 
 VARIANTS = {
     "nominal": "as shipped",
-    "no_chamber": "no chamber loop (air = the setpoint through a 60 s lag: no ripple, no overshoot, rate limit 10 K/min)",
+    "no_chamber": "no chamber loop (air = the setpoint through a 60 s lag: no ripple, "
+                  "no overshoot, rate limit 10 K/min)",
     "no_ripple": "chamber loop without its ripple (ripple_amplitude_c = 0)",
     "no_mount": "no mount path (the fixture not linked to the laboratory)",
     "no_asymmetry": "no nominal ballast asymmetry",

@@ -4,7 +4,8 @@ scenarios/thermal/rlg_imu.toml) and the thermal grid it runs on, switched in tur
 against the cubic LSM: average RMSE improvement, parameters where RVR wins, and the same against
 the truth) and Table 3 (residual variance after system-level compensation to 50 °C).
 
-    python benchmarks/ablation_rlg_imu_000.py [--variants NAME,...] [--hho N,ITER] [--rate HZ]
+    python benchmarks/ablation_rlg_imu_000.py [--variants NAME,...] [--hho N,ITER]
+                                             [--rate HZ] [--scenario NAME]
 
 Every variant runs the paper000 study recipe on the full 175-calibration campaign from variant
 copies of the thermal preset, the device preset, the scenario and the study file in a temporary

@@ -121,7 +121,8 @@ def main() -> None:
     print("χ² profile: " + ", ".join(f"k {k:.2f}: {best_s(k)[1] - chi_best:+.1f}"
                                      for k in (0.0, 0.1, 0.2, 0.3, 0.5, 1.0)))
     before, after = sigmas(np.array([1.0, 1.0])), sigmas(np.array([k_1, s_1]))
-    print(f"{'run':<18} {'paper':>9} {'preset':>9} {'at k_1σ':>9}   parts at k_1σ: law / random / white")
+    print(f"{'run':<18} {'paper':>9} {'preset':>9} {'at k_1σ':>9}   "
+          "parts at k_1σ: law / random / white")
     for i, lab in enumerate(labels):
         law, r, white = runs[i]
         print(f"{lab:<18} {target[i]:9.5f} {before[i]:9.5f} {after[i]:9.5f}   "

@@ -294,10 +294,11 @@ def _mechanisms(results: list[EnvResult], budgets: dict[str, NoiseBudget],
         return None
     b = [budgets[r.env.name] for r in results]
     noise = [math.sqrt(x.white ** 2 + x.quantisation ** 2 + x.slow ** 2) for x in b]
+    ratio = [n / max(x.law, 1e-12) for n, x in zip(noise, b)]
     text = (f"Which mechanism decides: in every environment the noise — white angle noise, "
             f"pulse quantisation and the slow random bias, {_span(noise, '.2e')} °/h per "
-            f"{config.window_s:g} s window — is {_span([n / max(x.law, 1e-12) for n, x in zip(noise, b)], '.0f')} "
-            f"times the variation of the true temperature law (std {_span([x.law for x in b], '.1e')} °/h), "
+            f"{config.window_s:g} s window — is {_span(ratio, '.0f')} times the variation of "
+            f"the true temperature law (std {_span([x.law for x in b], '.1e')} °/h), "
             "which is what the chamber does to the gyro through its cabinet and the fixture "
             "(constant temperature: the warm-up tail and the chamber's ripple; cycles: T, dT/dt "
             "and the A−G gradient of the block).")

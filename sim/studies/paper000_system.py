@@ -567,6 +567,9 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
     # ---- verdict
     rep.heading("Verdict", 2)
     rep.paragraph(_verdict(avg, avg_truth, fit_scores, truth_scores, resvar))
+    thermal = _imu_temperature_text(data_path, xs)
+    if thermal:
+        rep.paragraph(thermal)
 
     # ---- Table 2
     rep.heading("Table 2: fitting performance (in-sample, as in the paper)", 2)
@@ -648,6 +651,41 @@ def _input_probe(cfg: Config) -> str:
     """The report's words for the probe every model takes as input."""
     return ("its own sensor probe (gyro: g<axis>.A, accelerometer: a<axis>)"
             if cfg.temperature == "sensor" else "probe " + cfg.temperature)
+
+
+def _imu_temperature_text(data_path: pathlib.Path, xs: dict[str, np.ndarray]) -> str | None:
+    """The IMU's temperature over the campaign (paper 000 §4.1: "about 0.4 °C" between two
+    calibrations) and what its own temperature control did, from the dataset's heater record."""
+    x = xs.get("gyro_bias_x")
+    if x is None or x.size < 3:
+        return None
+    step = np.diff(x)
+    text = (f"The IMU's temperature (gx.A probe, window means) goes from {x[0]:.1f} to "
+            f"{x[-1]:.1f} °C, {np.mean(step):.3f} °C per calibration on average (paper 000 §4.1: "
+            f"about 0.4 °C), {np.min(step):.3f} … {np.max(step):.3f} °C; "
+            f"{int(np.sum(step < 0.2))} of {step.size} steps below 0.2 °C.")
+    try:
+        import h5py
+        with h5py.File(data_path, "r") as f:
+            if "heater_power" not in f["thermal"]:
+                return text + " The IMU has no temperature control in this preset."
+            P = f["thermal/heater_power"][()]
+            names = [n.decode() if isinstance(n, bytes) else str(n)
+                     for n in f["thermal/heater"][()]]
+            powered = f["thermal/power_on"][()] > 0
+    except (OSError, KeyError):
+        return text
+    for j, name in enumerate(names):
+        p = P[powered, j]
+        top = float(p.max()) if p.size else 0.0
+        hold = float(np.mean((p > 1e-9) & (p < top - 1e-9))) if top > 0 else 0.0
+        text += (f" Its temperature control ('{name}', docs/thermal.md §4.3) works at its limit "
+                 f"({top:.1f} W) {np.mean(p >= top - 1e-9):.0%} of the powered time, throttles "
+                 f"(holds its set point) {hold:.0%} and is off {np.mean(p <= 1e-9):.0%}: it adds "
+                 "a constant heat in the cold part of the ramp and flattens the temperature "
+                 "around its set point, which clusters calibrations there (what it changes in "
+                 "Tables 2-3: benchmarks/ablation_rlg_imu_000.py, docs/studies.md).")
+    return text
 
 
 def _verdict(avg, avg_truth, fit_scores, truth_scores, resvar) -> str:
