@@ -123,3 +123,13 @@ def test_paper001_cycle_gives_table1_order_raw_stability_and_hops_with_hysteresi
     at = [float(np.interp(t, t_th, cav)) for t, _ in hops]
     assert at[0] < at[1] - 10 and at[3] < at[2] - 10      # hysteresis: down below up
     assert kinds.count("pulse_spike") >= 1
+
+
+def test_monte_carlo_units_draw_the_heater_lock_point_and_limit(net):
+    """[thermal.tolerance] heater_setpoint_k (0.3 K) and power_rel (on the heater's limit)."""
+    (h,) = net.heaters
+    units = [net.realise(np.random.default_rng(s)).heaters[0] for s in range(300)]
+    sp = np.array([u.setpoint_c for u in units]) - h.setpoint_c
+    pw = np.log([u.max_power_w / h.max_power_w for u in units])
+    assert np.std(sp) == pytest.approx(0.3, rel=0.15) and abs(np.mean(sp)) < 0.06
+    assert np.std(pw) == pytest.approx(0.05, rel=0.15)
