@@ -23,9 +23,9 @@ criteria with an overdispersion ĉ, Burnham & Anderson 2002 §6.2): when rate an
 ramp drives are nearly the same signal, several subsets have nearly the same BIC and the chosen
 one is a coin toss whose coefficients are not the physical ones. With the nonlinear terms of the
 choice held, every linear subset (up to ``max_linear``) gets the weight
-``w ∝ exp(−QBIC/2)``, ``QBIC = n·ln(SSR/n)/ĉ + k·ln n`` (ĉ ≥ 1 the batch-means long-run /
-independent variance ratio of the chosen model's residual: windows carrying flicker hold fewer
-independent pieces of information than their count). Reported for every linear candidate: the
+``w ∝ exp(−QAIC/2)``, ``QAIC = n·ln(SSR/n)/ĉ + 2k`` (Akaike weights, :data:`AVERAGING_PENALTY`;
+ĉ ≥ 1 the batch-means long-run / independent variance ratio of the chosen model's residual:
+windows carrying flicker hold fewer independent pieces of information than their count). Reported for every linear candidate: the
 model-averaged coefficient ``Σ w_S β_S`` (0 where the term is out), its standard error
 ``√Σ w_S (se_S² + (β_S − β̄)²)`` (each ``se_S`` the batch-means sandwich of subset S) and its
 inclusion probability ``Σ_{S∋t} w_S``; :meth:`SelectedLaw.predict` averages predictions the
@@ -195,6 +195,14 @@ def _overdispersion(r: np.ndarray, batches: int, gls: bool = False, p: int = 0) 
     return float(max(1.0, L * np.mean(bm ** 2) / max(np.mean(r ** 2), 1e-300)))
 
 
+#: penalty per parameter of the model-averaging weights: Akaike's 2 (QAIC weights, Burnham &
+#: Anderson 2002 §4.2 and §6.2), not the selection's ln n. BIC weights concentrate on the
+#: smallest adequate subset — a two-term stand-in for a three-term law — and their averaged
+#: coefficients and predictions covered the truth less often (coverage benchmark, 12 units:
+#: model-averaged coefficients 42 % / 78 % of |z| below 1 / 2 with BIC weights, 53 % / 83 %
+#: with Akaike weights; predictions on another programme 49 % / 81 % against 56 % / 83 %)
+AVERAGING_PENALTY = 2.0
+
 #: largest variance inflation factor of a subset's terms (partial |r| ≈ 0.995): beyond it the
 #: recording cannot tell the terms' coefficients apart and the subset is not considered
 MAX_VIF = 100.0
@@ -243,7 +251,7 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
             X = np.column_stack([base] + [lcols[c] for c in combo])
             beta = np.linalg.lstsq(X, y, rcond=None)[0]
             ssr = max(float(np.sum((y - X @ beta) ** 2)), 1e-300)
-            fits.append((n * np.log(ssr / n) / c_hat + X.shape[1] * np.log(n), combo))
+            fits.append((n * np.log(ssr / n) / c_hat + X.shape[1] * AVERAGING_PENALTY, combo))
     q = np.array([f[0] for f in fits])
     w = np.exp(-(q - q.min()) / 2.0)
     w /= w.sum()

@@ -33,7 +33,7 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
              "inclusion probability": p,
              "VIF in the chosen law": sel.vif.get(n)}
             for n, (v, se, p) in sel.averaged.items()],
-            note=f"BIC weights of every linear subset with the likelihood divided by the "
+            note=f"Akaike weights of every linear subset with the likelihood divided by the "
                  f"overdispersion ĉ = {sel.c_hat:.2f} of the "
                  f"{'whitened windows' if sel.gls else 'windows (flicker)'}: the spread "
                  f"of the coefficients across near-equally supported subsets is in the "
