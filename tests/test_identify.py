@@ -107,8 +107,9 @@ def test_standard_errors_cover_the_truth_on_noisy_recordings(tmp_path):
             z_law.append((value - true) / se)
     z_thermal, z_law = np.abs(z_thermal), np.abs(z_law)
     print("thermal |z|", np.round(z_thermal, 2), "law |z|", np.round(z_law, 2))
-    # measured: about 80 % of the thermal |z| below 2 (nominal 95 %): the standard errors are
-    # somewhat optimistic on quantised probes (docs/identify.md); far outliers would be a bug
+    # measured on these three units: 16 of 18 thermal |z| below 2, every model-averaged law
+    # |z| below 2; three short units are too few for a coverage figure (the benchmark's
+    # units are), so the bounds only catch standard errors that are far off
     assert len(z_thermal) >= 12 and len(z_law) == 9
     assert np.mean(z_thermal < 2) >= 0.7 and z_thermal.max() < 5
     assert np.mean(z_law < 2) >= 0.6 and z_law.max() < 5
