@@ -59,7 +59,7 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     if d.probe_glitches:
         rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
                       f"their ±5 neighbours were taken as glitches and left out.")
-    from rlgsim.sim.identify.twin import scale_factor_line
+    from rlgsim.sim.identify.recording_data import scale_factor_line
     rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")
     rep.heading("Thermal network")
     rows = []

@@ -20,7 +20,8 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 
-__all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K"]
+__all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K",
+           "scale_factor_line", "screen_probe_glitches"]
 
 #: what an identification needs, quoted in every refusal
 NEEDS = ("identification needs at least 2 h of powered data with probe temperatures, the "
@@ -202,3 +203,17 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                          air_c=air, power=powered.astype(float), uhfo_v=uhfo, gyro_axis=gyro,
                          sample_rate_hz=f, rate_deg_per_h=rate, windows=windows,
                          window_s=window_s, has_motion=motion, probe_glitches=glitches)
+
+
+def scale_factor_line(data: "RecordingData") -> str:
+    """The one line saying why the scale factor (and its temperature law) keeps the
+    template's values."""
+    if not data.has_motion:
+        return ("scale factor: kept from the template — the recording has no turntable motion; "
+                "a static gyro sees only the Earth rate's component on its axis (≈ 10 °/h), on "
+                "which a scale-factor change of 10 ppm is 10⁻⁴ °/h, indistinguishable from a "
+                "bias change; identifying it needs rate steps on a turntable at several "
+                "temperatures")
+    return ("scale factor: kept from the template — the recording has turntable motion, but "
+            "identifying the scale factor and its temperature law from rate steps is not "
+            "implemented")

@@ -27,7 +27,7 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.sim import presets
 from rlgsim.sim.identify.law_fit import LawFit, fit_laws
 from rlgsim.sim.identify.preset_text import dumps, piecewise_programme
-from rlgsim.sim.identify.recording_data import RecordingData, read_recording
+from rlgsim.sim.identify.recording_data import RecordingData, read_recording, scale_factor_line
 from rlgsim.sim.identify.thermal_fit import ThermalFit, fit_thermal
 from rlgsim.sim.report import write_atomic
 
@@ -131,20 +131,6 @@ def _law_header(sel) -> str:
     for _, reason in sel.unseparable:
         lines.append(f"bias law: {reason}")
     return "\n".join(lines)
-
-
-def scale_factor_line(data: RecordingData) -> str:
-    """The one line saying why the scale factor (and its temperature law) keeps the
-    template's values."""
-    if not data.has_motion:
-        return ("scale factor: kept from the template — the recording has no turntable motion; "
-                "a static gyro sees only the Earth rate's component on its axis (≈ 10 °/h), on "
-                "which a scale-factor change of 10 ppm is 10⁻⁴ °/h, indistinguishable from a "
-                "bias change; identifying it needs rate steps on a turntable at several "
-                "temperatures")
-    return ("scale factor: kept from the template — the recording has turntable motion, but "
-            "identifying the scale factor and its temperature law from rate steps is not "
-            "implemented")
 
 
 def _thermal_text(fit: ThermalFit, tname: str, source: str) -> tuple[dict, str]:
