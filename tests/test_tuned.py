@@ -11,6 +11,8 @@ Small optimiser budgets keep the tests fast; the paper's 30 x 500 runs in the be
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from sklearn.model_selection import KFold
@@ -200,6 +202,28 @@ def test_pso_svr_parallel_validation_gives_the_same_result():
     assert a.best_params_ == b.best_params_ and a.best_score_ == b.best_score_
     assert a.n_fits_ == b.n_fits_
     np.testing.assert_array_equal(a.optimize_result_.best_curve, b.optimize_result_.best_curve)
+
+
+def test_pso_svr_shares_the_distances_through_a_folder_it_removes(monkeypatch):
+    """With worker processes the squared distances go to one memory-mapped folder per fit
+    (not re-sent every swarm iteration); the folder is gone when ``fit`` returns, also when
+    the fit fails."""
+    import tempfile
+    made = []
+    real = tempfile.mkdtemp
+
+    def mkdtemp(*a, **k):
+        made.append(real(*a, **k))
+        return made[-1]
+
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp)
+    X, y = svr_data(seed=4, n=520)
+    m = PSOSVR(n_agents=4, max_iter=2, n_jobs=2, random_state=1).fit(X, y)
+    assert len(made) == 1 and not os.path.exists(made[0])
+    assert not hasattr(m, "_shared_folder")
+    with pytest.raises(ValueError):
+        PSOSVR(n_agents=4, max_iter=2, n_jobs=2).fit(X, y[:-1])
+    assert all(not os.path.exists(d) for d in made)
 
 
 def test_pso_svr_counts_fits_stopped_by_the_search_cap():
