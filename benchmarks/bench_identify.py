@@ -216,6 +216,21 @@ def coverage(n_units: int, work: pathlib.Path, jobs: int = 1) -> None:
           "the median standard error: " + ", ".join(f"{a:+.2f}/{b:.2f}" for a, b in split))
 
 
+#: the closed loop's bounds (judgement: a twin whose probes stray by more than half a kelvin, whose
+#: law differs by half the law's own RMS, whose raw stability is off by a factor 1.5 or which
+#: reorders the compensators is not a twin of the unit)
+BOUNDS = {"probe_rms_c": 0.5, "law_rms_fraction": 0.5, "stability_ratio": (1 / 1.5, 1.5),
+          "spearman": 0.8}
+
+
+def _bound(value: float, lo: float | None, hi: float | None, what: str = "") -> str:
+    """``[bound …: holds]`` or ``[bound …: EXCEEDED]``."""
+    ok = (lo is None or value >= lo) and (hi is None or value <= hi)
+    rng = (f"{lo:.2f}–{hi:.2f}" if lo is not None and hi is not None else
+           f"≤ {hi:g}" if hi is not None else f"≥ {lo:g}")
+    return f"[bound {rng}{' ' + what if what else ''}: {'holds' if ok else 'EXCEEDED'}]"
+
+
 def window_bias(path) -> tuple[np.ndarray, np.ndarray, object]:
     import rlgsim
     w = rlgsim.window_table(str(path))
@@ -315,9 +330,12 @@ def closed_loop(preset: str, units: int, work: pathlib.Path, times: list[float],
                              f" (drawn {drawn[term]:.3g})")
         print(f"     law vs drawn: {'; '.join(pairs) or '-'}")
         print(f"     other programme: probe RMS difference max {probe_rms.max():.3f} °C "
-              f"({names[int(np.argmax(probe_rms))]}), mean {probe_rms.mean():.3f} °C; bias-law "
-              f"RMS difference {law_rms:.4f} °/h (law RMS {np.std(law_o):.4f}); raw 100 s "
-              f"stability twin/original {ratio:.2f}")
+              f"({names[int(np.argmax(probe_rms))]}), mean {probe_rms.mean():.3f} °C "
+              f"{_bound(probe_rms.max(), None, BOUNDS['probe_rms_c'])}; bias-law RMS difference "
+              f"{law_rms:.4f} °/h (law RMS {np.std(law_o):.4f}) "
+              f"{_bound(law_rms / np.std(law_o), None, BOUNDS['law_rms_fraction'], 'of the law RMS')}"
+              f"; raw 100 s stability twin/original {ratio:.2f} "
+              f"{_bound(ratio, *BOUNDS['stability_ratio'])}")
         probes = [p for p in names if p != "housing"]
         uh = "uhfo_v" in w_o.columns
         train_o, _, _ = window_bias(folder / "orig_ident.h5")
@@ -327,7 +345,8 @@ def closed_loop(preset: str, units: int, work: pathlib.Path, times: list[float],
         rho = spearmanr([s_o[k] for k in keys], [s_t[k] for k in keys]).statistic
         print("     compensators, RMSE vs truth on the other programme [°/h] original / twin: "
               + "; ".join(f"{k} {s_o[k]:.4f}/{s_t[k]:.4f}" for k in keys))
-        print(f"     rank correlation (Spearman) of the rankings: {rho:.2f}")
+        print(f"     rank correlation (Spearman) of the rankings: {rho:.2f} "
+              f"{_bound(rho, BOUNDS['spearman'], None)}")
 
 
 def timing_10hz(work: pathlib.Path) -> float:
