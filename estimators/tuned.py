@@ -258,8 +258,8 @@ def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, dist, C:
         if dist is None:
             A_tr, A_te = Xs[tr], Xs[te]
         else:
-            A_tr = np.exp(dist[k][0] * -gamma)
-            A_te = np.exp(dist[k][1] * -gamma)
+            A_tr = _rbf_into(dist[k][0], gamma, 0)
+            A_te = _rbf_into(dist[k][1], gamma, 1)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             svr.fit(A_tr, ys[tr])
@@ -267,6 +267,24 @@ def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, dist, C:
             capped += 1
         sse += float(np.sum((svr.predict(A_te) - ys[te]) ** 2))
     return sse, capped
+
+
+#: per process, the kernel buffers of the last shapes seen (train x train, test x train)
+_KERNEL_BUFFERS: dict = {}
+
+
+def _rbf_into(D2: np.ndarray, gamma: float, slot: int) -> np.ndarray:
+    """exp(-gamma D2) written into a buffer this process keeps for the shape (``slot`` 0: the
+    training block, 1: the validation block). The same values as ``np.exp(D2 * -gamma)``;
+    reusing the memory spares two fresh 20-30 MB arrays per fit, whose page faults cost more
+    than the exponentials (3.5 x the time at 1773 x 2216 on the shared 2-core machine). The
+    buffer is overwritten by the next call: use it before then (``_holdout_sse`` fits and
+    predicts with it at once)."""
+    buf = _KERNEL_BUFFERS.get(slot)
+    if buf is None or buf.shape != D2.shape:
+        buf = _KERNEL_BUFFERS[slot] = np.empty(D2.shape)
+    np.multiply(D2, -gamma, out=buf)
+    return np.exp(buf, out=buf)
 
 
 def _n_jobs(n_jobs, n_rows: int) -> int:
