@@ -179,9 +179,10 @@ PSO_SVR_BEFORE = 0.00043656098286526423
 
 
 def test_pso_svr_optimum_pinned_to_its_value_before_the_speed_up():
-    """The grid (0.02 decade) and the cache change where the swarm evaluates, not what it
-    finds: the optimum's validation RMSE stays within 1 % of the exact search's (and cannot
-    be far below it either: the exact search found the basin's floor)."""
+    """The grid (0.02 decade), the cache and the 10 000-iteration search cap (1 of the 159
+    fits here stops at it) change where the swarm evaluates, not what it finds: the optimum's
+    validation RMSE stays within 1 % of the exact search's (0.13 % above it; and cannot be
+    far below it either: the exact search found the basin's floor)."""
     X, y = svr_data(seed=3, n=400)
     m = PSOSVR(n_agents=10, max_iter=15, random_state=0).fit(X, y)
     assert m.best_score_ <= 1.01 * PSO_SVR_BEFORE
