@@ -344,17 +344,19 @@ class DatasetReader:
 
 # -------------------------------------------------------------------------------- one row
 
-#: Windows per chunk of a campaign (a chunk runs in one process, each window starting from the
-#: previous one's result): 175 windows → 18 chunks, enough to keep 2-8 processes busy.
-CHUNK_WINDOWS = 10
+#: Chunks a campaign's windows are cut into (a chunk runs in one process, each window starting
+#: from the previous one's result): 175 windows → 16 chunks of 11, enough to keep 2-8
+#: processes busy; a short campaign gets chunks of one window.
+CHUNKS = 16
 
 
 @dataclass
 class CampaignSettings:
     """Campaign options: the filter ``settings`` (noise levels filled from the dataset when
     left at zero), a ``nominal`` model (default: from the dataset), ``workers`` processes,
-    ``chunk_windows`` windows per chunk (default :data:`CHUNK_WINDOWS`; the table depends on
-    it — each chunk chains its windows' starting models — but not on ``workers``)."""
+    ``chunk_windows`` windows per chunk (default: the windows cut into :data:`CHUNKS` chunks;
+    the table depends on it — each chunk chains its windows' starting models — but not on
+    ``workers``)."""
 
     filter: FilterSettings | None = None
     nominal: SensorModel | None = None
@@ -585,9 +587,10 @@ def run_campaign(path, options: CampaignSettings | None = None,
     finally:
         reader.close()
     workers = options.workers or min(2, os.cpu_count() or 1)
-    # chunks of a fixed size, never derived from the worker count: a chunk's windows chain
-    # their starting models, so the table is the same bytes for any number of workers
-    per = options.chunk_windows or CHUNK_WINDOWS
+    # the chunk size follows from the number of windows, never from the worker count: a
+    # chunk's windows chain their starting models, so the table is the same bytes for any
+    # number of workers
+    per = options.chunk_windows or max(1, math.ceil(len(windows) / CHUNKS))
     chunks = [windows[i:i + per] for i in range(0, len(windows), per)]
     t0 = time.perf_counter()
     rows: list[dict] = []

@@ -346,11 +346,12 @@ def test_a_window_does_not_depend_on_what_was_calibrated_before():
 
 
 def test_campaign_table_does_not_depend_on_the_worker_count(dataset, monkeypatch):
-    """The default chunks (each chains its windows' starting models) have a fixed size, so one
-    process and three give the same table (before, the chunk size came from the worker
-    count, and the estimates moved by up to the convergence tolerance with it)."""
+    """The default chunks (each chains its windows' starting models) follow from the number of
+    windows only, so one process and three give the same table (before, the chunk size came
+    from the worker count, and the estimates moved by up to the convergence tolerance with
+    it)."""
     from rlgsim.estimators import calibration
-    monkeypatch.setattr(calibration, "CHUNK_WINDOWS", 2)        # 4 windows: 2 chunks
+    monkeypatch.setattr(calibration, "CHUNKS", 2)               # 4 windows: 2 chunks of 2
     path, _ = dataset
     one = run_campaign(path, CampaignSettings(workers=1))
     three = run_campaign(path, CampaignSettings(workers=3))
