@@ -227,3 +227,19 @@ def test_shipped_study_parses():
     study = load_study("paper000")
     cfg = recipe_module(study).check(study)
     assert cfg.scenario == "paper000_campaign" and cfg.hawks == 30
+
+
+def test_one_worker_gives_the_same_results(run, tmp_path):
+    """workers = 1 runs the fits and the compensations in sequence in this process; workers = 2
+    overlaps them in a pool (the LSM-compensated dataset written while HHO-RVR fits): the
+    scores are the same numbers."""
+    import shutil
+    out, result, _, _, _ = run
+    (tmp_path / "data").mkdir()
+    for h5 in (out / "data").glob("paper000_short_u0.h5"):
+        shutil.copy(h5, tmp_path / "data" / h5.name)            # reused, not simulated again
+    study = parse_study(SHORT.replace("workers = 2", "workers = 1"), "paper000_test.toml")
+    recipe = recipe_module(study)
+    one = recipe.run(study, recipe.check(study), tmp_path, unit=0, progress=False)
+    assert one.details.reused
+    assert one.rows == result.rows
