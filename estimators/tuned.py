@@ -305,6 +305,23 @@ def _parallel(n_jobs: int):
     return Parallel(n_jobs=n_jobs, backend="loky", batch_size=1, pre_dispatch="all")
 
 
+def _new_shared_folder() -> str:
+    """A temporary folder (in /dev/shm where there is one) for arrays the worker processes
+    map, registered with joblib's resource tracker so that it is removed even when this
+    process is killed before ``fit`` removes it (as joblib does with its own folders)."""
+    from joblib.externals.loky.backend import resource_tracker
+    shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+    folder = tempfile.mkdtemp(prefix="rlgsim-psosvr-", dir=shm)
+    resource_tracker.register(folder, "folder")
+    return folder
+
+
+def _remove_shared_folder(folder: str) -> None:
+    from joblib.externals.loky.backend import resource_tracker
+    shutil.rmtree(folder, ignore_errors=True)
+    resource_tracker.unregister(folder, "folder")
+
+
 def _shared_arrays(arrays, folder: str):
     """The arrays written once to ``folder`` and opened read-only memory-mapped: joblib hands a
     ``numpy.memmap`` to its worker processes by file name, so the squared distances (25 MB at
@@ -443,7 +460,8 @@ class PSOSVR(OptimizerTunedRegressor):
         if n_cells <= _MAX_CACHED_CELLS:
             dist = [(squared_distances(Xs[tr], Xs[tr]), squared_distances(Xs[te], Xs[tr]))
                     for tr, te in splits]
-            if n_jobs > 1 and getattr(self, "_shared_folder", None) is not None:
+            if n_jobs > 1:
+                self._shared_folder = _new_shared_folder()      # removed by fit
                 flat = _shared_arrays([a for pair in dist for a in pair], self._shared_folder)
                 dist = [(flat[2 * k], flat[2 * k + 1]) for k in range(len(dist))]
         data = (Xs, ys, tuple(splits), max_iter, dist)
@@ -493,14 +511,13 @@ class PSOSVR(OptimizerTunedRegressor):
         return np.rint(log_params / self.resolution) * self.resolution
 
     def fit(self, X, y):
-        # a folder for the distances the worker processes map (removed when the search ends)
-        shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
-        self._shared_folder = tempfile.mkdtemp(prefix="rlgsim-psosvr-", dir=shm)
         try:
             super().fit(X, y)
         finally:
-            shutil.rmtree(self._shared_folder, ignore_errors=True)
-            del self._shared_folder
+            # the folder of the distances the worker processes mapped, if the search made one
+            folder = self.__dict__.pop("_shared_folder", None)
+            if folder is not None:
+                _remove_shared_folder(folder)
         if not self.tune_epsilon:
             self.best_params_["epsilon"] = float(self.epsilon)
         return self

@@ -21,6 +21,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from rlgsim.estimators.cv import holdout, time_kfold, validation_splits
 from rlgsim.estimators.rvr import RVR
+from rlgsim.estimators import tuned
 from rlgsim.estimators.tuned import HHORVR, PSOSVR
 
 SIGMA = 0.02          # measurement noise of the simulated parameter (its units)
@@ -208,7 +209,7 @@ def test_pso_svr_parallel_validation_gives_the_same_result():
 def test_pso_svr_shares_the_distances_through_a_folder_it_removes(monkeypatch):
     """With worker processes the squared distances go to one memory-mapped folder per fit
     (not re-sent every swarm iteration); the folder is gone when ``fit`` returns, also when
-    the fit fails."""
+    the fit fails; without worker processes there is none."""
     import tempfile
     made = []
     real = tempfile.mkdtemp
@@ -224,7 +225,17 @@ def test_pso_svr_shares_the_distances_through_a_folder_it_removes(monkeypatch):
     assert not hasattr(m, "_shared_folder")
     with pytest.raises(ValueError):
         PSOSVR(n_agents=4, max_iter=2, n_jobs=2).fit(X, y[:-1])
-    assert all(not os.path.exists(d) for d in made)
+    PSOSVR(n_agents=4, max_iter=2, n_jobs=1).fit(X, y)
+    assert len(made) == 1 and not os.path.exists(made[0])
+
+    def stopped_search(fun, bounds, *args, **kwargs):       # fails after one evaluation
+        fun(np.zeros((2, len(bounds))))
+        raise RuntimeError("search stopped")
+
+    monkeypatch.setitem(tuned.OPTIMIZERS, "pso", stopped_search)
+    with pytest.raises(RuntimeError, match="search stopped"):
+        PSOSVR(n_agents=4, max_iter=2, n_jobs=2).fit(X, y)
+    assert len(made) == 2 and not os.path.exists(made[1])
 
 
 def test_pso_svr_counts_fits_stopped_by_the_search_cap():
