@@ -45,7 +45,8 @@ program = "calibration19"
 first_dwell_s = 60
 dwell_s = 30
 """
-# a laboratory boundary through a turntable node, a thermostat heating the base
+# a laboratory boundary through a turntable node (rlg_imu brings its own thermostat on the
+# base plate: docs/thermal.md §4.3)
 THERMAL = """
 [thermal.boundaries.lab]
 temperature_c = 23.0
@@ -63,13 +64,6 @@ conductance_w_per_k = 3.0
 between = ["table", "lab"]
 conductance_w_per_k = 0.5
 
-[thermal.heaters.thermostat]
-node = "base"
-sensor = "base"
-setpoint_c = 35.0
-max_power_w = 10.0
-kp_w_per_k = 4.0
-ti_s = 1500.0
 """
 ANOMALIES = """
 [anomalies.pulse_spikes]
