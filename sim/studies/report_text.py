@@ -80,9 +80,14 @@ def anomaly_events(paths) -> list[tuple[float, str, float, str]]:
     ``paths`` (docs/sensors.md "Anomalies"); none for a dataset without the record (a
     recording, or a device without ``[anomalies]``)."""
     from rlgsim.ground.dataset_format import ANOMALIES, open_dataset
+    from rlgsim.ground.errors import UserInputError
     out = []
     for path in paths:
-        with open_dataset(path) as ds:
+        try:
+            ds = open_dataset(path)
+        except UserInputError:          # a recording (CSV, Parquet, ...): no truth, no record
+            continue
+        with ds:
             if not ds.has(ANOMALIES, "kind"):
                 continue
             out += list(zip(ds.read(ANOMALIES, "time").tolist(), ds.strings(ANOMALIES, "kind"),
