@@ -6,7 +6,8 @@ and the ranking of the paper002 study.
 
 Mechanisms (docs/thermal.md §4.2a, docs/sensors.md rlg_002): the real chamber of the six
 scenarios (``[chamber.controller]``: PI loop, authority limits, ripple), its ripple alone, the
-mount path of ``rlg_002_fixture`` (fixture reaching the laboratory), the nominal ballast
+mount path of ``rlg_002_fixture`` (the static fixture's floor-insulation leak to the laboratory;
+and, for comparison, the 2.2 W/K column of paper 003's fixture it replaced), the nominal ballast
 asymmetry, and the fit of the temperature law's scale to Table 1 (benchmarks/fit_rlg_002.py).
 Every variant runs the whole paper002 study recipe (six environments, train and test, the
 study's seeds and device_seed) from variant copies of the presets, scenarios and study file in
@@ -43,6 +44,8 @@ VARIANTS = {
                   "no overshoot, rate limit 10 K/min)",
     "no_ripple": "chamber loop without its ripple (ripple_amplitude_c = 0)",
     "no_mount": "no mount path (the fixture not linked to the laboratory)",
+    "warm_mount": "the fixture on paper 003's 2.2 W/K column to the laboratory (the value "
+                  "rlg_002_fixture carried before the static floor mount)",
     "no_asymmetry": "no nominal ballast asymmetry",
     "rlg_single": "the previous thermal preset rlg_single (cabinet on chamber air)",
     "old_law": "the design law before the Table 1 fit (×6.25) and ARW 0.00095",
@@ -60,6 +63,10 @@ def _thermal(parts: set[str]) -> str:
     t = (SC / "thermal" / "rlg_002_fixture.toml").read_text()
     if "no_mount" in parts:
         t = re.sub(r'\[\[thermal\.links\]\]\nbetween = \["table", "lab"\]\n[^\n]*\n', "", t)
+    if "warm_mount" in parts:
+        t, n = re.subn(r'(between = \["table", "lab"\]\nconductance_w_per_k = )[0-9.eE+-]+',
+                       r"\g<1>2.2", t)
+        assert n == 1, "rlg_002_fixture: table-lab link not found"
     if "no_asymmetry" in parts:
         t = re.sub(r"power_factors = \{[^}]*\}[^\n]*\n", "", t)
     return t
