@@ -42,9 +42,11 @@ TARGET_S = 30.0
 #: process): 30 x 100 on gradient_data(), random_state 0.
 BEFORE_RMSE, BEFORE_C, BEFORE_GAMMA = 0.0004941876474317494, 659.7236571248743, 0.18992516881597912
 #: (954 s of CPU in one process at load ~8, 1697 of the 3030 fits stopped at 100 000 iterations)
-#: libsvm's time per SMO iteration at 1600 rows on this machine at load 0.5 (720 125 iterations
-#: of the precomputed-kernel fit at C = 659.7, gamma = 0.19 in 1.09 s, 2026-11-24), µs.
-IDLE_SMO_US = 1.5
+#: libsvm's wall time per SMO iteration in the gauge (``smo_microseconds``) on this machine at
+#: load average 1.6 (2026-11-24), µs: the first thousands of iterations of a fit cost this
+#: much (working-set selection scans every variable until shrinking starts); long converged
+#: fits average less (1.5 µs over the 720 125 iterations of C = 659.7, gamma = 0.19).
+QUIET_SMO_US = 12.0
 
 
 def gradient_data(n: int = 2000, seed: int = 0):
@@ -96,9 +98,8 @@ def run() -> None:
           f"; load average now {os.getloadavg()[0]:.2f}); {cpu:.1f} s CPU in all processes "
           f"(shared cores inflate CPU time too)")
     print(f"  machine speed in this run: {us:.2f} µs per libsvm SMO iteration at 1600 rows (mean "
-          f"of before and after; {IDLE_SMO_US} µs at load 0.5); the wall time scaled by "
-          f"{IDLE_SMO_US} / {us:.2f}: {dt * IDLE_SMO_US / us:.1f} s (an estimate for an idle "
-          f"machine, not a measurement)")
+          f"of before and after the search; {QUIET_SMO_US:.0f} µs at load average 1.6): a gauge "
+          f"of how much of the wall time is the load's")
     print(f"  {r.nfev} evaluations, {m.n_fits_} distinct grid points validated "
           f"({m.n_capped_fits_} stopped at search_max_iter = {m.search_max_iter}); "
           f"C = {p['C']:.4g}, gamma = {p['gamma']:.4g}, epsilon = {p['epsilon']:.3g} "
