@@ -516,8 +516,8 @@ def _rankings(config: Config, fitted: list[Fitted], sc: dict, n_train: int,
     if any(len(v) > 1 for v in groups.values()):
         spread, where = weight_spread({f.spec.name: s(f) for f in fitted}, groups)
         out.append(f"IR-LSSVM weight functions: their bias stabilities differ by up to "
-                   f"{spread:.1f} % within one input set (({where}); (max − min)/min; paper: up "
-                   f"to 26 %, Table 4 dT/dt: Huber 0.01712 vs Hampel 0.01357 °/h).")
+                   f"{spread:.1f} % within one input set ({where}; (max − min)/min); paper: up "
+                   f"to 26 % (Table 4 dT/dt: Huber 0.01712 vs Hampel 0.01357 °/h).")
     multi = [f for f in fitted if f.spec.kind in ("ir_lssvm", "lssvm") and len(f.spec.inputs) > 1]
     with_u = [f for f in multi if "U" in f.spec.inputs]
     without_u = [f for f in multi if "U" not in f.spec.inputs]
