@@ -13,6 +13,7 @@ it (``[chamber]`` by :class:`rlgsim.sim.chamber.ChamberProgram`, ``[turntable]``
 
 from __future__ import annotations
 
+import math
 import pathlib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
@@ -153,6 +154,8 @@ class PowerSchedule:
 
 def _divides_block(value: float, per: str) -> bool:
     n = BLOCK_S / value if per == "step" else BLOCK_S * value
+    if not math.isfinite(n):        # a subnormal step: BLOCK_S / value overflows to inf
+        return False
     return abs(n - round(n)) < 1e-6 * max(1.0, n) and round(n) >= 1
 
 

@@ -166,6 +166,14 @@ def test_block_that_cannot_fit_memory_names_the_key(here, capsys):
     no_output(here, "r.h5")
 
 
+def test_subnormal_thermal_step_is_one_line(here, capsys):
+    # hypothesis found it: 600 s / 2.2e-313 overflows to inf, whose round() raised OverflowError
+    (here / "sub.toml").write_text(short(**{"thermal_step_s = 1\n": "thermal_step_s = 2.2e-313\n"}))
+    one_error(capsys, ["run", "sub.toml", "-o", "sub.h5", "-q"], "sub.toml", "thermal_step_s",
+              "must divide")
+    no_output(here, "sub.h5")
+
+
 def test_output_larger_than_the_free_disk_is_refused_under_quiet(here, capsys, monkeypatch):
     import collections
 
