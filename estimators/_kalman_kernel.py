@@ -26,6 +26,21 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
+def _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt):  # pragma: no cover - compiled
+    """x ← F_k x in place: the ``nd`` moving rows of F over their non-zero columns (``xt``, nd,
+    is scratch); the identity rows leave their states as they are."""
+    nd = f_dyn.shape[1]
+    for r in range(nd):
+        acc = 0.0
+        for ii in range(nz_cnt[r]):
+            c = nz_idx[r, ii]
+            acc += f_dyn[k, r, c] * x[c]
+        xt[r] = acc
+    for r in range(nd):
+        x[r] = xt[r]
+
+
+@njit(cache=True, nogil=True)
 def filter_loop(f_dyn, nz_idx, nz_cnt, qs, q_dd, Q, full_q, mask, z_all, r2, P, x, gains,
                 s_inv, nis):  # pragma: no cover - compiled; tested through run_filter
     """Run the predict/update steps in place on ``P`` (n_x, n_x) and ``x`` (n_x,), internal
@@ -44,14 +59,7 @@ def filter_loop(f_dyn, nz_idx, nz_cnt, qs, q_dd, Q, full_q, mask, z_all, r2, P, 
     j = 0
     for k in range(n_steps):
         # ---- predict: x ← F x; P ← F P Fᵀ + Q
-        for r in range(nd):
-            acc = 0.0
-            for ii in range(nz_cnt[r]):
-                c = nz_idx[r, ii]
-                acc += f_dyn[k, r, c] * x[c]
-            xt[r] = acc
-        for r in range(nd):
-            x[r] = xt[r]
+        _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt)
         for r in range(nd):                       # T = F_d P (the moving rows)
             for m in range(n_x):
                 T[r, m] = 0.0
@@ -156,14 +164,7 @@ def rerun_loop(f_dyn, nz_idx, nz_cnt, gains, mask, z_all, x, ys):  # pragma: no 
     xt = np.empty(nd)
     j = 0
     for k in range(n_steps):
-        for r in range(nd):
-            acc = 0.0
-            for ii in range(nz_cnt[r]):
-                c = nz_idx[r, ii]
-                acc += f_dyn[k, r, c] * x[c]
-            xt[r] = acc
-        for r in range(nd):
-            x[r] = xt[r]
+        _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt)
         if mask[k]:
             y0 = z_all[k, 0] - x[3]
             y1 = z_all[k, 1] - x[4]
