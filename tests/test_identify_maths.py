@@ -256,3 +256,25 @@ def test_quantised_reading_covariance_against_analytic_cases():
     half[::2] = False
     var2 = quantised_covariance(J, soak, half, np.zeros(1), np.full(1, q), draws=2000)[0, 0]
     assert var2 == pytest.approx(q ** 2 / 48, rel=0.1)
+
+
+def test_batched_heater_network_equals_the_integrator():
+    """The thermal fit's batched Jacobian integration (a PI-controlled heater, several parameter
+    sets at once) gives the integrator's readings for every set."""
+    from rlgsim.sim import presets
+    from rlgsim.sim.identify.batch_twin import batchable, twin_readings_batch
+    from rlgsim.sim.identify.thermal_fit import (apply_multipliers, build, thermal_parameters,
+                                                 twin_response)
+    tmpl = presets.load_thermal_file("trplg_001_cabinet").data
+    params = thermal_parameters(tmpl)
+    t = np.arange(1, 2001) * 5.0
+    air = 25.0 + 15.0 * np.sin(t / 3000.0)
+    power = np.ones(t.size)
+    power[1500:1600] = 0.0                       # the controller off and reset, then on again
+    models = [build(apply_multipliers(tmpl, params, m)[0])
+              for m in ({}, {params[0].name: 1.3}, {params[1].name: 0.8}, {params[-1].name: 2.0})]
+    assert batchable(models[0][0])
+    batch = twin_readings_batch(models, air, power, 5.0)
+    for (net, pr), got in zip(models, batch):
+        _, ref = twin_response(net, pr, air, power, 5.0)
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)

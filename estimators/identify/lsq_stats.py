@@ -142,17 +142,23 @@ def screen(jac: np.ndarray, names: Sequence[str], *, max_corr: float = 0.99,
 def fit(fun: Callable[[np.ndarray], np.ndarray], x0: Sequence[float], names: Sequence[str],
         *, bounds: tuple = (-np.inf, np.inf), segments: int = 1, diff_step: float | None = None,
         max_nfev: int | None = None, x_scale: str | np.ndarray = "jac", batches: int = 20,
-        whitened: bool = False) -> LsqFit:
+        whitened: bool = False, jac: Callable[[np.ndarray], np.ndarray] | None = None
+        ) -> LsqFit:
     """Minimise ``Σ fun(x)²`` from ``x0`` and return estimates with inflated standard errors
     (``segments``: how many equal consecutive series the residual vector holds, for ρ).
 
     ``whitened``: ``fun`` returns residuals already divided by the Cholesky factor of their
     modelled covariance (generalised least squares), so they are independent with unit
     variance if the model holds: the covariance is ``(JᵀJ)⁻¹·max(1, s²)`` (the modelled one,
-    inflated when the residual is larger than modelled) and no batch means are taken."""
+    inflated when the residual is larger than modelled) and no batch means are taken.
+
+    ``jac``: the Jacobian ``jac(x)`` (e.g. the finite differences evaluated in one batch);
+    by default scipy's forward differences with ``diff_step``."""
     x0 = np.asarray(x0, dtype=float)
     kw = {}
-    if diff_step is not None:
+    if jac is not None:
+        kw["jac"] = jac
+    elif diff_step is not None:
         kw["diff_step"] = diff_step
     res = least_squares(fun, x0, bounds=bounds, method="trf", x_scale=x_scale,
                         max_nfev=max_nfev, **kw)

@@ -56,6 +56,7 @@ import numpy as np
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit, screen
 from rlgsim.estimators.identify.quantisation import quantised_covariance
+from rlgsim.sim.identify.batch_twin import batchable, twin_readings_batch
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
 from rlgsim.sim.thermal import ThermalNetwork
@@ -73,6 +74,29 @@ _BOUND = math.log(10.0)
 MAX_RESIDUALS = 30_000
 #: most integration steps per evaluation during the fit (a coarser grid beyond this)
 MAX_FIT_STEPS = 15_000
+#: evaluate the finite-difference Jacobian of a heater network in one batch
+#: (:mod:`rlgsim.sim.identify.batch_twin`); False: scipy's column by column
+BATCH_JACOBIAN = True
+#: the batch is cut into this many fixed parts (whatever the number of workers, so the result
+#: does not depend on it); each part runs in its own process when workers allow
+BATCH_PARTS = 2
+
+#: the batch job of the fit in progress, inherited by forked workers
+_JOB: dict = {}
+
+
+def _batch_part(args: tuple[list[str], list[np.ndarray]]) -> list[np.ndarray]:
+    names, xs = args
+    return _JOB["fun"](names, xs)
+
+
+def _workers() -> int:
+    import os
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:                          # pragma: no cover (not Linux)
+        n = os.cpu_count() or 1
+    return max(1, min(BATCH_PARTS, n))
 
 
 @dataclass(frozen=True)
@@ -368,9 +392,26 @@ def n_is_capacity(name: str) -> bool:
 
 def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str = "",
-                max_corr: float = 0.99) -> ThermalFit:
+                max_corr: float = 0.99, workers: int | None = None) -> ThermalFit:
     """Fit the multipliers of ``template`` (a thermal preset dict) to the recorded probes
-    ``probes_c`` (m, p) named ``probe_names`` (module docstring)."""
+    ``probes_c`` (m, p) named ``probe_names`` (module docstring). ``workers``: processes for
+    the batched Jacobian of a heater network (default: up to 2 of the available cores; the
+    result does not depend on it)."""
+    if workers is None:
+        workers = _workers()
+    try:
+        return _fit_thermal(template, air_c, power, step_s, probe_names, probes_c,
+                            source=source, max_corr=max_corr, workers=workers)
+    finally:
+        if _JOB.get("pool") is not None:
+            _JOB["pool"].terminate()
+            _JOB["pool"].join()
+        _JOB.clear()
+
+
+def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
+                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str,
+                 max_corr: float, workers: int) -> ThermalFit:
     net0, pr0 = build(template, "thermal template")
     unknown = [n for n in probe_names if n not in pr0.names]
     if unknown:
@@ -410,7 +451,68 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
             return r.T.reshape(-1)               # probe-major: one series per probe
         return fun
 
+    batched = BATCH_JACOBIAN and batchable(net0)
+
+    def residuals_part(names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
+        """Residual vectors at several points, integrated together (a heater network)."""
+        models = []
+        for x in xs:
+            d, _ = apply_multipliers(template, params, dict(zip(names, np.exp(x))))
+            models.append(build(d))
+        out = []
+        for read in twin_readings_batch(models, air_f, power_f, step_f):
+            r = np.where(mask, read[:, cols][rows] - obs0, 0.0)
+            out.append(r.T.reshape(-1))
+        return out
+
+    pool = None
+    if batched and workers > 1:
+        import multiprocessing
+        _JOB["fun"] = residuals_part
+        try:
+            pool = multiprocessing.get_context("fork").Pool(workers)
+            _JOB["pool"] = pool                      # closed by fit_thermal
+        except (ValueError, OSError, AssertionError):   # no fork, or a daemon: one process
+            pool = None
+
+    def residuals_batch(names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
+        """The points in BATCH_PARTS fixed parts, in parallel when there is a pool."""
+        k = int(math.ceil(len(xs) / BATCH_PARTS))
+        parts = [(names, xs[i:i + k]) for i in range(0, len(xs), k)]
+        if pool is not None:
+            done = pool.map(_batch_part, parts, chunksize=1)
+        else:
+            done = [residuals_part(*a) for a in parts]
+        return [r for part in done for r in part]
+
+    def fd_jac(names: list[str], x: np.ndarray, rel: float, bounded: bool) -> np.ndarray:
+        """Forward differences with scipy's 2-point step (``rel·max(1, |x|)``, sign of x,
+        reversed at an upper bound), the base point and every column in one batch."""
+        x = np.asarray(x, dtype=float)
+        h = rel * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        if bounded:
+            h = np.where((x + h > _BOUND) | (x + h < -_BOUND), -h, h)
+        pts = [x]
+        dx = []
+        for j in range(x.size):
+            xp = x.copy()
+            xp[j] += h[j]
+            dx.append(xp[j] - x[j])
+            pts.append(xp)
+        res = residuals_batch(names, pts)
+        J = np.empty((res[0].size, x.size))
+        for j in range(x.size):
+            J[:, j] = (res[j + 1] - res[0]) / dx[j]
+        return J
+
     def jac_at(names: list[str], x: np.ndarray, h: float = 1e-4) -> np.ndarray:
+        if batched:
+            J = np.empty((obs.size, len(names)))
+            pts = [x] + [x + h * np.eye(len(names))[j] for j in range(len(names))]
+            res = residuals_batch(names, pts)
+            for j in range(len(names)):
+                J[:, j] = (res[j + 1] - res[0]) / h
+            return J
         fun = residual_for(names)
         r0 = fun(x)
         J = np.empty((r0.size, len(names)))
@@ -448,8 +550,11 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         if not free:
             res = None
             break
+        names = list(free)
         res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
-                  segments=len(probe_names), diff_step=1e-6, batches=8)
+                  segments=len(probe_names), diff_step=1e-6, batches=8,
+                  jac=(lambda x, names=names: fd_jac(names, x, 1e-6, True)) if batched
+                  else None)
         s = (screen(res.jac, free, max_corr=max_corr, optional=optional(free))
              or _undetermined(res, free))
         if s is None:
