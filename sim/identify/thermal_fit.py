@@ -32,11 +32,12 @@ recorded chamber air as its input (``air_tau_s = 0``: the air *is* the input, pi
 between its samples, the integrator's exact first-order hold) and the recorded power state
 (held over each step), from the equilibrium at the first air sample; the probe lags of
 :class:`~rlgsim.sim.thermometers.ProbeSet` without noise or quantisation. During the fit the
-network is integrated on a grid of at most 7,500 steps (every k-th recorded sample: the air
-is smooth, so its piecewise-linear hold stays exact to the millikelvin; a heater's PI
-controller then acts every k seconds: for trplg_001_cabinet through the 20 h programme of
-benchmarks/bench_identify.py, 10 s steps against the 1 s integration differ by at most
-0.8 mK in a probe reading, 0.04 mK RMS, its fastest mode 7.7 s) and at most 30,000
+network is integrated on a grid of at most 15,000 steps, 7,500 for a network with a
+controlled heater (every k-th recorded sample: the air is smooth, so its piecewise-linear
+hold stays exact to the millikelvin; a heater's PI controller then acts every k seconds: for
+trplg_001_cabinet through the 20 h programme of benchmarks/bench_identify.py, 10 s steps
+against the 1 s integration differ by at most 0.8 mK in a probe reading, 0.04 mK RMS, its
+fastest mode 7.7 s) and at most 30,000
 probe residuals are used (every j-th grid point): the probes' lags and the network's time
 constants make neighbouring seconds redundant. The final twin runs on the recorded grid. Residuals are
 twin − recorded probe readings (missing readings carry zero weight). Fit:
@@ -76,7 +77,10 @@ _BOUND = math.log(10.0)
 #: most residuals used per fit (probes × time, decimated in time beyond this)
 MAX_RESIDUALS = 30_000
 #: most integration steps per evaluation during the fit (a coarser grid beyond this)
-MAX_FIT_STEPS = 7_500
+MAX_FIT_STEPS = 15_000
+#: the same for a network integrated step by step (a controlled heater): its evaluations cost
+#: several times a linear network's, and its fit runs on the coarser grid (module docstring)
+MAX_FIT_STEPS_STEPWISE = 7_500
 #: evaluate the finite-difference Jacobian of a heater network in one batch
 #: (:mod:`rlgsim.sim.identify.batch_twin`); False: scipy's column by column
 BATCH_JACOBIAN = True
@@ -426,7 +430,9 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
     m_full = air_c.size
     # the fit integrates on a coarser grid (every `coarse` recorded steps): the air is smooth
     # and the first-order hold stays exact to the millikelvin; the final twin is on the full grid
-    coarse = max(1, int(math.ceil(m_full / MAX_FIT_STEPS)))
+    batched = BATCH_JACOBIAN and batchable(net0)
+    most = MAX_FIT_STEPS_STEPWISE if batchable(net0) else MAX_FIT_STEPS
+    coarse = max(1, int(math.ceil(m_full / most)))
     sel = np.arange(coarse - 1, m_full, coarse)
     air_f, power_f, step_f = air_c[sel], power[sel], step_s * coarse
     m = sel.size
@@ -454,7 +460,6 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
             return r.T.reshape(-1)               # probe-major: one series per probe
         return fun
 
-    batched = BATCH_JACOBIAN and batchable(net0)
 
     def residuals_part(names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
         """Residual vectors at several points, integrated together (a heater network)."""
