@@ -49,6 +49,12 @@ the BIC, the subset weights (ĉ then the whitened residual's variance per degree
 the variance inflation factors, the unseparable groups — and the standard errors are the
 modelled ``(XᵀC⁻¹X)⁻¹`` instead of batch means.
 
+Fixed regressors (``fixed``): linear columns that are in every model — e.g. the piecewise
+offsets of detected mode hops (:mod:`rlgsim.sim.identify.hop_fit`) — are part of the base
+beside the intercept: not selected, not counted in the BIC's comparison (every subset carries
+them), refined jointly with the chosen terms (parameters named as the fixed terms) and held in
+every averaged model (inclusion 1).
+
 Combined effect of an unseparable group: the one thing the recording determines about it, the
 law's dependence along the members' common direction in units of the most included member
 (:func:`_combined`), with a model-averaged standard error.
@@ -113,6 +119,8 @@ class SelectedLaw:
     #: {unseparable group: (lead term, combined coefficient in its units, standard error,
     #: {member: slope on the lead})}
     combined: dict = field(default_factory=dict)
+    #: names of the fixed regressors (in every model, not selected)
+    fixed: tuple[str, ...] = ()
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
@@ -408,8 +416,12 @@ def _whitener(noise_cov: np.ndarray | None, n: int) -> Callable[[np.ndarray], np
 
 
 def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int = 6,
-                 batches: int = 8, noise_cov: np.ndarray | None = None) -> SelectedLaw:
+                 batches: int = 8, noise_cov: np.ndarray | None = None,
+                 fixed: Sequence[Term] = ()) -> SelectedLaw:
     """Choose terms by BIC (module docstring) and refine them jointly.
+
+    ``fixed``: linear terms (no theta) carried in every model beside the intercept (module
+    docstring); their names must differ from the candidates'.
 
     ``noise_cov``: the modelled (n, n) covariance of the target's noise (e.g. the window
     means of a gyro's flicker, :mod:`rlgsim.estimators.identify.window_noise`). With it every
@@ -427,6 +439,10 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     gls = noise_cov is not None
     ones = white(np.ones_like(y))
     y = white(y)
+    fixed_names = [t.name for t in fixed]
+    if any(t.k for t in fixed) or set(fixed_names) & {t.name for t in candidates}:
+        raise ValueError("fixed regressors must be linear terms named apart from the candidates")
+    fcols = [white(np.asarray(t.feature(np.zeros(0)), dtype=float)) for t in fixed]
     lin = [t for t in candidates if not t.k]
     lcols = {t.name: np.asarray(t.feature(np.zeros(0)), dtype=float) for t in lin}
     lin = [t for t in lin if np.all(np.isfinite(lcols[t.name])) and np.ptp(lcols[t.name]) > 0]
@@ -452,8 +468,8 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
 
     R = _corr_matrix(lcols, [t.name for t in lin], ones)
 
-    def best_subset(fixed: list[np.ndarray], k_extra: int) -> tuple[float, list[str]]:
-        base = np.column_stack([ones, *fixed])
+    def best_subset(nl: list[np.ndarray], k_extra: int) -> tuple[float, list[str]]:
+        base = np.column_stack([ones, *fcols, *nl])
         best = (_bic(y, base, k_extra), [])
         names = [t.name for t in lin]
         for size in range(1, min(max_linear, len(names)) + 1):
@@ -477,7 +493,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     theta: dict[str, np.ndarray] = {}
     bic, lin_chosen = best_subset([], 0)
     while True:
-        base = np.column_stack([ones] + [nl_cols[c] for c in nl_chosen]
+        base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen]
                                + [lcols[c] for c in lin_chosen])
         k_now = sum(by_name[c].k for c in nl_chosen)
         best = None
@@ -508,9 +524,10 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
         bic, lin_chosen = best_subset([nl_cols[c] for c in nl_chosen],
                                       sum(by_name[c].k for c in nl_chosen))
     chosen = [c for c in (t.name for t in candidates) if c in lin_chosen or c in nl_chosen]
-    cols = {**lcols, **nl_cols}
-    names = ["intercept"] + chosen
-    X0 = np.column_stack([ones] + [cols[c] for c in chosen])
+    cols = {**lcols, **nl_cols, **dict(zip(fixed_names, fcols))}
+    names = ["intercept"] + fixed_names + chosen
+    nf = len(fixed_names)
+    X0 = np.column_stack([ones] + fcols + [cols[c] for c in chosen])
     beta0 = np.linalg.lstsq(X0, y, rcond=None)[0]
     x0 = list(beta0)
     lo = [-np.inf] * len(x0)
@@ -531,12 +548,14 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
 
     def residual(x: np.ndarray) -> np.ndarray:
         pred = x[0] * ones
-        j = 1 + len(chosen)
+        for i, col in enumerate(fcols):
+            pred = pred + x[1 + i] * col
+        j = 1 + nf + len(chosen)
         for i, c in enumerate(chosen):
             t = by_name[c]
             th = x[j:j + t.k]
             j += t.k
-            pred = pred + x[1 + i] * (t.feature(th) if t.k else cols[c])
+            pred = pred + x[1 + nf + i] * (t.feature(th) if t.k else cols[c])
         return pred - y
 
     if not any(by_name[c].k for c in chosen):
@@ -547,19 +566,22 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches, whitened=gls)
     # the law's residual in the target's own units (not whitened)
     raw_pred = np.full_like(y_raw, res.x[0])
-    j = 1 + len(chosen)
+    for i, t in enumerate(fixed):
+        raw_pred = raw_pred + res.x[1 + i] * np.asarray(t.feature(np.zeros(0)), dtype=float)
+    j = 1 + nf + len(chosen)
     for i, c in enumerate(chosen):
         k = by_name[c].k
-        raw_pred = raw_pred + res.x[1 + i] * np.asarray(raw_features[c](res.x[j:j + k]),
-                                                        dtype=float)
+        raw_pred = raw_pred + res.x[1 + nf + i] * np.asarray(raw_features[c](res.x[j:j + k]),
+                                                             dtype=float)
         j += k
-    base = np.column_stack([ones] + [nl_cols[c] for c in nl_chosen])
+    base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen])
     averaged, groups, c_hat, models, combined = _averaging(
-        y, base, ["intercept", *nl_chosen], [t.name for t in lin], lcols, lin_chosen,
-        max_linear, batches, gls)
+        y, base, ["intercept", *fixed_names, *nl_chosen], [t.name for t in lin], lcols,
+        lin_chosen, max_linear, batches, gls)
     for name in nl_chosen:                     # held at the choice: its own refined values
         averaged[name] = (float(res.x[names.index(name)]), float(res.se[names.index(name)]), 1.0)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
                        candidates=tuple(t.name for t in candidates), averaged=averaged,
                        unseparable=groups, vif=_vif(base, lcols, lin_chosen), c_hat=c_hat,
-                       models=models, residual=raw_pred - y_raw, gls=gls, combined=combined)
+                       models=models, residual=raw_pred - y_raw, gls=gls, combined=combined,
+                       fixed=tuple(fixed_names))
