@@ -322,14 +322,70 @@ def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarr
                  sigma: np.ndarray, sample_dt: float, idx: np.ndarray | int,
                  power: np.ndarray | None = None, own_axis: np.ndarray | None = None,
                  scale_factor_neg: np.ndarray | None = None,
-                 steps: tuple[np.ndarray, np.ndarray] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 steps: tuple[np.ndarray, np.ndarray] | None = None, *,
+                 compiled: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Pulses (n, C) int32 and the new remainders (C,) int64 of one block: the increments of
     :func:`phase_increments` counted by :mod:`rlgsim.sim.pulses` with the carried
     ``remainder`` (C,) — bit for bit ``pulses.count_fixed(pulses.quantise(inc), r)`` per
-    channel, computed one channel at a time in one reused buffer with the fixed-point factor
-    2^30 folded into the scale factor (exact: a power of two). ``steps``: :func:`step_inputs`
-    of ``x_t`` (steps at rest evaluated once per step), or None."""
+    channel, with the fixed-point factor 2^30 folded into the scale factor (exact: a power of
+    two). ``steps``: :func:`step_inputs` of ``x_t`` (steps at rest evaluated once per step),
+    or None.
+
+    ``compiled`` (default): one pass per channel in compiled code
+    (:func:`rlgsim.sim._pulse_kernel.count_channel`, the same operations in the same order);
+    False: the NumPy reference path (:func:`_count_pulses_numpy`), which the tests compare it
+    with and which also raises the counter's range error for a channel out of range."""
+    if not compiled or x_t.shape[1] == 0:
+        return _count_pulses_numpy(remainder, scale_factor, bias, installation, x_t, z, sigma,
+                                   sample_dt, idx, power, own_axis, scale_factor_neg, steps)
+    from rlgsim.sim import pulses as counter
+    from rlgsim.sim._pulse_kernel import count_channel
+    n, c = x_t.shape[1], bias.shape[1]
+    one = float(counter.ONE)
+    out = np.empty((n, c), dtype=np.int32)
+    new = np.zeros(c, dtype=np.int64)
+    a = bias * sample_dt
+    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
+    off = _unpowered(power, idx)
+    off = _NO_BOOL if off is None else np.ascontiguousarray(off)
+    r, step_of = (idx, _NO_INT) if isinstance(idx, int) else (0, np.ascontiguousarray(idx,
+                                                                                     np.int64))
+    uniform, first = ((_NO_BOOL, _NO_FIRST) if steps is None
+                      else (np.ascontiguousarray(steps[0]), np.ascontiguousarray(steps[1])))
+    x = np.ascontiguousarray(x_t, dtype=np.float64)
+    for s in range(c):
+        zs = _NO_Z if z is None else np.ascontiguousarray(z[s])
+        k = np.ascontiguousarray(scale_factor[:, s]) * one       # exact: a power of two
+        kn = (_NO_FLOAT if scale_factor_neg is None
+              else np.ascontiguousarray(scale_factor_neg[:, s]) * one)
+        rem, hi, lo = count_channel(x, np.ascontiguousarray(installation[:, s]),
+                                    np.ascontiguousarray(a[:, s]), zs, float(sigma[s]), k, kn,
+                                    r, step_of, uniform, first, int(own[s]), off,
+                                    int(remainder[s]), out, s)
+        peak = max(hi, -lo)                          # NaN: the test below fails
+        if peak <= counter.MAX_SAMPLE_PULSES * one and peak * n <= counter.MAX_BLOCK_PULSES * one:
+            new[s] = rem
+            continue
+        # out of the fast test's range: the NumPy path decides (and raises the range error)
+        u, tmp = np.empty(n), np.empty(n)
+        _channel(u, tmp, s, scale_factor, a, installation, x_t, z, sigma, idx, int(own[s]),
+                 scale_factor_neg, None if off.size == 0 else off, one, steps)
+        _, new[s] = counter.count_scaled(u, int(remainder[s]), out[:, s])
+    return out, new
+
+
+_NO_BOOL = np.zeros(0, dtype=np.bool_)
+_NO_INT = np.zeros(0, dtype=np.int64)
+_NO_FLOAT = np.zeros(0)
+_NO_Z = np.zeros(0, dtype=np.float32)
+_NO_FIRST = np.zeros((3, 0))
+
+
+def _count_pulses_numpy(remainder, scale_factor, bias, installation, x_t, z, sigma, sample_dt,
+                        idx, power=None, own_axis=None, scale_factor_neg=None, steps=None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`count_pulses` in NumPy, computed one channel at a time in one reused buffer
+    (the reference path of the compiled kernel)."""
     from rlgsim.sim import pulses as counter
     n, c = x_t.shape[1], bias.shape[1]
     out = np.empty((n, c), dtype=np.int32)
