@@ -4,6 +4,12 @@ rate at its sample rate, and the 100 s bias windows (:func:`rlgsim.api.window_ta
 removes the Earth rate). Every other module of :mod:`rlgsim.sim.identify` works on
 :class:`RecordingData` only.
 
+Turntable motion (:mod:`.table_motion`): the table's true input rate on the gyro axis per
+sample. The bias windows then keep only the **stationary** windows (no sample in which the
+table turns), their bias the window rate minus the Earth rate through the table attitude: a
+turning window carries the scale-factor error times the table rate (5 ppm of 10 °/s is
+0.18 °/h, ten times a navigation gyro's bias law), which the bias law must not see.
+
 Short gaps of the chamber air and the UHFO (dropout rows) are bridged linearly (up to 10 min);
 missing probe readings stay NaN and are left out of the thermal fit. A recording that cannot
 support an identification is refused here with one
@@ -19,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.identify.table_motion import motion_from_dataset, motion_from_recording
 
 __all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K",
            "scale_factor_line", "screen_probe_glitches"]
@@ -56,6 +63,12 @@ class RecordingData:
     has_motion: bool
     #: probe readings set missing as glitches (:func:`screen_probe_glitches`)
     probe_glitches: int = 0
+    #: the turntable's input rate on the gyro axis (None: a static table, or not readable)
+    motion: object = None
+    #: why the recording's motion cannot be used (empty when it can, or there is none)
+    motion_note: str = ""
+    #: bias windows left out because the table turns in them
+    moving_windows: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -151,6 +164,8 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
             u = imu["uhfo"]
             uhfo = np.asarray(u[:, gi].values if u.ndim == 2 else u.values, dtype=float)
         motion = False
+        table = None
+        motion_note = ""
         if "turntable" in tree.children:
             tt = tree["turntable"]
             for key in ("outer_angle", "inner_angle"):
@@ -161,14 +176,22 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
             rec = load_recording(source)
             rate = np.asarray(rec.gyro_rate_deg_per_h()[:, rec.gyro_axes.index(gyro)],
                               dtype=float)
+            table, motion_note = motion_from_recording(rec, gyro)
         else:
             pulses = np.asarray(imu["gyro_pulses"][:, gi].values, dtype=np.float64)
             import tomllib
             dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
             k = float(dev.get("gyro", {}).get("scale_factor_pulses_per_arcsec", 2.14))
             rate = pulses * f / k                   # arcsec/s, which is °/h
+            if motion:
+                import h5py
+                with h5py.File(source, "r") as h5:
+                    table = motion_from_dataset(h5, gyro, rate.size, f)
     finally:
         tree.close()
+    if table is not None and not table.moving.any():
+        table = None
+    motion = motion or table is not None
     if t.size < 2:
         raise _refuse(source, f"only {t.size} temperature sample(s)")
     step = float(np.median(np.diff(t)))
@@ -196,24 +219,52 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
         raise UserInputError(f"{source}: the {window_s:g} s bias windows cannot be formed "
                              f"({exc}); identification needs windows with complete gyro and "
                              f"probe data") from None
+    moving_windows = 0
+    if table is not None:
+        windows, moving_windows = _stationary_windows(windows, table, rate, f, window_s)
     if len(windows) < 20:
         raise _refuse(source, f"only {len(windows)} complete powered {window_s:g} s windows "
-                              f"of the gyro")
+                              f"of the gyro" + (f" with the turntable at rest ({moving_windows} "
+                                                f"left out because the table turns in them)"
+                                                if moving_windows else ""))
     return RecordingData(source=source, step_s=step, t_s=t, probe_names=names, probes_c=temps,
                          air_c=air, power=powered.astype(float), uhfo_v=uhfo, gyro_axis=gyro,
                          sample_rate_hz=f, rate_deg_per_h=rate, windows=windows,
-                         window_s=window_s, has_motion=motion, probe_glitches=glitches)
+                         window_s=window_s, has_motion=motion, probe_glitches=glitches,
+                         motion=table, motion_note=motion_note, moving_windows=moving_windows)
+
+
+def _stationary_windows(windows, table, rate: np.ndarray, f: float, window_s: float):
+    """The window table without the windows in which the turntable turns, and how many were
+    left out; the bias of the others is the window's mean rate minus the mean Earth rate on
+    the gyro axis through the table attitude (module docstring)."""
+    m = int(round(f * window_s))
+    rows = np.rint(np.asarray(windows["time_s"], dtype=float) / window_s).astype(int) - 1
+    n_win = table.moving.size // m
+    rows_ok = rows < n_win
+    moving = np.ones(rows.size, dtype=bool)
+    mw = table.moving[:n_win * m].reshape(n_win, m).any(axis=1)
+    moving[rows_ok] = mw[rows[rows_ok]]
+    keep = ~moving
+    out = windows[keep].reset_index(drop=True)
+    r = rows[keep]
+    rate_w = rate[:n_win * m].reshape(n_win, m).mean(axis=1)[r]
+    earth_w = table.input_deg_per_h[:n_win * m].reshape(n_win, m).mean(axis=1)[r]
+    out["bias_deg_per_h"] = rate_w - earth_w
+    return out, int(moving.sum())
 
 
 def scale_factor_line(data: "RecordingData") -> str:
     """The one line saying why the scale factor (and its temperature law) keeps the
-    template's values."""
-    if not data.has_motion:
+    template's values when the recording's motion cannot be used (a static table, or a
+    recording without angle columns); :mod:`.scale_factor_fit` words the rest."""
+    if data.motion is None and data.motion_note:
+        return f"scale factor: kept from the template — {data.motion_note}"
+    if data.motion is None:
         return ("scale factor: kept from the template — the recording has no turntable motion; "
                 "a static gyro sees only the Earth rate's component on its axis (≈ 10 °/h), on "
                 "which a scale-factor change of 10 ppm is 10⁻⁴ °/h, indistinguishable from a "
                 "bias change; identifying it needs rate steps on a turntable at several "
                 "temperatures")
-    return ("scale factor: kept from the template — the recording has turntable motion, but "
-            "identifying the scale factor and its temperature law from rate steps is not "
-            "implemented")
+    return ("scale factor: identified from the turntable's rate segments (see the scale-factor "
+            "section of the report)")
