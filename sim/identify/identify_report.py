@@ -60,7 +60,11 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
         rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
                       f"their ±5 neighbours were taken as glitches and left out.")
     from rlgsim.sim.identify.recording_data import scale_factor_line
-    rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")
+    if result.scale_factor is None:
+        rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")
+    else:
+        rep.paragraph(result.scale_factor.lines[0][0].upper() + result.scale_factor.lines[0][1:]
+                      + " (section Scale factor).")
     rep.heading("Thermal network")
     rows = []
     for p in th.params:
@@ -150,4 +154,7 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
         ax.set_ylabel("Allan deviation [°/h]")
         ax.legend(fontsize=8)
         rep.figure(fig, "allan", "Allan deviation of the law residual and the fitted noise")
+    if result.scale_factor is not None:
+        from rlgsim.sim.identify.scale_factor_report import scale_factor_section
+        scale_factor_section(rep, result.scale_factor, result.device)
     return rep

@@ -4,7 +4,8 @@ report of the fit quality (docs/identify.md).
 
 Steps: read and check the recording (:mod:`.recording_data`); fit the thermal multipliers of
 the thermal template (:mod:`.thermal_fit`); drive the fitted network with the recorded air and
-fit the UHFO law, the bias law and the noise on its thermal state (:mod:`.law_fit`); write
+fit the UHFO law, the bias law and the noise on its thermal state (:mod:`.law_fit`), and, where
+the turntable turns, the scale-factor law (:mod:`.scale_factor_fit`); write
 ``thermal.toml``, ``device.toml``, ``replay.toml`` (:mod:`.preset_text`) and the report
 (:mod:`.identify_report`). Templates: for an rlgsim dataset the device and thermal presets it
 was simulated with (its embedded texts); for a recording ``device_template`` is required and
@@ -28,6 +29,8 @@ from rlgsim.sim import presets
 from rlgsim.sim.identify.law_fit import LawFit, fit_laws
 from rlgsim.sim.identify.preset_text import dumps, piecewise_programme
 from rlgsim.sim.identify.recording_data import RecordingData, read_recording, scale_factor_line
+from rlgsim.sim.identify.scale_factor_fit import (ScaleFactorFit, fit_scale_factor,
+                                                  scale_factor_table)
 from rlgsim.sim.identify.thermal_fit import ThermalFit, fit_thermal
 from rlgsim.sim.report import write_atomic
 
@@ -58,6 +61,8 @@ class Identification:
     thermal_preset: dict
     seconds: float
     name: str
+    #: the scale-factor law from the turntable's rate segments (None: a static recording)
+    scale_factor: ScaleFactorFit | None = None
 
 
 def load_templates(source: str, device_template: str | None, thermal_template: str | None
@@ -271,17 +276,27 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
         thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
                               data.probes_c, source=source)
         laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
+        sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
     out = pathlib.Path(out_dir)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"{out}: exists and is not a folder; -o needs a folder")
     out.mkdir(parents=True, exist_ok=True)
     fitted_thermal, ttext = _thermal_text(thermal, th_name, source)
     dev, comments = _device_dict(dev_t, laws, name, source)
+    sf_lines = sf.lines if sf is not None else [scale_factor_line(data)]
+    if sf is not None and sf.identified:
+        table, notes = scale_factor_table(dev_t, sf)
+        dev.setdefault("gyro", {})["scale_factor"] = table
+        comments.update({("gyro", "scale_factor", k): v for k, v in notes.items()})
+        tol = dev.get("tolerance", {}).get("gyro", {})
+        if "scale_factor" in tol:
+            tol["scale_factor"] = {k: v for k, v in tol["scale_factor"].items()
+                                   if k in table or (k.startswith("knee_") and "knee_ppm" in table)}
     dtext = dumps(dev, comments, f"Device preset identified by rlgsim identify from {source}\n"
                                  f"template: {dev_name}; bias and UHFO terms chosen by BIC, "
                                  f"noise from the Allan deviation of the law residual"
                                  + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
-                                    else "") + "\n" + scale_factor_line(data))
+                                    else "") + "\n" + "\n".join(sf_lines))
     stext = _scenario_text(data, name)
     for text in (ttext, dtext, stext):
         tomllib.loads(text)                        # never write what cannot be read back
@@ -292,7 +307,8 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     seconds = time.perf_counter() - t0
     result = Identification(out_dir=out, device_path=dp, thermal_path=tp, scenario_path=sp,
                             report_path=out / "report.md", data=data, thermal=thermal, laws=laws,
-                            device=dev, thermal_preset=fitted_thermal, seconds=seconds, name=name)
+                            device=dev, thermal_preset=fitted_thermal, seconds=seconds, name=name,
+                            scale_factor=sf)
     from rlgsim.sim.identify.identify_report import build_report
     build_report(result, dev_name, th_name).write(out)
     return result
