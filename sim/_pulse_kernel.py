@@ -36,7 +36,8 @@ from numba import njit
 def count_channel(x_t, row, a, z, sigma, k_pos, k_neg, r, step_of, uniform, first, own,
                   off, remainder, out, col):  # pragma: no cover
     """Count one channel's pulses of one block into column ``col`` of ``out`` (n, C) int32;
-    returns (new remainder, max u, min u) with u the scaled increments.
+    returns (new remainder, max |u|, −max |u|) with u the scaled increments (NaN, NaN when
+    one is NaN).
 
     ``x_t`` (3, n) float64 increments; ``row`` (m, 3) installation rows; ``a`` (m,) bias·Δt;
     ``z`` (n,) float32 standard normals (size 0: no white noise); ``sigma`` σ [unit of x];
@@ -53,54 +54,68 @@ def count_channel(x_t, row, a, z, sigma, k_pos, k_neg, r, step_of, uniform, firs
     has_steps = uniform.shape[0] > 0
     phi = np.int64(remainder)
     prev = np.int64(0)
-    hi = -np.inf
-    lo = np.inf
+    hi = 0.0
     nan = False
     for i in range(m if r > 0 else 1):
-        if r > 0:
-            j0 = i * r
-            j1 = j0 + r
-        else:
-            j0 = 0
-            j1 = n
-        rest = False
-        base = 0.0
+        j0 = i * r if r > 0 else 0
+        j1 = j0 + r if r > 0 else n
+        kp = k_pos[i]
+        kn = k_neg[i] if has_neg else 0.0
         if r > 0 and has_steps and uniform[i]:
-            rest = True
             x0, x1, x2 = first[0, i], first[1, i], first[2, i]
             p0 = x0 if own == 0 else row[i, 0] * x0
             p1 = x1 if own == 1 else row[i, 1] * x1
             p2 = x2 if own == 2 else row[i, 2] * x2
             base = ((p0 + p1) + p2) + a[i]
-        for j in range(j0, j1):
-            s = i if r > 0 else step_of[j]
-            if rest:
+            for j in range(j0, j1):
                 u = base
-            else:
+                if has_z:
+                    u = u + np.float64(z[j]) * sigma
+                if has_neg and not u >= 0.0:
+                    u = u * kn
+                else:
+                    u = u * kp
+                if has_off and off[j]:
+                    u = 0.0
+                if u > hi:
+                    hi = u
+                if -u > hi:
+                    hi = -u
+                if u != u:
+                    nan = True
+                phi += np.int64(np.rint(u))
+                c = phi >> 30
+                out[j, col] = np.int32(c - prev)
+                prev = c
+        else:
+            for j in range(j0, j1):
+                s = i if r > 0 else step_of[j]
+                if r == 0:
+                    kp = k_pos[s]
+                    kn = k_neg[s] if has_neg else 0.0
                 x0, x1, x2 = x_t[0, j], x_t[1, j], x_t[2, j]
                 p0 = x0 if own == 0 else row[s, 0] * x0
                 p1 = x1 if own == 1 else row[s, 1] * x1
                 p2 = x2 if own == 2 else row[s, 2] * x2
                 u = ((p0 + p1) + p2) + a[s]
-            if has_z:
-                u = u + np.float64(z[j]) * sigma
-            if has_neg and not u >= 0.0:
-                u = u * k_neg[s]
-            else:
-                u = u * k_pos[s]
-            if has_off and off[j]:
-                u = 0.0
-            if u > hi:
-                hi = u
-            if u < lo:
-                lo = u
-            if u != u:
-                nan = True
-            phi += np.int64(np.rint(u))
-            c = phi >> 30
-            out[j, col] = np.int32(c - prev)
-            prev = c
+                if has_z:
+                    u = u + np.float64(z[j]) * sigma
+                if has_neg and not u >= 0.0:
+                    u = u * kn
+                else:
+                    u = u * kp
+                if has_off and off[j]:
+                    u = 0.0
+                if u > hi:
+                    hi = u
+                if -u > hi:
+                    hi = -u
+                if u != u:
+                    nan = True
+                phi += np.int64(np.rint(u))
+                c = phi >> 30
+                out[j, col] = np.int32(c - prev)
+                prev = c
     if nan:
         hi = np.nan
-        lo = np.nan
-    return phi - (prev << 30), hi, lo
+    return phi - (prev << 30), hi, -hi

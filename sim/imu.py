@@ -336,11 +336,13 @@ class ImuSimulator:
         return z
 
     # ---- one block ------------------------------------------------------------------------
-    def _inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
+    def _inputs(self, b: int, k0: int, m: int, n: int, za=None) -> dict[str, Any]:
         """Everything block ``b`` needs that depends on no carried state: the motion's exact
         increments (and their transposes), the white-noise normals and the slow-noise and UHFO
         drives. A pure function of (b, k0, m, n) — so it can be computed ahead, in the prefetch
-        thread, without changing a byte."""
+        thread, without changing a byte. ``za``: a future of the accelerometers' normals
+        (:meth:`_accel_white`) drawn in a second thread meanwhile (each channel has its own
+        generator, so the threads do not change a draw), or None to draw them here."""
         mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
         g, acc, uh = self.r.gyros, self.r.accels, self.r.uhfo
         out: dict[str, Any] = {
@@ -349,7 +351,7 @@ class ImuSimulator:
             "zg": self.white("gyro.white", g.axes, self.gyro_white_sigma, b, n),
             "slow": self.slow.draws(b, m)}
         if acc is not None:
-            out["za"] = self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
+            out["za"] = self._accel_white(b, n) if za is None else za.result()
         # steps at rest (one increment for all their samples): evaluated once per step
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         out["steps_g"] = step_inputs(out["dth_t"], m, idx)
@@ -357,6 +359,10 @@ class ImuSimulator:
         if uh is not None:
             out["uhfo"] = uh.draws(self.seed, self.unit, b, m)
         return out
+
+    def _accel_white(self, b: int, n: int) -> np.ndarray | None:
+        acc = self.r.accels
+        return self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
 
     def _get_inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
         """This block's inputs (prefetched when the previous block asked for them) and, when
@@ -375,9 +381,13 @@ class ImuSimulator:
         elif self.prefetch:
             if self._pool is None:
                 from concurrent.futures import ThreadPoolExecutor
-                self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
+                # two workers: the accelerometers' normals are drawn beside the rest (numpy's
+                # generators release the GIL while they fill an array)
+                self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="rlgsim-imu")
             nxt = (b + 1, k0 + m, m, n)
-            self._ahead = (nxt, self._pool.submit(self._inputs, *nxt))
+            za = (self._pool.submit(self._accel_white, b + 1, n)
+                  if self.r.accels is not None else None)
+            self._ahead = (nxt, self._pool.submit(self._inputs, *nxt, za))
         return inputs
 
     def close(self) -> None:
