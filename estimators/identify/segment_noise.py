@@ -30,7 +30,8 @@ import numpy as np
 
 from rlgsim.estimators.identify.allan_noise import NoiseFit
 
-__all__ = ["segment_mean_covariance", "segment_covariance_from_fit"]
+__all__ = ["segment_mean_covariance", "segment_covariance_from_fit",
+           "gauss_markov_segment_covariance"]
 
 
 def _gm_same(var: float, T: np.ndarray, tau: float) -> np.ndarray:
@@ -39,6 +40,21 @@ def _gm_same(var: float, T: np.ndarray, tau: float) -> np.ndarray:
     xs = np.where(small, 1.0, x)
     full = 2.0 * var * (xs - 1.0 + np.exp(-xs)) / xs ** 2
     return np.where(small, var * (1.0 - x / 3.0), full)
+
+
+def gauss_markov_segment_covariance(starts_s: np.ndarray, lengths_s: np.ndarray, var: float,
+                                    tau_s: float) -> np.ndarray:
+    """Covariance of the means over non-overlapping segments of a stationary Gauss–Markov
+    process of variance ``var`` and correlation time ``tau_s`` (module docstring)."""
+    s = np.asarray(starts_s, dtype=float)
+    T = np.asarray(lengths_s, dtype=float)
+    first = s[:, None] <= s[None, :]
+    gap = np.maximum(np.where(first, s[None, :] - (s[:, None] + T[:, None]),
+                              s[:, None] - (s[None, :] + T[None, :])), 0.0)
+    f = -np.expm1(-T / tau_s) * tau_s / T                    # (1 − e^{−T/τ})·τ/T
+    out = var * np.exp(-gap / tau_s) * f[:, None] * f[None, :]
+    np.fill_diagonal(out, _gm_same(var, T, tau_s))
+    return out
 
 
 def segment_mean_covariance(starts_s: np.ndarray, lengths_s: np.ndarray, *, n: float = 0.0,
@@ -74,11 +90,7 @@ def segment_mean_covariance(starts_s: np.ndarray, lengths_s: np.ndarray, *, n: f
         w = np.ones(j)
         w[0] = w[-1] = 0.5
         for tau, wj in zip(taus, w):
-            var = wj * b ** 2 * delta / math.pi
-            f = -np.expm1(-T / tau) * tau / T                # (1 − e^{−T/τ})·τ/T
-            off = var * np.exp(-gap / tau) * f[:, None] * f[None, :]
-            np.fill_diagonal(off, _gm_same(var, T, tau))
-            cov += off
+            cov += gauss_markov_segment_covariance(s, T, wj * b ** 2 * delta / math.pi, tau)
     return cov
 
 

@@ -160,9 +160,10 @@ def motion_from_recording(rec, axis: str) -> tuple[TableMotion | None, str]:
     have = [c for c in ANGLE_COLUMNS if c in rec.columns]
     if not have:
         return None, ("the recording has no turntable angle columns (" + ", ".join(ANGLE_COLUMNS)
-                      + "); a scale-factor identification needs the table angles, read at the "
-                        "temperature rate or faster, with the table turning less than 180° "
-                        "between readings")
+                      + "), so any turntable motion in it cannot be used; identifying the scale "
+                        "factor needs those columns, read at the temperature rate or faster "
+                        "with the table turning less than 180° between readings, through rate "
+                        "segments on a turntable at several temperatures")
     t = None
     ang = {}
     for c in ANGLE_COLUMNS:
