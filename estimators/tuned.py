@@ -28,6 +28,7 @@ from numbers import Integral, Real
 
 import numpy as np
 from joblib import delayed
+from sklearn import config_context
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.compose import TransformedTargetRegressor
 from sklearn.exceptions import ConvergenceWarning
@@ -45,6 +46,8 @@ from rlgsim.estimators.rvr import RVR, basis_centres, rbf_from_sqdist, scale_wid
 
 OPTIMIZERS = {"hho": harris_hawks, "pso": particle_swarm}
 _MAX_CACHED_CELLS = 20_000_000      # squared-distance cells PSO-SVR caches (160 MB of float64)
+#: PSOSVR's choice of the refitted point among the validated ones (its docstring)
+SELECTIONS = ("best", "one_se", "paired_se")
 
 
 class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
@@ -92,9 +95,10 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
         result = OPTIMIZERS[self.optimizer](
             fitness, [(-1.0, 1.0)] * len(names), self.n_agents, self.max_iter, self.max_evals,
             random_state=np.random.default_rng(opt_seed))
-        best_log = self._snap(lo + (result.x + 1.0) * 0.5 * (hi - lo))
+        best_log, best_score = self._choose(lo + (result.x + 1.0) * 0.5 * (hi - lo),
+                                            float(result.fun))
         self.best_params_ = {n: float(10.0 ** v) for n, v in zip(names, best_log)}
-        self.best_score_ = float(result.fun)
+        self.best_score_ = best_score
         self.optimize_result_ = result
         self.n_iter_ = result.nit
         self.estimator_ = self._refit(X, y, self.best_params_)
@@ -103,6 +107,11 @@ class OptimizerTunedRegressor(RegressorMixin, BaseEstimator):
     def _snap(self, log_params: np.ndarray) -> np.ndarray:
         """The point the fitness actually evaluated for the optimiser's best position."""
         return log_params
+
+    def _choose(self, best_log: np.ndarray, best_score: float) -> tuple[np.ndarray, float]:
+        """The log10 point refitted and its validation score, given the optimiser's best
+        position and score (default: that point, snapped to what the fitness evaluated)."""
+        return self._snap(best_log), best_score
 
     def predict(self, X):
         """Predictions of the refitted model (units of y)."""
@@ -244,29 +253,48 @@ class HHORVR(OptimizerTunedRegressor):
         return self.estimator_.predict(X, return_std=return_std)
 
 
-def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, dist, C: float,
-                 gamma: float, eps: float) -> tuple[float, int]:
+def _holdout_sse(Xs: np.ndarray, ys: np.ndarray, splits, max_iter: int, tol: float, dist,
+                 C: float, gamma: float, eps: float) -> tuple[float, int, np.ndarray]:
     """Squared validation error summed over the splits of one (C, gamma, epsilon) point
-    (standardised units) and how many of its fits stopped at ``max_iter``. ``dist``: per split
-    the squared distances (train x train, test x train) for libsvm's precomputed kernel
-    exp(-gamma D2) — 10-25 % faster per fit than its own RBF evaluations — or None (RBF)."""
-    sse, capped = 0.0, 0
+    (standardised units), how many of its fits stopped at ``max_iter``, and the squared
+    residuals themselves (the splits' test rows one after the other). ``tol``: libsvm's
+    stopping tolerance. ``dist``: per split the squared distances (train x train, test x
+    train) for libsvm's precomputed kernel exp(-gamma D2) — 10-25 % faster per fit than its
+    own RBF evaluations — or None (RBF)."""
+    sse, capped, sq = 0.0, 0, []
     for k, (tr, te) in enumerate(splits):
         kernel = "rbf" if dist is None else "precomputed"
-        svr = SVR(kernel=kernel, C=C, gamma=gamma, epsilon=eps, max_iter=max_iter,
+        svr = SVR(kernel=kernel, C=C, gamma=gamma, epsilon=eps, tol=tol, max_iter=max_iter,
                   cache_size=500)
         if dist is None:
             A_tr, A_te = Xs[tr], Xs[te]
         else:
             A_tr = _rbf_into(dist[k][0], gamma, 0)
             A_te = _rbf_into(dist[k][1], gamma, 1)
-        with warnings.catch_warnings():
+        # the kernels are finite by construction: scikit-learn's finiteness scan of the
+        # 20-30 MB of them (~2.5 ms a point) is skipped
+        with warnings.catch_warnings(), config_context(assume_finite=True):
             warnings.simplefilter("ignore", ConvergenceWarning)
             svr.fit(A_tr, ys[tr])
+            r2 = (svr.predict(A_te) - ys[te]) ** 2
         if max_iter > 0 and np.max(svr.n_iter_) >= max_iter:
             capped += 1
-        sse += float(np.sum((svr.predict(A_te) - ys[te]) ** 2))
-    return sse, capped
+        sse += float(np.sum(r2))
+        sq.append(r2)
+    return sse, capped, np.concatenate(sq)
+
+
+def batch_means_se(values: np.ndarray) -> float:
+    """Standard error of the mean of a time-ordered, serially correlated series by
+    non-overlapping batch means: floor(sqrt(n)) contiguous batches of (nearly) equal size,
+    SE = std(batch means, ddof=1) / sqrt(number of batches) (batch size ~ sqrt(n): Flegal &
+    Jones 2010, "Batch means and spectral variance estimators in Markov chain Monte Carlo",
+    Ann. Statist. 38(2)). Correlation shorter than a batch is accounted for; the plain
+    std/sqrt(n) would understate the SE of residuals that drift together over many rows."""
+    v = np.asarray(values, dtype=float)
+    b = max(2, int(np.sqrt(v.size)))
+    means = np.array([c.mean() for c in np.array_split(v, b)])
+    return float(np.std(means, ddof=1) / np.sqrt(b))
 
 
 #: per process, the kernel buffers of the last shapes seen (train x train, test x train)
@@ -375,6 +403,21 @@ class PSOSVR(OptimizerTunedRegressor):
         Capped fits can score a little *below* their converged value (the former 100 000 cap
         reported 4.942e-4 °/h at its optimum, whose converged score is 5.020e-4), so compare
         converged re-scores, not search scores.
+    search_tol : float, default 1e-3
+        libsvm's stopping tolerance of the search fits (its default; standardised targets).
+    selection : {"best", "one_se", "paired_se"}, default "best"
+        Which validated point is refitted. "best": the lowest search score. The other two
+        choose inside the set of points whose validation error cannot be told from the
+        lowest — the most regularised one: smallest C, then smallest gamma, then largest
+        epsilon (the one-standard-error rule, Hastie, Tibshirani & Friedman, *The Elements of
+        Statistical Learning*, 2nd ed., §7.10). The standard errors are batch means over the
+        validation rows in time order (:func:`batch_means_se`), because the residuals of
+        drift data are serially correlated. "one_se": points whose validation MSE is within
+        one SE of the lowest MSE (SE of the lowest point's mean squared residual, ESL's
+        rule). "paired_se": points whose mean squared-residual difference from the lowest
+        point is within one SE of that difference (the paired comparison of two predictors
+        on the same rows, Diebold & Mariano 1995, J. Bus. Econ. Stat. 13(3)) — a narrower set,
+        since two nearby models' errors move together.
     resolution : float or None, default 0.02
         Resolution of the search in decades of every tuned parameter (0.02 decade = 4.7 %):
         positions that round to the same grid point share one validation (cached), and the
@@ -393,6 +436,11 @@ class PSOSVR(OptimizerTunedRegressor):
     best_params_ : {"C", "gamma", "epsilon"} of the standardised problem.
     best_score_ : validation RMSE at the best point (units of y).
     n_capped_fits_ : search fits (per fold) stopped by ``search_max_iter``.
+    min_score_, min_params_ : the lowest search score and its point (C, gamma[, epsilon]).
+    score_se_ : batch-means SE of the lowest point's validation MSE (units of y squared);
+        ``one_se_score_`` the RMSE at one SE above it.
+    search_points_, search_scores_ : every validated point (n_fits_, d: C, gamma[, epsilon])
+        and its validation RMSE (units of y).
     n_fits_ : distinct grid points validated (cache misses); ``optimize_result_.nfev``
         counts fitness evaluations as the optimiser sees them.
     estimator_ : ``TransformedTargetRegressor(Pipeline(StandardScaler, SVR), StandardScaler)``
@@ -405,6 +453,7 @@ class PSOSVR(OptimizerTunedRegressor):
                  tune_epsilon: bool = False, epsilon_bounds=(1e-3, 1.0), optimizer: str = "pso",
                  n_agents: int = 30, max_iter: int | None = 100, max_evals: int | None = None,
                  validation=0.2, shuffle: bool = False, search_max_iter: int = 10_000,
+                 search_tol: float = 1e-3, selection: str = "best",
                  resolution: float | None = 0.02, n_jobs: int | None = None,
                  random_state=None):
         self.C_bounds = C_bounds
@@ -419,6 +468,8 @@ class PSOSVR(OptimizerTunedRegressor):
         self.validation = validation
         self.shuffle = shuffle
         self.search_max_iter = search_max_iter
+        self.search_tol = search_tol
+        self.selection = selection
         self.resolution = resolution
         self.n_jobs = n_jobs
         self.random_state = random_state
@@ -434,6 +485,10 @@ class PSOSVR(OptimizerTunedRegressor):
         m = self.search_max_iter
         if isinstance(m, bool) or not isinstance(m, Integral) or (m < 1 and m != -1):
             raise ValueError(f"search_max_iter must be an integer >= 1 or -1, got {m!r}")
+        check_positive(self.search_tol, "search_tol")
+        if self.selection not in SELECTIONS:
+            raise ValueError(f"selection must be one of {list(SELECTIONS)}, "
+                             f"got {self.selection!r}")
         check_positive(self.resolution, "resolution", allow_none=True)
         check_positive(self.n_jobs, "n_jobs", integer=True, allow_none=True)
 
@@ -469,9 +524,13 @@ class PSOSVR(OptimizerTunedRegressor):
                 self._shared_folder = _new_shared_folder()      # removed by fit
                 flat = _shared_arrays([a for pair in dist for a in pair], self._shared_folder)
                 dist = [(flat[2 * k], flat[2 * k + 1]) for k in range(len(dist))]
-        data = (Xs, ys, tuple(splits), max_iter, dist)
+        data = (Xs, ys, tuple(splits), max_iter, float(self.search_tol), dist)
         self.n_capped_fits_ = 0
         cache: dict = {}
+        # the squared residuals of every point, in time order of the validation rows
+        time_order = np.argsort(np.concatenate([te for _, te in splits]), kind="stable")
+        residuals: dict = {}
+        self._search = (cache, residuals, y_std)     # read by _choose, removed by fit
 
         def params_of(logp: np.ndarray) -> tuple[float, float, float]:
             eps = 10.0 ** logp[2] if tune_eps else float(self.epsilon)
@@ -494,8 +553,9 @@ class PSOSVR(OptimizerTunedRegressor):
                     out[i] = r
             else:
                 out = [_holdout_sse(*data, *p) for p in points]
-            for k, (sse, capped) in zip(todo, out):
+            for k, (sse, capped, sq) in zip(todo, out):
                 cache[k] = float(np.sqrt(sse / n_test)) * y_std
+                residuals[k] = sq[time_order]
                 self.n_capped_fits_ += capped
                 self.n_fits_ += 1
             return np.array([cache[k] for k in keys])
@@ -515,10 +575,55 @@ class PSOSVR(OptimizerTunedRegressor):
             return log_params
         return np.rint(log_params / self.resolution) * self.resolution
 
+    def _key(self, log_params) -> tuple:
+        res = self.resolution
+        return tuple(np.rint(log_params / res).astype(np.int64)) if res is not None else \
+            tuple(log_params)
+
+    def _choose(self, best_log, best_score):
+        """``selection="best"``: the lowest search score. ``"one_se"``: among the validated
+        points whose squared-error mean is within one standard error (batch means over the
+        validation rows in time order) of the lowest, the most regularised — smallest C,
+        then smallest gamma, then largest epsilon."""
+        cache, residuals, y_std = self._search
+        snapped = self._snap(best_log)
+        key = self._key(best_log)
+        sq = residuals[key]
+        se = batch_means_se(sq) if sq.size >= 2 else 0.0
+        self.min_score_ = best_score
+        self.min_params_ = self._natural(snapped)
+        self.score_se_ = se * y_std ** 2
+        self.one_se_score_ = float(np.sqrt(np.mean(sq) + se)) * y_std
+        keys = list(cache)
+        grid = np.array(keys, dtype=float).reshape(len(keys), -1)
+        self.search_points_ = 10.0 ** (grid * self.resolution if self.resolution is not None
+                                       else grid)
+        self.search_scores_ = np.array([cache[k] for k in keys])
+        if self.selection == "best":
+            return snapped, best_score
+        if self.selection == "one_se":
+            limit = np.mean(sq) + se
+            within = [k for k, r in residuals.items() if np.mean(r) <= limit]
+        else:
+            within = [k for k, r in residuals.items()
+                      if np.mean(r - sq) <= batch_means_se(r - sq)]
+        order = (lambda k: (k[0], k[1], -k[2])) if self.tune_epsilon else \
+            (lambda k: (k[0], k[1]))
+        chosen = min(within, key=order)
+        log = np.asarray(chosen, float)
+        if self.resolution is not None:
+            log = log * self.resolution
+        return log, cache[chosen]
+
+    def _natural(self, log_params) -> dict[str, float]:
+        names = ["C", "gamma"] + (["epsilon"] if self.tune_epsilon else [])
+        return {n: float(10.0 ** v) for n, v in zip(names, log_params)}
+
     def fit(self, X, y):
         try:
             super().fit(X, y)
         finally:
+            self.__dict__.pop("_search", None)
             # the folder of the distances the worker processes mapped, if the search made one
             folder = self.__dict__.pop("_shared_folder", None)
             if folder is not None:

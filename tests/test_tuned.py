@@ -245,6 +245,66 @@ def test_pso_svr_counts_fits_stopped_by_the_search_cap():
     assert m.estimator_.regressor_[-1].max_iter == -1          # the refit is never capped
 
 
+def test_batch_means_se_matches_the_ar1_variance_of_the_mean():
+    """Against the analytic variance of the mean of an AR(1) series x_t = phi x_{t-1} + e_t
+    (Var(mean) -> sigma_x^2 (1 + phi) / (n (1 - phi)) for large n): the batch-means SE^2
+    averaged over 400 series is within 8 % of it (batch size 50 = sqrt(2500), correlation
+    time 3 rows: the known bias of batch means, -2 sum_k k rho_k / (m tau), is -2.7 %), and the
+    plain std/sqrt(n) understates it by the factor sqrt(3)."""
+    phi, n, reps = 0.5, 2500, 400
+    rng = np.random.default_rng(7)
+    e = rng.standard_normal((reps, n))
+    x = np.empty_like(e)
+    x[:, 0] = e[:, 0] / np.sqrt(1 - phi ** 2)            # stationary start
+    for t in range(1, n):
+        x[:, t] = phi * x[:, t - 1] + e[:, t]
+    var_mean = (1 / (1 - phi ** 2)) * (1 + phi) / (1 - phi) / n
+    se2 = np.mean([tuned.batch_means_se(row) ** 2 for row in x])
+    assert se2 == pytest.approx(var_mean, rel=0.08)
+    naive = np.mean(np.var(x, axis=1, ddof=1) / n)
+    assert naive == pytest.approx(var_mean / 3, rel=0.05)
+
+
+@pytest.mark.parametrize("selection", ["one_se", "paired_se"])
+def test_pso_svr_one_standard_error_choices(selection):
+    """The swarm's search is the same; the refitted point is the most regularised validated
+    point (smallest C, then smallest gamma) whose validation error passes the rule, checked
+    against the rule recomputed from independent scikit-learn fits (RBF kernel, not the
+    precomputed one) of every validated point: ``one_se`` — MSE within one batch-means SE of
+    the lowest MSE (ESL §7.10); ``paired_se`` — mean of the squared-residual differences from
+    the lowest within one batch-means SE of those differences (Diebold & Mariano 1995)."""
+    X, y = svr_data(seed=3, n=400)
+    kw = dict(n_agents=10, max_iter=15, random_state=0)
+    best = PSOSVR(**kw).fit(X, y)
+    m = PSOSVR(selection=selection, **kw).fit(X, y)
+    assert m.min_score_ == best.best_score_ and m.min_params_ == {
+        k: best.best_params_[k] for k in ("C", "gamma")}
+    assert m.n_fits_ == best.n_fits_ == len(m.search_scores_) == len(m.search_points_)
+    Xs = (X - X.mean(0)) / X.std(0)
+    ys = (y - y.mean()) / y.std()
+    n_tr = 320
+
+    def sq(C, gamma):
+        svr = SVR(C=C, gamma=gamma, epsilon=0.1, max_iter=10_000).fit(Xs[:n_tr], ys[:n_tr])
+        return (svr.predict(Xs[n_tr:]) - ys[n_tr:]) ** 2
+
+    res = [sq(C, g) for C, g in m.search_points_]
+    rmse = np.array([np.sqrt(r.mean()) * y.std() for r in res])
+    # 1e-6 for converged fits; the one fit stopped at 10 000 SMO iterations follows the
+    # rounding of the precomputed kernel on another path (5e-5)
+    np.testing.assert_allclose(rmse, m.search_scores_, rtol=1e-4)
+    r0 = res[int(np.argmin(rmse))]
+    if selection == "one_se":
+        ok = [r.mean() <= r0.mean() + tuned.batch_means_se(r0) for r in res]
+    else:
+        ok = [np.mean(r - r0) <= tuned.batch_means_se(r - r0) for r in res]
+    chosen = min((tuple(np.log10(p)) for p, k in zip(m.search_points_, ok) if k))
+    assert np.log10([m.best_params_["C"], m.best_params_["gamma"]]) == pytest.approx(chosen)
+    assert m.best_params_["C"] <= m.min_params_["C"]
+    assert m.best_score_ <= m.one_se_score_ or selection == "paired_se"
+    assert m.predict(X).shape == y.shape
+
+
 # ------------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize("Est", [HHORVR, PSOSVR])
 @pytest.mark.parametrize("X, y, match", [
@@ -275,6 +335,8 @@ def test_too_few_samples_for_folds():
     (PSOSVR, {"C_bounds": (0.0, 1.0)}, "C_bounds"),
     (PSOSVR, {"n_agents": 1}, "n_agents"),
     (PSOSVR, {"epsilon": -0.1}, "epsilon"),
+    (PSOSVR, {"selection": "lowest"}, "selection"),
+    (PSOSVR, {"search_tol": 0.0}, "search_tol"),
 ])
 def test_bad_parameters(Est, params, match):
     X, y = np.linspace(0, 1, 30)[:, None], np.sin(np.linspace(0, 3, 30))
