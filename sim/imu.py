@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import zlib
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
@@ -64,6 +65,13 @@ from rlgsim.sim.sensor_triad import count_pulses, step_inputs
 from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
 _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
+
+#: A run of at least this many IMU epochs counts its pulses with the compiled kernel even when
+#: numba is not loaded yet: importing numba and loading the cached kernel cost ~0.3 s once per
+#: process, which the kernel repays at ~20-150 ns per epoch (six channels: a table at rest /
+#: moving) — from a few million epochs on (measured with benchmarks/bench_sim.py and
+#: tests/test_pulse_kernel.py's block on the 2-core development machine).
+COMPILED_MIN_EPOCHS = 5_000_000
 
 
 @dataclass(frozen=True)
@@ -295,6 +303,12 @@ class ImuSimulator:
         #: GIL), overlapping them with this block's arithmetic on a second core
         self.prefetch = bool(prefetch)
         self.n_steps = n_steps                  # thermal steps of the run (None: open-ended)
+        #: count pulses with the compiled kernel (rlgsim.sim._pulse_kernel; the same pulses as
+        #: the NumPy path, bit for bit) when numba is already loaded in this process or the run
+        #: is long enough to repay loading it (:data:`COMPILED_MIN_EPOCHS`)
+        epochs = (math.inf if n_steps is None
+                  else float(n_steps) * self.step_s * self.rate_hz)
+        self.compiled = "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS
         self.anomalies = None                   # rlgsim.sim.anomalies.AnomalyRun (optional)
         self._pool = None
         self._ahead = None
@@ -443,7 +457,8 @@ class ImuSimulator:
         gyro_pulses, g_rem = count_pulses(state.gyro_remainder, gp.scale_factor, gp.bias,
                                           gp.installation, dth_t, inputs["zg"],
                                           self.gyro_white_sigma, self.sample_dt, idx, power,
-                                          g.axis_idx, steps=inputs["steps_g"])
+                                          g.axis_idx, steps=inputs["steps_g"],
+                                          compiled=self.compiled)
         valid = None
         if an is not None:                      # read-out spikes, lost frames (after counting)
             k0_sample = int(math.floor(k0 * dt * self.rate_hz + 1e-9))   # first sample
@@ -465,7 +480,8 @@ class ImuSimulator:
                                                self.accel_white_sigma, self.sample_dt, idx,
                                                power, acc.axis_idx,
                                                scale_factor_neg=ap.scale_factor_neg,
-                                               steps=inputs["steps_a"])
+                                               steps=inputs["steps_a"],
+                                               compiled=self.compiled)
             if valid is not None and not valid.all():     # lost frames lose every channel
                 accel_pulses = an.other_pulses(valid, k0_sample, self.rate_hz, accel_pulses,
                                                acc.axes)

@@ -96,3 +96,39 @@ def test_out_of_range_channel_raises_the_counter_error(bad):
     with pytest.raises(UserInputError, match="pulse counter") as numpy_path:
         count_pulses(**kw, compiled=False)
     assert str(compiled.value) == str(numpy_path.value)
+
+
+@pytest.mark.parametrize("scenario", ["quickstart", "demo_cycle"])
+def test_a_run_stores_the_same_bytes_with_either_counter(tmp_path, monkeypatch, scenario):
+    """End to end: the whole dataset (every array and attribute; the file byte for byte) of a
+    run counted by the kernel equals the NumPy path's — whatever this process has loaded."""
+    import rlgsim.sim.imu as imu
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import simulate
+
+    orig = imu.ImuSimulator.__init__
+    paths = {}
+    for compiled in (True, False):
+        def init(self, *a, _c=compiled, **k):
+            orig(self, *a, **k)
+            self.compiled = _c
+        monkeypatch.setattr(imu.ImuSimulator, "__init__", init)
+        sc = load_scenario(scenario)
+        paths[compiled] = simulate(sc, tmp_path / f"{compiled}.h5", progress=False,
+                                   chunk_s=1800.0 if compiled else None)
+    assert paths[True].read_bytes() == paths[False].read_bytes()
+
+
+def test_the_counter_is_chosen_by_run_length_when_numba_is_not_loaded(monkeypatch):
+    import sys
+
+    import rlgsim.sim.imu as imu
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.schedule import build_timeline
+
+    sc = load_scenario("quickstart")                      # 2 h at 100 Hz: 720 000 epochs
+    tl = build_timeline(sc)
+    monkeypatch.delitem(sys.modules, "numba", raising=False)
+    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is False
+    monkeypatch.setattr(imu, "COMPILED_MIN_EPOCHS", 700_000)
+    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is True
