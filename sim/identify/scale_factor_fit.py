@@ -255,13 +255,15 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     seg_tab["residual_ppm"] = np.asarray(sel.residual, dtype=float)
     rates = sorted({round(abs(r["rate"]), 6) for r in rows})
     rate_txt = ", ".join(f"±{v:g}" for v in rates[:4]) + (" …" if len(rates) > 4 else "")
-    chosen = ", ".join(sel.terms) or "none (a constant)"
+    where = (f"one temperature level ({levels[0]:.1f} °C)" if len(levels) == 1 else
+             f"{len(levels)} temperature levels {min(levels):.1f}–{max(levels):.1f} °C")
+    terms = (f"temperature terms chosen by BIC from {', '.join(free)}: "
+             f"{', '.join(sel.terms) or 'none (a constant)'}" if free else
+             "no temperature term identifiable (below)")
     lines.append(
         f"scale factor: identified from {n_s} turntable rate segments ({rate_txt} °/s on the "
-        f"gyro axis, total {angle:.4g}°) at {len(levels)} temperature level(s) "
-        f"{min(levels):.1f}–{max(levels):.1f} °C: value {values['value_ppm'][0]:.4g} ± "
-        f"{values['value_ppm'][1]:.2g} ppm; temperature terms chosen by BIC from "
-        f"{', '.join(free) or 'none'}: {chosen}")
+        f"gyro axis, total {angle:.4g}°) at {where}: value {values['value_ppm'][0]:.4g} ± "
+        f"{values['value_ppm'][1]:.2g} ppm; {terms}")
     for t, why in kept.items():
         lines.append(f"scale factor {t}: kept from the template — {why}")
     base.law = sel
