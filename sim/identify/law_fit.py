@@ -25,7 +25,11 @@ correlation time come from the window residual (lag-one correlation ρ over a wi
 −window/ln ρ), and the read-out noise from the first differences of the 1 s residual.
 
 Noise: the gyro rate per sample minus the fitted law (per thermal step, held over its samples),
-powered samples only, into :func:`rlgsim.estimators.identify.allan_noise.fit_allan`.
+powered samples only, into :func:`rlgsim.estimators.identify.allan_noise.fit_allan`. With
+turntable motion (:mod:`.table_motion`) the bias windows are the stationary ones
+(:mod:`.recording_data`) and the noise takes the samples with the table at rest, less the
+Earth rate through the table attitude; the turning samples carry the scale-factor error times
+the table rate and go to :mod:`.scale_factor_fit`.
 
 Selection and uncertainties: :func:`rlgsim.estimators.identify.term_selection.select_terms`,
 twice: by ordinary least squares, whose residual gives the noise fit, then by generalised least
@@ -256,6 +260,9 @@ def _noise(rec: RecordingData, per_step: np.ndarray) -> NoiseFit | None:
     n_steps = min(per_step.size, rate.size // per)
     powered = np.repeat(rec.power[:n_steps] > 0.5, per)
     resid = rate[:n_steps * per] - np.repeat(per_step[:n_steps], per)
+    if rec.motion is not None:          # turntable: the table at rest only, less its Earth rate
+        resid = resid - rec.motion.input_deg_per_h[:n_steps * per]
+        powered = powered & ~rec.motion.moving[:n_steps * per]
     resid = resid[powered]
     resid = resid[np.isfinite(resid)]            # dropout samples (a gap joins its two sides)
     try:
