@@ -20,13 +20,18 @@ the load average before and after.
 build before the issue-12 realism mechanisms) in the same run —
 ``benchmarks/compare_sim_revisions.py``, which alternates the two builds.
 
+``--counters`` then runs it again with the other pulse counter (compiled or NumPy reference;
+the file must be the same bytes) and measures the compiled counter's cost in a fresh process, with an empty numba
+cache (it compiles) and then cached.
+
 Usage: ``python benchmarks/bench_sim.py [--hours H] [--truth-samples] [--chunk-s S]
-[--out PATH] [--keep] [--compare REV] [--rounds N]``.
+[--out PATH] [--keep] [--compare REV] [--rounds N] [--counters]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import filecmp
 import os
 import pathlib
 import resource
@@ -93,6 +98,58 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
     return wall, cpu
 
 
+#: run in a subprocess: import numba and the pulse kernel, count one small block (compiling the
+#: kernel into NUMBA_CACHE_DIR when it is empty, loading it from there otherwise); one JSON line
+KERNEL_PROBE = r"""
+import json, time
+import numpy as np
+from rlgsim.sim.sensor_triad import count_pulses      # imports the kernel (numba) on first use
+t0 = time.perf_counter()
+n, m = 600, 6
+count_pulses(np.zeros(3, np.int64), np.ones((m, 3)), np.zeros((m, 3)), np.zeros((m, 3, 3)),
+             np.zeros((3, n)), None, np.zeros(3), 0.01, 100)
+print(json.dumps({"seconds": time.perf_counter() - t0}))
+"""
+
+
+def kernel_cost() -> tuple[float, float]:
+    """Seconds a fresh process needs to import numba and get the compiled pulse counter
+    (rlgsim.sim._pulse_kernel) ready: (cold — an empty numba cache, so it compiles; cached —
+    the second process, which loads the compiled kernel from that cache)."""
+    import json
+    import shutil
+    import subprocess
+    cache = tempfile.mkdtemp(prefix="rlgsim-numba-")
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    try:
+        out = []
+        for _ in range(2):
+            p = subprocess.run([sys.executable, "-c", KERNEL_PROBE], env=env,
+                               capture_output=True, text=True, check=True)
+            out.append(json.loads(p.stdout.strip().splitlines()[-1])["seconds"])
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    return out[0], out[1]
+
+
+def counter_run(sc, out: pathlib.Path, chunk_s: float | None, compiled: bool) -> float:
+    """Wall seconds of the same run with the compiled or the NumPy reference pulse counter
+    (the same bytes either way)."""
+    import rlgsim.sim.imu as imu
+    orig = imu.ImuSimulator.__init__
+
+    def init(self, *a, **k):
+        orig(self, *a, **k)
+        self.compiled = compiled
+    imu.ImuSimulator.__init__ = init
+    try:
+        t0 = time.perf_counter()
+        simulate(sc, out, chunk_s=chunk_s, progress=False)
+        return time.perf_counter() - t0
+    finally:
+        imu.ImuSimulator.__init__ = orig
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=None, help="cut the run (default: all)")
@@ -105,12 +162,17 @@ def main(argv: list[str] | None = None) -> None:
                     help="also time this tree against revision REV (before-issue-12: the "
                          "build before the realism mechanisms)")
     ap.add_argument("--rounds", type=int, default=3, help="runs of each build for --compare")
+    ap.add_argument("--counters", action="store_true",
+                    help="also time the run with the NumPy pulse counter (same bytes) and the "
+                         "compiled kernel's cold cost (a fresh numba cache)")
     args = ap.parse_args(argv)
 
     sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
     epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
     tmpdir = tempfile.mkdtemp(prefix="rlgsim-bench-")
     out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
+    import rlgsim.sim.imu as imu
+    compiled = "numba" in sys.modules or epochs >= imu.COMPILED_MIN_EPOCHS
     wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
     simulate(sc, out, chunk_s=args.chunk_s, progress=False)
     wall = time.perf_counter() - wall0
@@ -126,7 +188,10 @@ def main(argv: list[str] | None = None) -> None:
     print(f"wall time: {wall:.2f} s  (CPU {cpu:.2f} s: main thread {main_cpu:.2f} s, IMU "
           f"prefetch and writer threads {cpu - main_cpu:.2f} s — on an otherwise idle 2-core "
           f"machine the wall time approaches the larger of the two)")
-    print(f"epochs/s: {epochs / wall / 1e6:.2f} million")
+    counter = ("compiled kernel (sim/_pulse_kernel.py; numba's import and cached-kernel load "
+               "are inside the wall time)" if compiled
+               else f"NumPy (a run under {imu.COMPILED_MIN_EPOCHS:,} epochs)")
+    print(f"epochs/s: {epochs / wall / 1e6:.2f} million  (pulse counter: {counter})")
     print(f"simulated/wall: {sc.duration_s / wall:,.0f}×")
     print(f"peak memory (max RSS): {peak_mb:.0f} MB")
     print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
@@ -140,6 +205,20 @@ def main(argv: list[str] | None = None) -> None:
     print(f"CPU seconds, limit / simulator: {limit_cpu / cpu:.2f}  (all threads; on an idle "
           f"2-core machine the wall-clock ratio can exceed this by up to 2x)")
     print(f"load average after the limit: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if args.counters:
+        ref = pathlib.Path(tmpdir) / "other_counter.h5"
+        wall_other = counter_run(sc, ref, args.chunk_s, not compiled)
+        same = filecmp.cmp(ref, out, shallow=False)
+        ref.unlink()
+        w_c, w_n = (wall, wall_other) if compiled else (wall_other, wall)
+        print(f"the same run with the {'NumPy' if compiled else 'compiled'} pulse counter: "
+              f"{wall_other:.2f} s wall (compiled / NumPy speed: {w_n / w_c:.2f}, the second "
+              f"run warm; file {'identical' if same else 'DIFFERENT'})")
+        cold, cached = kernel_cost()
+        print(f"compiled counter in a fresh process (import numba + the kernel, one block): "
+              f"{cold:.2f} s with an empty numba cache (compiles), {cached:.2f} s cached")
+        print(f"load average after the counters: "
+              f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if not args.keep:
         out.unlink(missing_ok=True)
         try:
