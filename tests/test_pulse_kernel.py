@@ -132,3 +132,22 @@ def test_the_counter_is_chosen_by_run_length_when_numba_is_not_loaded(monkeypatc
     assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is False
     monkeypatch.setattr(imu, "COMPILED_MIN_EPOCHS", 700_000)
     assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is True
+
+
+def test_the_kernel_has_no_fused_multiply_add():
+    """No fastmath: LLVM may not contract a product and a sum into an FMA (a different
+    rounding than numpy's separate multiply and add), and rint stays round-half-to-even."""
+    from numba import njit
+
+    import rlgsim.sim._pulse_kernel as kernel
+    fresh = njit(nogil=True)(kernel.count_channel.py_func)     # uncached: its code inspectable
+    kw = block(0, 4, 100.0, 1.0, rest=True, noise=True, neg=True, power_off=True)
+    kernel_args = (kw["x_t"], np.ascontiguousarray(kw["installation"][:, 0]),
+                   np.ascontiguousarray(kw["bias"][:, 0] * 0.01), np.ascontiguousarray(kw["z"][0]),
+                   float(kw["sigma"][0]), kw["scale_factor"][:, 0] * pulses.ONE,
+                   kw["scale_factor_neg"][:, 0] * pulses.ONE, 100, np.zeros(0, np.int64),
+                   kw["steps"][0], kw["steps"][1], 0, np.zeros(400, bool), 0,
+                   np.empty((400, 3), np.int32), 0)
+    fresh(*kernel_args)
+    asm = fresh.inspect_asm(fresh.signatures[0]).lower()
+    assert "fmadd" not in asm and "fmsub" not in asm and "fnmadd" not in asm
