@@ -41,6 +41,9 @@ __all__ = ["TableMotion", "motion_from_dataset", "motion_from_recording", "ANGLE
 ANGLE_COLUMNS = ("outer_angle_deg", "inner_angle_deg")
 
 _DEG_PER_H = DEG / HOUR          # rad/s per °/h
+#: a segment's table rate on the gyro axis below this [°/s] is a turn about a perpendicular
+#: axis (cos 90° in floating point), not a rate segment
+MIN_RATE_DEG_S = 1e-9
 _CHUNK = 1 << 16
 
 
@@ -107,7 +110,7 @@ def _from_knots(t_k: np.ndarray, outer_k: np.ndarray, inner_k: np.ndarray, n: in
         i1 = min(int(np.floor(tb * f + 1e-6)), n)
         if i1 - i0 >= 2:
             rate = float(np.mean(table_deg_per_h[i0:i1])) / 3600.0
-            if rate != 0.0:
+            if abs(rate) > MIN_RATE_DEG_S:          # not a turn about an axis ⟂ the gyro
                 segs.append((i0, i1))
                 rates.append(rate)
         k = j
