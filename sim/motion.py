@@ -208,6 +208,27 @@ class Motion:
         np.add.at(step, first, 1)
         return lo + np.cumsum(step[:-1])
 
+    def _runs(self, a: np.ndarray) -> list[tuple[int, int, int]]:
+        """The maximal runs ``(lo, hi, j)`` of the sorted sub-interval starts ``a`` lying in one
+        segment ``j`` — the runs of ``clip(_locate(a, "right") − 1, 0, m − 1)``, found from
+        the segment starts inside ``a`` (O(k log n)) instead of a per-sample index array."""
+        n = a.size
+        lo, hi = (int(x) for x in np.searchsorted(self._t0, [a[0], a[-1]], side="right"))
+        # sample i lies in segment (lo + number of starts t0_k, lo <= k < hi, with t0_k <= a_i) − 1
+        first = np.searchsorted(a, self._t0[lo:hi], side="left").tolist()
+        out: list[tuple[int, int, int]] = []
+        start, j = 0, max(lo - 1, 0)
+        for k, f in enumerate(first):
+            nj = max(lo + k, 0)                 # segment from sample f on (clipped at 0)
+            if nj == j:
+                continue
+            if f > start:
+                out.append((start, f, j))
+            start, j = f, nj
+        out.append((start, n, j))
+        # clip(·, 0, m − 1): the upper bound never binds (at most m starts are <= a_i)
+        return out
+
     def attitude(self, t_s: np.ndarray) -> np.ndarray:
         """True attitude C_b^n (body → ENU) at times ``t_s``, (…, 3, 3)."""
         o, i, _ = self.angles(t_s)
@@ -251,15 +272,12 @@ class Motion:
         if is_edge is not None:
             split = ~(is_edge[:-1] & is_edge[1:])
             delta[split] = b[split] - a[split]
-        seg = np.clip(self._locate(a, "right") - 1, 0, self._m - 1)
         # stored axis by axis, (3, n), and handed out as (n, 3) views: each component is
         # computed as one long run (a (k, 3) layout made the static products loop over 3
         # elements at a time) and the IMU stage takes the rows it needs without a copy
         dth = np.empty((3, a.size)).T
         dv = np.empty((3, a.size)).T
-        cut = np.flatnonzero(np.diff(seg)) + 1
-        for lo, hi in zip(np.r_[0, cut], np.r_[cut, a.size]):
-            j = int(seg[lo])
+        for lo, hi, j in self._runs(a):
             self._integrate(j, a[lo:hi], delta[lo:hi], dth[lo:hi], dv[lo:hi])
         if inside.size:
             first = np.searchsorted(pts[:-1], edges[:-1])
