@@ -42,6 +42,69 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
         rep.paragraph(f"**Not identified separately:** {reason}.")
 
 
+def _anomaly_section(rep: Report, laws) -> None:
+    """Mode hops (sim/identify/hop_fit.py) and read-out spikes (sim/identify/spike_fit.py)."""
+    hf, sp = laws.hops, laws.spikes
+    rep.heading("Mode hops and read-out spikes")
+    if hf is not None:
+        how = (f"a likelihood-ratio step scan of the bias windows under the law's noise model "
+               f"(flicker included), Bonferroni threshold |z| ≥ {hf.threshold_z:.2f} over "
+               f"{hf.candidates} positions (family false-alarm level {hf.alpha / 2:g} per "
+               f"recording)")
+        if hf.pattern is not None:
+            zs, n_pred, n_found = hf.pattern
+            how += (f", then a search near the {n_pred} hop(s) the template's mode-hop model "
+                    f"makes on the twin's T_c (level {hf.alpha / 2:g}; found {n_found}"
+                    + (": best |z| " + ", ".join(f"{abs(z):.2f} of {t:.2f}" for z, t, _ in zs)
+                       if zs else "") + ")")
+        if not hf.hops:
+            rep.paragraph(f"No mode hops found ({how}; largest |z| of the last scan "
+                          f"{hf.scan_max_z:.2f}). T_c (mean of {', '.join(hf.nodes)}) spanned "
+                          f"{hf.t_range_c[0]:.1f}–{hf.t_range_c[1]:.1f} °C.")
+        else:
+            rep.paragraph(f"{len(hf.hops)} mode hop(s) found ({how}); each is a fixed "
+                          f"piecewise offset of the bias law, so the temperature terms are "
+                          f"chosen on the hop-free bias. T_c is the twin's mean of "
+                          f"{', '.join(hf.nodes)}.")
+            rep.table(Table.from_records("Mode hops", [
+                {"hop": i + 1, "time [h]": h.time_s / 3600, "± [s]": h.time_se_s,
+                 "step [°/h]": h.size_deg_per_h, "standard error [°/h]": h.size_se_deg_per_h,
+                 "z": h.z, "T_c [°C]": h.temperature_c, "± [°C]": h.temperature_se_c,
+                 "direction": ("up" if h.direction > 0 else "down")
+                              + ("" if h.from_trend else " (from the step's sign)"),
+                 "mode before": h.mode_before} for i, h in enumerate(hf.hops)],
+                note="time: the boundary of the two windows the step falls between; T_c's "
+                     "standard error from its change over them (the twin's thermal error "
+                     "comes on top)"))
+            for a, b, w, se in hf.pairs:
+                rep.paragraph(f"Hops {a + 1} (down) and {b + 1} (up) are a hysteresis pair: "
+                              f"width {w:.2f} ± {se:.2f} K.")
+        if hf.mode_hop is not None:
+            mh = hf.mode_hop
+            when = ", ".join(f"{t / 3600:.2f} h ({'up' if d > 0 else 'down'})"
+                             for t, d in hf.predicted) or "no time"
+            rep.paragraph(f"The twin's `[anomalies.mode_hop]`: κ {mh['modes_per_k']:.4g} /K, "
+                          f"R {mh['range_modes']:.4g}, T_ref {mh['reference_c']:.2f} °C, "
+                          f"Δb {mh['bias_step_deg_per_h']:.4g} °/h; on the twin's T_c it "
+                          f"hops at {when} of this recording.")
+        for note in hf.notes:
+            rep.paragraph(f"Mode hops: {note}.")
+    if sp is not None:
+        n = len(sp.sizes)
+        lo, hi = sp.rate_ci95_per_h
+        rep.paragraph(
+            f"Read-out spikes: {n} sample(s) at least {sp.threshold_pulses} pulses from their "
+            f"neighbours' median in {sp.powered_h:.1f} powered h"
+            + (f" (sizes {', '.join(str(s) for s in sp.sizes)} pulses, at "
+               f"{', '.join(f'{t / 3600:.2f} h' for t in sp.times_s)}): rate "
+               f"{sp.rate_per_h:.3g} per h, 95 % interval [{lo:.3g}, {hi:.3g}] (exact Poisson, "
+               f"scaled for the sizes too small to see), max_pulses {sp.max_pulses} — the "
+               f"twin's `[anomalies.pulse_spikes]`" if n else
+               f": none; rate below {hi:.3g} per h (95 %); the twin has no read-out spikes")
+            + f". {len(laws.outlier_windows_s)} bias window(s) were left out of the law as "
+              f"outliers (innovation beyond 5.5σ).")
+
+
 def build_report(result, device_name: str, thermal_name: str) -> Report:
     import matplotlib
     matplotlib.use("Agg")
@@ -133,6 +196,7 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     ax.set_ylabel("bias [°/h]")
     ax.legend(fontsize=8)
     rep.figure(fig, "bias_law", "Window bias and the fitted law")
+    _anomaly_section(rep, laws)
     if laws.uhfo is not None:
         rep.heading("UHFO law")
         rep.paragraph(f"Node `{laws.uhfo_node}`; U₀ = {laws.u0_v:.4f} V. Discharge wander and "

@@ -37,7 +37,10 @@ squares with the covariance of the window means that the fitted noise implies
 (:func:`rlgsim.estimators.identify.window_noise.covariance_from_fit`, the flicker band of the
 device template) — the flicker's long memory then counts in every standard error. A window whose
 whitened residual (its innovation) exceeds :data:`OUTLIER_Z` is left out once and the law
-refitted (``outlier_windows_s``); the noise is fitted again from what the final law leaves.
+refitted (``outlier_windows_s``); then mode hops — steps the law cannot explain — are searched
+for on the innovations and carried as fixed piecewise offsets while the terms are chosen again
+(:mod:`rlgsim.sim.identify.hop_fit`, ``hops``); the noise is fitted again from what the final law
+(hops included) leaves.
 """
 
 from __future__ import annotations
@@ -76,6 +79,10 @@ class LawFit:
     gradient_pairs: dict[str, tuple[str, str]]
     #: end times [s] of the windows left out of the bias law as outliers
     outlier_windows_s: tuple[float, ...] = ()
+    #: mode hops found in the bias (:mod:`rlgsim.sim.identify.hop_fit`), None without a GLS fit
+    hops: object = None
+    #: read-out spikes found in the gyro samples (:mod:`rlgsim.sim.identify.spike_fit`)
+    spikes: object = None
 
 
 #: |innovation| (whitened window residual) beyond which a window is left out of the bias law:
@@ -146,6 +153,8 @@ def law_prediction(sel: SelectedLaw, candidates_per_step: dict) -> np.ndarray:
     for t in sel.terms:
         th = np.array([x[names.index(n)] for n in names if n.startswith(f"{t}.")])
         out = out + x[names.index(t)] * candidates_per_step[t](th)
+    for t in sel.fixed:                       # the mode hops' piecewise offsets
+        out = out + x[names.index(t)] * candidates_per_step[t](np.zeros(0))
     return out
 
 
@@ -212,6 +221,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
     outliers: tuple[float, ...] = ()
+    hops = None
     cands = _candidates(T, t_ref, step, win, law, extra)
     per_step_terms = _per_step(T, t_ref, step, extra)
     # first pass: ordinary least squares, whose residual gives the noise model ...
@@ -228,19 +238,37 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
         bias_sel = select_terms(y, cands, noise_cov=cov)
         # windows the noise model cannot explain (a read-out spike, a step): left out once
         bad = np.flatnonzero(np.abs(bias_sel.fit.residual) > OUTLIER_Z)
+        keep = np.setdiff1d(np.arange(y.size), bad)
         if bad.size:
-            keep = np.setdiff1d(np.arange(y.size), bad)
             outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
             bias_sel = select_terms(y[keep], _subset(cands, keep),
                                     noise_cov=cov[np.ix_(keep, keep)])
+        # mode hops: steps the law cannot explain, then the law on the hop-free bias
+        from rlgsim.sim.identify import hop_fit as H
+        te = np.asarray(rec.windows["time_s"], dtype=float)[keep]
+        bias_sel, scan, idx, rounds, pattern = H.find_hops(
+            y[keep], _subset(cands, keep), cov[np.ix_(keep, keep)], bias_sel, te, rec.window_s,
+            rec.t_s, nodes_c, node_names, block, bias_node, device)
+        hops, hop_times = H.describe_hops(bias_sel, scan, idx, rounds, pattern, te,
+                                          rec.window_s,
+                                          rec.t_s, nodes_c, node_names, block, bias_node,
+                                          device)
+        per_step_terms.update(H.hop_per_step(rec.t_s, hop_times))
         per_step = law_prediction(bias_sel, per_step_terms)
         noise = _noise(rec, per_step) or noise
     rms = float(np.sqrt(np.mean(bias_sel.residual ** 2)))
+    from rlgsim.sim.identify.spike_fit import find_spikes
+    per = int(round(rec.sample_rate_hz * rec.step_s))
+    n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
+    spikes = find_spikes(rec.rate_deg_per_h[:n_s], rec.sample_rate_hz,
+                         float(gyro.get("scale_factor_pulses_per_arcsec", 2.14)),
+                         np.repeat(rec.power > 0.5, per)[:n_s])
     return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
                   uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
                   noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
                   per_step_bias_deg_per_h=per_step, gradient_pairs=pairs,
-                  outlier_windows_s=outliers)
+                  outlier_windows_s=outliers, hops=hops,
+                  spikes=spikes)
 
 
 def _flicker_band(device: dict) -> tuple[float, float, int]:
@@ -295,6 +323,8 @@ def bias_features(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str
                                               for n in t.theta_names]))
         elif not t.k:
             out[t.name] = t.feature(np.zeros(0))
+    for name in sel.fixed:       # mode hops: unknown on another programme, the start mode's law
+        out[name] = np.zeros(len(rows))
     return out
 
 

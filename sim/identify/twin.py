@@ -233,6 +233,12 @@ def _device_dict(template: dict, laws: LawFit, name: str, source: str
             comments[("noise", pkey)] = (f"Allan fit, standard error ≈ {se:.2g}, 95 % interval "
                                          f"[{lo:.3g}, {hi:.3g}]"
                                          + ("; not resolved by this recording" if lo == 0 else ""))
+    # mode hops and read-out spikes as found in the recording (hop_fit, spike_fit)
+    from rlgsim.sim.identify.hop_fit import anomalies_table
+    anomalies, acomments = anomalies_table(dev.pop("anomalies", None), laws.hops, laws.spikes)
+    if anomalies is not None:
+        dev["anomalies"] = anomalies
+        comments.update(acomments)
     return dev, comments
 
 
