@@ -225,3 +225,22 @@ def test_segment_covariance_matches_equal_windows_and_numerical_integration():
             assert cov[i, j] == pytest.approx(num / (ln[i] * ln[j]), rel=1e-6), (i, j)
     with pytest.raises(ValueError):
         segment_mean_covariance(np.array([0.0, 50.0]), np.array([100.0, 10.0]))
+
+
+def test_a_recording_at_rest_away_from_zero_gets_the_earth_rate_of_its_attitude(tmp_path):
+    """A table standing at outer = 90° (gyro z pointing South): the recording's bias windows
+    take the Earth rate through the logged attitude, as the dataset's truth does (window_table
+    alone assumes the table at zero: 20.9 °/h off at 34° latitude)."""
+    from rlgsim.api import window_table
+    from rlgsim.ground.recording_export import export
+    from rlgsim.sim.identify.recording_data import read_recording
+    rec = _unit(tmp_path, noise=QUIET, turntable={"program": "static", "outer_deg": 90.0},
+                name="r90")
+    d0 = read_recording(rec)
+    csv = export(rec, "csv", out=tmp_path / "r90_rec.csv").table
+    d1 = read_recording(csv)
+    assert d1.motion is None and not d1.has_motion
+    b0 = d0.windows["bias_deg_per_h"].to_numpy()
+    b1 = d1.windows["bias_deg_per_h"].to_numpy()
+    assert np.max(np.abs(b1 - b0)) < 1e-9
+    assert np.min(np.abs(window_table(csv)["bias_deg_per_h"].to_numpy() - b1)) > 10.0

@@ -189,7 +189,9 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                     table = motion_from_dataset(h5, gyro, rate.size, f)
     finally:
         tree.close()
-    if table is not None and not table.moving.any():
+    # a table at rest away from zero: no motion, but its attitude still sets the Earth rate
+    at_rest = table if table is not None and not table.moving.any() else None
+    if at_rest is not None:
         table = None
     motion = motion or table is not None
     if t.size < 2:
@@ -220,8 +222,9 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                              f"({exc}); identification needs windows with complete gyro and "
                              f"probe data") from None
     moving_windows = 0
-    if table is not None:
-        windows, moving_windows = _stationary_windows(windows, table, rate, f, window_s)
+    if table is not None or at_rest is not None:
+        windows, moving_windows = _stationary_windows(windows, table or at_rest, rate, f,
+                                                      window_s)
     if len(windows) < 20:
         raise _refuse(source, f"only {len(windows)} complete powered {window_s:g} s windows "
                               f"of the gyro" + (f" with the turntable at rest ({moving_windows} "
