@@ -48,6 +48,9 @@ def run(args: argparse.Namespace) -> int:
         print("probe RMS [°C]: " + ", ".join(f"{k} {v:.3f}" for k, v in th.rms_fitted_c.items()))
         print(f"bias law terms: {', '.join(r.laws.bias.terms) or 'constant'} "
               f"(window RMS {r.laws.bias_rms_deg_per_h:.4g} °/h)")
+        if r.scale_factor is not None:
+            for line in r.scale_factor.lines:
+                print(line)
         for f in (r.device_path, r.thermal_path, r.scenario_path, r.report_path):
             print(f"wrote {f}")
     return 0
