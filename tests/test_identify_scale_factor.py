@@ -44,7 +44,8 @@ EVERY_10_MIN = {"program": "custom", "continuous": True,
 
 
 def _unit(folder: pathlib.Path, *, noise: dict | None, turntable: dict | None, seed: int = 1,
-          sample_rate_hz: float = 2.0, programme=PROGRAMME, name: str = "run") -> pathlib.Path:
+          sample_rate_hz: float = 2.0, programme=PROGRAMME, name: str = "run",
+          sf: dict | None = None) -> pathlib.Path:
     """Simulate one unit (thermal template rlg_single, device trplg_001 with the bias law BIAS
     and the scale-factor law SF; the value drawn around SF's by the template's 5 ppm
     tolerance) on ``programme`` with the ``turntable`` table; the dataset's path."""
@@ -53,7 +54,7 @@ def _unit(folder: pathlib.Path, *, noise: dict | None, turntable: dict | None, s
     dev = IT.device_truth(folder, th, bias=BIAS, noise=noise, keep_uhfo=False,
                           scale_factor=100.0, name=f"{name}_device.toml")
     d = tomllib.loads(dev.read_text())
-    d["gyro"]["scale_factor"] = dict(SF)
+    d["gyro"]["scale_factor"] = dict(SF if sf is None else sf)
     dev.write_text(dumps(d))
     sc = IT.scenario(folder, dev, programme=programme, sample_rate_hz=sample_rate_hz,
                      seed=seed, device_seed=seed, name=name)
@@ -124,6 +125,21 @@ def test_noise_free_scale_factor_law_is_recovered(noise_free):
     sc = load_scenario(str(r.scenario_path))
     assert sc.device.parts["gyro"].scale_factor.nominal["c1"][0] == pytest.approx(v["c1_ppm_per_k"])
     assert "## Scale factor" in (folder / "twin" / "report.md").read_text()
+
+
+def test_noise_free_knee_at_the_template_centre_is_recovered(tmp_path):
+    """A knee in the template's law is a candidate at the template's centre and width."""
+    sf_law = {"node": "A", "t_ref_c": 20.0, "value_ppm": 3.0, "c1_ppm_per_k": 0.1,
+              "knee_ppm": 0.5, "knee_c": 30.0, "knee_width_k": 5.0}
+    rec = _unit(tmp_path, noise=QUIET, turntable=EVERY_10_MIN, name="knee", sf=sf_law)
+    truth = _truth(rec)
+    sf = _fit_only(rec)
+    assert sf.candidates == ("c1", "c2", "knee")
+    assert set(sf.law.terms) == {"c1", "knee"}
+    assert sf.values["value_ppm"][0] == pytest.approx(truth["gyro.scale_factor.value[z]"],
+                                                      abs=0.005)
+    assert sf.values["c1_ppm_per_k"][0] == pytest.approx(0.1, rel=3e-3)
+    assert sf.values["knee_ppm"][0] == pytest.approx(0.5, rel=5e-3)
 
 
 def test_a_recording_gives_the_same_scale_factor_and_needs_its_angle_columns(noise_free,
