@@ -286,10 +286,14 @@ def scale_factor_table(template: dict, fit: ScaleFactorFit) -> tuple[dict, dict[
     out["value_ppm"] = fit.values["value_ppm"][0]
     comments["value_ppm"] = (f"fitted from {len(fit.segments['k_ppm'])} rate segments, standard "
                              f"error {fit.values['value_ppm'][1]:.3g}")
+    avg = fit.law.averaged
     for t, key in SF_KEYS.items():
         if key in fit.values:
             out[key] = fit.values[key][0]
             comments[key] = f"fitted, standard error {fit.values[key][1]:.3g}; BIC-selected"
+            if t in avg:
+                v, se, p = avg[t]
+                comments[key] += f"; model-averaged {v:.4g} ± {se:.2g} (inclusion {p:.2f})"
         elif t in fit.kept and key in law:
             out[key] = law[key]
             comments[key] = "kept from the template (the rate segments cannot identify it)"
