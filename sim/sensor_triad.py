@@ -359,7 +359,8 @@ def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarr
         kn = (_NO_FLOAT if scale_factor_neg is None
               else np.ascontiguousarray(scale_factor_neg[:, s]) * one)
         rem, hi, lo = count_channel(x, np.ascontiguousarray(installation[:, s]),
-                                    np.ascontiguousarray(a[:, s]), zs, float(sigma[s]), k, kn,
+                                    np.ascontiguousarray(a[:, s]), zs,
+                                    float(sigma[s]) if z is not None else 0.0, k, kn,
                                     r, step_of, uniform, first, int(own[s]), off,
                                     int(remainder[s]), out, s)
         peak = max(hi, -lo)                          # NaN: the test below fails
