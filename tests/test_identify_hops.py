@@ -188,3 +188,29 @@ def test_spikes_counted_and_rate_estimated():
     assert lo < sp.rate_per_h < hi
     M = sp.max_pulses
     assert sp.rate_per_h == pytest.approx(4 / 10.0 / ((M - 2) / M))
+
+
+def test_fixed_regressor_against_statsmodels():
+    """``select_terms(..., fixed=...)``: a step carried in every model; with the true term
+    chosen, its coefficient and standard error are statsmodels' least squares (the GLS standard
+    error with C = σ²I: the OLS one rescaled to the modelled σ unless the residual is larger)."""
+    import statsmodels.api as sm
+    from rlgsim.estimators.identify.term_selection import Term, select_terms
+    rng = np.random.default_rng(8)
+    n = 300
+    x = np.linspace(-1, 1, n)
+    step = (np.arange(n) >= 120).astype(float)
+    sigma = 0.1
+    y = 1.0 + 2.0 * x + 0.5 * step + sigma * rng.standard_normal(n)
+    cands = [Term("x", lambda th: x), Term("x2", lambda th: x ** 2)]
+    sel = select_terms(y, cands, noise_cov=sigma ** 2 * np.eye(n),
+                       fixed=[Term("hop1", lambda th: step)])
+    assert sel.terms == ("x",) and sel.fixed == ("hop1",)
+    ols = sm.OLS(y, np.column_stack([np.ones(n), step, x])).fit()
+    assert sel.value("hop1") == pytest.approx(ols.params[1], rel=1e-6)
+    assert sel.value("x") == pytest.approx(ols.params[2], rel=1e-6)
+    s2w = ols.ssr / sigma ** 2 / (n - 3)
+    assert sel.se("hop1") == pytest.approx(ols.bse[1] * np.sqrt(max(1.0, s2w) / s2w), rel=1e-4)
+    assert sel.averaged["hop1"][2] == 1.0              # in every averaged model
+    with pytest.raises(ValueError):
+        select_terms(y, cands, fixed=[Term("x", lambda th: step)])
