@@ -532,6 +532,11 @@ def anomalies_table(template: dict | None, hops: HopFit | None, spikes
         out["mode_hop"] = dict(hops.mode_hop)
         for key, text in hops.comments.items():
             com[("anomalies", "mode_hop", key)] = text
+    elif hops is None and template and "mode_hop" in template:   # no search (no noise model)
+        out["mode_hop"] = dict(template["mode_hop"])
+        for key in out["mode_hop"]:
+            com[("anomalies", "mode_hop", key)] = ("kept from the template (not searched: the "
+                                                   "record is too short for a noise model)")
     if spikes is not None and spikes.max_pulses is not None:
         lo, hi = spikes.rate_ci95_per_h
         out["pulse_spikes"] = {"rate_per_h": spikes.rate_per_h, "max_pulses": spikes.max_pulses}
