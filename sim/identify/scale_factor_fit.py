@@ -130,7 +130,7 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     block = (gyro.get("blocks") or [""])[0]
     T_step = nodes_c[:, _node(block, node, node_names)]
     f = rec.sample_rate_hz
-    per = int(round(f * rec.step_s))
+    per = max(1, int(round(f * rec.step_s)))              # gyro samples per thermal step
     m = T_step.size
     feats = _features(T_step, t_ref, law)
     family = ["c1", "c2"] + [t for t in ("c3", "knee") if float(law.get(SF_KEYS[t], 0.0))]
