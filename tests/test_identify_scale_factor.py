@@ -260,3 +260,20 @@ def test_a_recording_at_rest_away_from_zero_gets_the_earth_rate_of_its_attitude(
     b1 = d1.windows["bias_deg_per_h"].to_numpy()
     assert np.max(np.abs(b1 - b0)) < 1e-9
     assert np.min(np.abs(window_table(csv)["bias_deg_per_h"].to_numpy() - b1)) > 10.0
+
+
+def test_multi_position_programme_finds_no_false_read_out_spikes(tmp_path):
+    """calibration19 (90° turns about every axis at 20 °/s, 10 Hz, noisy, no anomalies): the
+    spike search sees the rate less the table's input, so the Earth rate swinging through a
+    turning gyro and the rate steps are not spikes (two false ones before); the scale factor
+    comes from the turns about the gyro's own axis."""
+    rec = _unit(tmp_path, noise=None, turntable={"program": "calibration19",
+                                                   "rate_deg_s": 20.0},
+                name="c19", sample_rate_hz=10.0)
+    truth = _truth(rec)
+    r = identify(rec, tmp_path / "twin")
+    assert r.laws.spikes.sizes == ()
+    sf = r.scale_factor
+    assert sf.identified and set(np.round(np.abs(sf.segments["rate_deg_s"]), 6)) == {20.0}
+    v, se = sf.values["value_ppm"]
+    assert abs(v - truth["gyro.scale_factor.value[z]"]) < 4 * se

@@ -260,7 +260,10 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     from rlgsim.sim.identify.spike_fit import find_spikes
     per = int(round(rec.sample_rate_hz * rec.step_s))
     n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
-    spikes = find_spikes(rec.rate_deg_per_h[:n_s], rec.sample_rate_hz,
+    rate_s = rec.rate_deg_per_h[:n_s]
+    if rec.motion is not None:          # turntable: less the table's input, which the median
+        rate_s = rate_s - rec.motion.input_deg_per_h[:n_s]   # of 31 samples would not follow
+    spikes = find_spikes(rate_s, rec.sample_rate_hz,
                          float(gyro.get("scale_factor_pulses_per_arcsec", 2.14)),
                          np.repeat(rec.power > 0.5, per)[:n_s])
     return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
