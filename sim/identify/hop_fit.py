@@ -37,8 +37,10 @@ identified). The mapped model is then run through the simulator's own hop logic 
 ones (``predicted``).
 
 Without a hop: the template's mode-hop model (if any) is run on the twin's ``T_c``; if it would
-have hopped in this recording it is contradicted and dropped, otherwise it is kept (the
-recording did not reach its hop temperatures).
+have hopped in this recording with a step the recording resolves — even the smallest a unit
+within 2σ of the template's ``bias_step_rel`` has, at (threshold + 2) standard errors of a step
+where it predicts the hops — it is contradicted and dropped, otherwise it is kept (not reached,
+or below the detection limit).
 """
 
 from __future__ import annotations
@@ -371,14 +373,17 @@ def describe_hops(sel: SelectedLaw, scan: StepFit, index: tuple[int, ...], round
     elif template:
         pred = _simulated_hops(template, nodes, t, nodes_c, node_names, block)
         db_t = abs(float(template["bias_step_deg_per_h"]))
+        # the smallest step a unit of the template plausibly has (2σ of its unit-to-unit spread)
+        db_min = db_t * max(0.0, 1.0 - 2.0 * float(template.get("bias_step_rel", 0.0)))
         searched = pattern[0] if pattern else ()
         # would the template's hops have been seen? (found with ≥ 98 % probability at
         # |Δb| ≥ (threshold + 2) standard errors of a step there)
-        seen = [db_t >= (thr + 2.0) * se for _, thr, se in searched]
+        seen = [db_min >= (thr + 2.0) * se for _, thr, se in searched]
         if pred and any(seen):
             out.notes.append(
                 f"no hop found, but the template's mode-hop model would hop {len(pred)} time(s) "
-                f"on the twin's T_c in this recording with a step (Δb {db_t:.3g} °/h) this "
+                f"on the twin's T_c in this recording with a step (Δb {db_t:.3g} °/h, at least "
+                f"{db_min:.3g} °/h for a unit within 2σ of the template's spread) this "
                 f"recording resolves: the recording contradicts it, and the twin has no mode "
                 f"hops")
         elif pred:
@@ -386,7 +391,8 @@ def describe_hops(sel: SelectedLaw, scan: StepFit, index: tuple[int, ...], round
             out.mode_hop = dict(template)
             out.notes.append(
                 f"no hop found; the template's mode-hop model would hop {len(pred)} time(s) on "
-                f"the twin's T_c, but its step Δb {db_t:.3g} °/h is below what this recording "
+                f"the twin's T_c, but its step (Δb {db_t:.3g} °/h, as small as {db_min:.3g} °/h "
+                f"for a unit within 2σ of the template's spread) is below what this recording "
                 f"reliably detects there ((threshold + 2) × standard error: {lim} °/h): not "
                 f"contradicted, "
                 f"kept from the template, not identified")
