@@ -18,10 +18,12 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
 3. exact angle / velocity increments of the turntable motion (:mod:`rlgsim.sim.motion`), white noise
    (float32 standard normals × σ, as :func:`rlgsim.sim.noise.white_increments`) and the phase
    increments of eqs. 17/20;
-4. pulse counting with carried remainders (:mod:`rlgsim.sim.pulses`).
+4. pulse counting with carried remainders (:mod:`rlgsim.sim.pulses`), with the measurement
+   equation in one compiled pass per channel (:mod:`rlgsim.sim._pulse_kernel`; the NumPy
+   path for short runs in a process without numba — the same pulses bit for bit).
 
 The state-free inputs of the next block (increments, normals, slow-noise and UHFO drives) are
-computed in a worker thread while the current block runs (:meth:`ImuSimulator._get_inputs`),
+computed in two worker threads while the current block runs (:meth:`ImuSimulator._get_inputs`),
 with the thermal steps at rest (every sample the same increment, bit for bit), whose
 measurement equation :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step.
 
