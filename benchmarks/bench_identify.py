@@ -492,6 +492,39 @@ def hop_lines(folder: pathlib.Path, r, law_o, raw_o, law_rms: float, ratio: floa
           f"{ratio_b:.2f} / {ratio:.2f}")
 
 
+def hop_false_alarms(seeds: int, work: pathlib.Path) -> None:
+    """Hop-free recordings (4.9 h, rlg_single, no anomalies) through the law fit on the true
+    network's temperatures: how many get a (false) mode hop — a c1 law with trplg_001's noise,
+    and trplg_001's own law (knee, rate, UHFO)."""
+    import tomllib
+    from rlgsim.sim import presets
+    from rlgsim.sim.identify.law_fit import fit_laws
+    from rlgsim.sim.identify.recording_data import read_recording
+    from rlgsim.sim.identify.thermal_fit import build, twin_response
+    dev_t = presets.load_device_file("trplg_001").data
+    print(f"\nC. false mode hops on hop-free recordings, {seeds} seeds per law (family level "
+          f"≤ 1 % per recording)")
+    for kind in ("c1 law, trplg_001 noise", "trplg_001 law"):
+        false, zmax = 0, []
+        for seed in range(seeds):
+            f = work / f"fa_{kind[:2]}_{seed}"
+            f.mkdir()
+            th = IT.thermal_truth(f, {})
+            bias = ({"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01,
+                     "c1_deg_per_h_per_k": 3e-4} if kind.startswith("c1") else None)
+            d = (IT.device_truth(f, th, bias=bias, keep_uhfo=False, noise=dict(dev_t["noise"]))
+                 if bias else IT.device_truth(f, th))
+            rec = read_recording(IT.simulate(IT.scenario(f, d, seed=100 + seed), f / "r.h5"))
+            net, probes = build(presets.load_thermal_file(str(f / "truth_thermal.toml")).data)
+            nodes, _ = twin_response(net, probes, rec.air_c, rec.power, rec.step_s)
+            hf = fit_laws(rec, nodes, net.node_names, tomllib.loads(d.read_text())).hops
+            false += bool(hf.hops)
+            zmax.append(hf.scan_max_z)
+        print(f"   {kind}: {false} of {seeds} recordings with a false hop; largest |z| of the "
+              f"last scan median {np.median(zmax):.2f}, max {max(zmax):.2f} (threshold "
+              f"{hf.threshold_z:.2f})")
+
+
 def timing_10hz(work: pathlib.Path) -> tuple[float, float]:
     """One identification of trplg_001 unit 1 through the 20 h programme with the gyro at its
     papers' 10 Hz (720,000 samples; probes at 1 Hz): wall and CPU seconds (all processes)."""
@@ -520,6 +553,8 @@ def main() -> None:
                     help="closed-loop presets (none: coverage only)")
     ap.add_argument("--no-10hz", action="store_true", help="skip the 10 Hz timing")
     ap.add_argument("--jobs", type=int, default=1, help="processes for the coverage units")
+    ap.add_argument("--hop-seeds", type=int, default=0,
+                    help="hop-free recordings per law for the false mode-hop count")
     ap.add_argument("--sf-units", type=int, default=0,
                     help="part C: scale-factor coverage over this many drawn rlg8_003 units")
     args = ap.parse_args()
@@ -536,6 +571,8 @@ def main() -> None:
             sf_coverage(args.sf_units, work)
         for preset in args.presets:
             closed_loop(preset, args.units, work, times, cpus)
+        if args.hop_seeds:
+            hop_false_alarms(args.hop_seeds, work)
         if times:
             print(f"\none identification of a 20 h recording (1 Hz probes and gyro, 100 s "
                   f"windows): {', '.join(f'{t:.1f}' for t in times)} s wall, "
