@@ -69,10 +69,10 @@ from rlgsim.sim.uhfo import Uhfo, UhfoModel
 _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 
 #: A run of at least this many IMU epochs counts its pulses with the compiled kernel even when
-#: numba is not loaded yet: importing numba and loading the cached kernel cost ~0.3 s once per
-#: process, which the kernel repays at ~20-150 ns per epoch (six channels: a table at rest /
-#: moving) — from a few million epochs on (measured with benchmarks/bench_sim.py and
-#: tests/test_pulse_kernel.py's block on the 2-core development machine).
+#: numba is not loaded yet: importing numba and loading the cached kernel cost ~0.4-0.7 s once
+#: per process on the shared 2-core development machine, which the kernel repays at ~20-150 ns
+#: of CPU per epoch (six channels: a table at rest / turning; tests/test_pulse_kernel.py's
+#: block timed both ways) — from a few million epochs on (benchmarks/bench_sim.py --counters).
 COMPILED_MIN_EPOCHS = 5_000_000
 
 
