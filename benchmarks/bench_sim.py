@@ -173,10 +173,12 @@ def main(argv: list[str] | None = None) -> None:
     out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
     import rlgsim.sim.imu as imu
     compiled = "numba" in sys.modules or epochs >= imu.COMPILED_MIN_EPOCHS
+    ru0 = resource.getrusage(resource.RUSAGE_SELF)
     wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
     simulate(sc, out, chunk_s=args.chunk_s, progress=False)
     wall = time.perf_counter() - wall0
     cpu = time.process_time() - cpu0
+    ru1 = resource.getrusage(resource.RUSAGE_SELF)
     main_cpu = time.thread_time() - main0
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     size_mb = out.stat().st_size / 1e6
@@ -193,7 +195,9 @@ def main(argv: list[str] | None = None) -> None:
                else f"NumPy (a run under {imu.COMPILED_MIN_EPOCHS:,} epochs)")
     print(f"epochs/s: {epochs / wall / 1e6:.2f} million  (pulse counter: {counter})")
     print(f"simulated/wall: {sc.duration_s / wall:,.0f}×")
-    print(f"peak memory (max RSS): {peak_mb:.0f} MB")
+    print(f"peak memory (max RSS): {peak_mb:.0f} MB; minor page faults in the run "
+          f"{ru1.ru_minflt - ru0.ru_minflt:,}, kernel time {ru1.ru_stime - ru0.ru_stime:.2f} s "
+          f"(sim/_heap.py keeps freed block buffers for reuse)")
     print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
     # the machine limit, measured in the same run right after: normal draws + h5py writes of
     # the same number of bytes as the file (target: the simulator at >= 0.8 of it)

@@ -53,6 +53,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from rlgsim.ground.dataset_format import PROBES, THERMAL
+from rlgsim.sim._heap import keep_freed_memory
 from rlgsim.sim.dataset import DatasetWriter, GroupWriter, check_writable
 from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_probes, declare_thermal,
                                        declare_thermal_parts, write_timeline)
@@ -384,6 +385,8 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
         # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
         # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
         limits = threadpool_limits(limits=1, user_api="blas")
+        # each block's buffers reuse the previous block's pages (no page faults; sim/_heap.py)
+        keep_freed_memory()
         appender = _Appender(writers, blocks_per_write)
         try:
             for b in range(n_blocks):

@@ -151,3 +151,31 @@ def test_the_kernel_has_no_fused_multiply_add():
     fresh(*kernel_args)
     asm = fresh.inspect_asm(fresh.signatures[0]).lower()
     assert "fmadd" not in asm and "fmsub" not in asm and "fnmadd" not in asm
+
+
+def test_heap_thresholds_are_set_once_and_change_no_value(tmp_path):
+    """sim/_heap.py: on Linux with glibc the thresholds are set (True), elsewhere nothing is
+    done (False); a run with them stores the same bytes as a run in a fresh process without
+    them (the quickstart)."""
+    import subprocess
+    import sys
+
+    from rlgsim.sim._heap import keep_freed_memory
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import simulate
+    first = keep_freed_memory()
+    assert keep_freed_memory() is first
+    if sys.platform.startswith("linux"):
+        import ctypes
+        try:
+            ctypes.CDLL(None).gnu_get_libc_version
+            assert first is True
+        except AttributeError:
+            assert first is False
+    a = simulate(load_scenario("quickstart"), tmp_path / "a.h5", progress=False)
+    code = ("import rlgsim.sim._heap as h; h._applied = False; "
+            "from rlgsim.sim.scenario import load_scenario; "
+            "from rlgsim.sim.simulate import simulate; "
+            f"simulate(load_scenario('quickstart'), {str(tmp_path / 'b.h5')!r}, progress=False)")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    assert a.read_bytes() == (tmp_path / "b.h5").read_bytes()
