@@ -6,14 +6,14 @@ paper000_ramp: the RLG-IMU (three gyros, three accelerometers, UHFO) through a 4
 Prints epochs/s, simulated/wall time, CPU time, peak memory (``resource.getrusage``; the
 process's maximum resident set) and the file size, with the machine line
 (``benchmarks/_machine.py``) and the load average (other processes share the 2 cores: the
-CPU time of the main thread and of the other two — the IMU prefetch thread and the writer
-thread — are printed too). Targets on the 2-core development machine: ≥ 3 million epochs/s
+CPU time of the main thread and of the other three — the two IMU prefetch threads and the
+writer thread — are printed too; and the run's minor page faults and kernel time). Targets on the 2-core development machine: ≥ 3 million epochs/s
 end to end and < 500 MB peak memory, independent of the duration (compare ``--hours 12``).
 
 Issue 16's target: the simulator at ≥ 0.8 of the machine limit (:func:`machine_limit`: the
 white-noise normals it must draw and an h5py write of as many bytes as its file), measured in
 the same run right after the simulation. Both are wall-clock figures and the machine is shared:
-the CPU seconds of both are printed too (the limit is one thread; the simulator runs three), and
+the CPU seconds of both are printed too (the limit is one thread; the simulator runs four), and
 the load average before and after.
 
 ``--compare REV`` then times this tree against revision ``REV`` (``before-issue-12``: the
@@ -21,8 +21,8 @@ build before the issue-12 realism mechanisms) in the same run —
 ``benchmarks/compare_sim_revisions.py``, which alternates the two builds.
 
 ``--counters`` then runs it again with the other pulse counter (compiled or NumPy reference;
-the file must be the same bytes) and measures the compiled counter's cost in a fresh process, with an empty numba
-cache (it compiles) and then cached.
+the file must be the same bytes) and measures the compiled counter's cost in a fresh
+process, with an empty numba cache (it compiles) and then cached.
 
 Usage: ``python benchmarks/bench_sim.py [--hours H] [--truth-samples] [--chunk-s S]
 [--out PATH] [--keep] [--compare REV] [--rounds N] [--counters]``.
