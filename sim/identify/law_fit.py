@@ -216,6 +216,17 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
         uhfo_noise = {"wander_v": (wander, wander / np.sqrt(2.0 * n_eff)),
                       "wander_tau_s": (tau, tau * np.sqrt(2.0 / n_eff)),
                       "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
+    # read-out spikes first: the noise fit takes the rate with them taken out
+    from rlgsim.sim.identify.spike_fit import find_spikes
+    pulses_per_arcsec = float(gyro.get("scale_factor_pulses_per_arcsec", 2.14))
+    per = int(round(rec.sample_rate_hz * rec.step_s))
+    n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
+    rate_s = rec.rate_deg_per_h[:n_s]
+    if rec.motion is not None:          # turntable: less the table's input, which the median
+        rate_s = rate_s - rec.motion.input_deg_per_h[:n_s]   # of 31 samples would not follow
+    spikes = find_spikes(rate_s, rec.sample_rate_hz, pulses_per_arcsec,
+                         np.repeat(rec.power > 0.5, per)[:n_s])
+    quantum = 1.0 / pulses_per_arcsec
     # ------------------------------------------------------------------ bias law
     T = nodes_c[:, _node(block, bias_node, node_names)]
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
@@ -227,7 +238,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     # first pass: ordinary least squares, whose residual gives the noise model ...
     bias_sel = select_terms(y, cands)
     per_step = law_prediction(bias_sel, per_step_terms)
-    noise = _noise(rec, per_step)
+    noise = _noise(rec, per_step, spikes, quantum)
     # ... then generalised least squares with the window-mean covariance of that noise
     # (flicker memory included), and the noise again from what the final law leaves
     if noise is not None:
@@ -255,17 +266,8 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                                           device)
         per_step_terms.update(H.hop_per_step(rec.t_s, hop_times))
         per_step = law_prediction(bias_sel, per_step_terms)
-        noise = _noise(rec, per_step) or noise
+        noise = _noise(rec, per_step, spikes, quantum) or noise
     rms = float(np.sqrt(np.mean(bias_sel.residual ** 2)))
-    from rlgsim.sim.identify.spike_fit import find_spikes
-    per = int(round(rec.sample_rate_hz * rec.step_s))
-    n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
-    rate_s = rec.rate_deg_per_h[:n_s]
-    if rec.motion is not None:          # turntable: less the table's input, which the median
-        rate_s = rate_s - rec.motion.input_deg_per_h[:n_s]   # of 31 samples would not follow
-    spikes = find_spikes(rate_s, rec.sample_rate_hz,
-                         float(gyro.get("scale_factor_pulses_per_arcsec", 2.14)),
-                         np.repeat(rec.power > 0.5, per)[:n_s])
     return LawFit(bias=bias_sel, bias_node=bias_node, t_ref_c=t_ref, uhfo=uhfo_sel,
                   uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
                   noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
@@ -283,11 +285,22 @@ def _flicker_band(device: dict) -> tuple[float, float, int]:
             int(tab.get("flicker_per_decade", 2)))
 
 
-def _noise(rec: RecordingData, per_step: np.ndarray) -> NoiseFit | None:
-    """Allan fit of the gyro rate per sample minus the law ``per_step`` (powered samples)."""
+def _noise(rec: RecordingData, per_step: np.ndarray, spikes=None,
+           quantum_arcsec: float | None = None) -> NoiseFit | None:
+    """Allan fit of the gyro rate per sample minus the law ``per_step`` (powered samples), the
+    read-out ``spikes`` found (:class:`~rlgsim.sim.identify.spike_fit.SpikeFit`) taken out of
+    their samples (a spike of s pulses adds s·quantum·f °/h to one sample: white at short τ,
+    it would pass for angle random walk), Q fixed by the counter's ``quantum_arcsec``
+    (:func:`~rlgsim.estimators.identify.allan_noise.fit_allan`)."""
     f = rec.sample_rate_hz
     per = int(round(f * rec.step_s))
     rate = rec.rate_deg_per_h
+    if spikes is not None and spikes.times_s and quantum_arcsec is not None:
+        rate = rate.copy()
+        for t, size in zip(spikes.times_s, spikes.sizes):
+            i = int(round(t * f)) - 1
+            if 0 <= i < rate.size:
+                rate[i] -= size * quantum_arcsec * f
     n_steps = min(per_step.size, rate.size // per)
     powered = np.repeat(rec.power[:n_steps] > 0.5, per)
     resid = rate[:n_steps * per] - np.repeat(per_step[:n_steps], per)
@@ -297,7 +310,7 @@ def _noise(rec: RecordingData, per_step: np.ndarray) -> NoiseFit | None:
     resid = resid[powered]
     resid = resid[np.isfinite(resid)]            # dropout samples (a gap joins its two sides)
     try:
-        return fit_allan(resid, f)
+        return fit_allan(resid, f, quantum_arcsec=quantum_arcsec)
     except ValueError:
         return None
 
