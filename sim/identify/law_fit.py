@@ -36,8 +36,8 @@ twice: by ordinary least squares, whose residual gives the noise fit, then by ge
 squares with the covariance of the window means that the fitted noise implies
 (:func:`rlgsim.estimators.identify.window_noise.covariance_from_fit`, the flicker band of the
 device template) — the flicker's long memory then counts in every standard error. A window whose
-whitened residual (its innovation) exceeds :data:`OUTLIER_Z` is left out once and the law
-refitted (``outlier_windows_s``); then mode hops — steps the law cannot explain — are searched
+whitened residual (its innovation) exceeds :data:`OUTLIER_Z` is left out, the largest first
+and the law refitted after each (``outlier_windows_s``); then mode hops — steps the law cannot explain — are searched
 for on the innovations and carried as fixed piecewise offsets while the terms are chosen again
 (:mod:`rlgsim.sim.identify.hop_fit`, ``hops``); the noise is fitted again from what the final law
 (hops included) leaves.
@@ -89,6 +89,8 @@ class LawFit:
 #: 5.5 standard deviations, which independent Gaussian windows exceed once in 26 million, so
 #: a 20 h recording (720 windows) loses a sound window once in 36,000 recordings
 OUTLIER_Z = 5.5
+#: at most this many windows are left out as outliers (one per refit)
+MAX_OUTLIERS = 20
 
 
 def _subset(cands: list[Term], keep: np.ndarray) -> list[Term]:
@@ -247,13 +249,21 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
         cov = covariance_from_fit(noise, starts, rec.window_s, tau_min_s=band[0],
                                   tau_max_s=band[1], per_decade=band[2])
         bias_sel = select_terms(y, cands, noise_cov=cov)
-        # windows the noise model cannot explain (a read-out spike, a step): left out once
-        bad = np.flatnonzero(np.abs(bias_sel.fit.residual) > OUTLIER_Z)
-        keep = np.setdiff1d(np.arange(y.size), bad)
-        if bad.size:
-            outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
+        # windows the noise model cannot explain (a read-out spike, a step): left out one at a
+        # time, the largest first, the law refitted in between — the whitening spreads a large
+        # residual into the innovations of the windows after it (with the white part no longer
+        # inflated by the counter's quantisation, a 40-pulse spike flagged its two successors)
+        keep = np.arange(y.size)
+        for _ in range(MAX_OUTLIERS):
+            z = np.abs(bias_sel.fit.residual)
+            if z.size == 0 or z.max() <= OUTLIER_Z:
+                break
+            keep = np.delete(keep, int(np.argmax(z)))
             bias_sel = select_terms(y[keep], _subset(cands, keep),
                                     noise_cov=cov[np.ix_(keep, keep)])
+        bad = np.setdiff1d(np.arange(y.size), keep)
+        if bad.size:
+            outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
         # mode hops: steps the law cannot explain, then the law on the hop-free bias
         from rlgsim.sim.identify import hop_fit as H
         te = np.asarray(rec.windows["time_s"], dtype=float)[keep]
