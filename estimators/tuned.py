@@ -403,9 +403,10 @@ class PSOSVR(OptimizerTunedRegressor):
         Capped fits can score a little *below* their converged value (the former 100 000 cap
         reported 4.942e-4 °/h at its optimum, whose converged score is 5.020e-4), so compare
         converged re-scores, not search scores.
-        Why not 1 000, which meets the 30 s (30.8 s at load 0.3-1.8, against 84.4 s for
-        10 000 in the same run; converged ratio 1.0036, benchmarks/pso_svr_search_cap.py):
-        the valley is flat in C, the choice inside it is noisy, and over ten PSO seeds of the
+        Why not 1 000, 3.4 x faster (benchmarks/pso_svr_search_cap.py, one run: 50.5 s
+        against 169.3 s for 10 000 at load 3-5; 30.8 s against 84.4 s at load 0.3-1.8 in an
+        earlier one, i.e. about the 30 s; converged ratio 1.0036 against 1.0012)? The
+        valley is flat in C, the choice inside it is noisy, and over ten PSO seeds of the
         paper-003 study (20 x 50, benchmarks/pso_svr_study_seeds.py, paired by seed) the
         1 000 cap leaves the multi-point model's Table 5 STD after compensation worse in
         distribution — 0.00295 ± 0.00020 °/h against 0.00272 ± 0.00002 (mean ± standard
@@ -429,9 +430,10 @@ class PSOSVR(OptimizerTunedRegressor):
         on the same rows, Diebold & Mariano 1995, J. Bus. Econ. Stat. 13(3)) — a narrower set,
         since two nearby models' errors move together. Cost: one pass over the validated
         points' squared residuals (kept: n_fits_ x validation rows floats). Measured, not
-        the default: on the paper-003 benchmark "one_se" (cap 1 000) refits a point whose
+        the default: on the paper-003 benchmark (cap 1 000) "one_se" refits a point whose
         converged validation RMSE is 2.4 % above the reference optimum's (C = 0.29: the
-        batch-means SE of the MSE there is ~8 % of it), outside the issue's 1 %; over ten
+        batch-means SE of the MSE there is ~8 % of it) and "paired_se" one 1.2 % above it
+        (C = 1.2), both outside the issue's 1 % (the search minimum: 0.36 %); over ten
         PSO seeds of the paper-003 study (cap 1 000, against the default) "paired_se"
         improves the 3-point model's Table 5 STD after compensation (0.00697 ± 0.00012 °/h
         against 0.00729 ± 0.00033) but not the multi-point model's (0.00289 ± 0.00017
