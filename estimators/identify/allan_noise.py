@@ -32,8 +32,9 @@ rate noise of σ_p pulses per sample, the sawtooth's Fourier series gives the au
 
 so at short τ the quantisation's Allan variance swings around 3Q²/τ² with the fractional part
 of ``m·r`` (a rate near a whole number of pulses per sample holds ``e`` nearly constant and the
-τ = 1 s Allan variance falls to 0.4 × 3Q²/τ²). A fit through those τ trades the missing
-quantisation for white noise (a trplg_001 recording, 2.14 pulses/arcsec at 1 Hz: Q fitted
+τ = 1 s Allan variance falls to 0.37 × 3Q²/τ²; over τ = 1–8 s it spans 0.37–1.7 × 3Q²/τ² at
+trplg_001's 2.14 pulses/arcsec and 1 Hz, and is within 5 % of it from 16 s). A fit through
+those τ trades the missing quantisation for white noise (a trplg_001 recording, 2.14 pulses/arcsec at 1 Hz: Q fitted
 0.083 arcsec instead of 0.135, ARW 0.0013 instead of 0.0008 °/√h). With the quantum known the
 fit therefore starts at the first octave τ = m/f with ``exp(−2π²·m·σ_p²) ≤`` :data:`DECORRELATED`
 (the k = 1 term, the largest), σ_p = N/(√f·quantum) from the white level N of the previous
