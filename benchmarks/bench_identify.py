@@ -13,8 +13,10 @@ thermal network and every law coefficient drawn from the presets' tolerances, i.
 in the twin's family of group multipliers) are simulated through a 20 h programme at 1 Hz
 (probes and gyro), identified (timed: the target is ≤ 60 s on 2 cores), then the twin and the
 original unit are both simulated through a *different* programme (10 h): probe RMS difference,
-bias-law RMS difference (true law of each, 100 s windows), raw 100 s bias stability ratio twin /
-original; and one compensator study (LS cubic in T, LS linear in all probes, stepwise, LSSVM;
+bias-law RMS difference (true law of each less its UHFO discharge wander's share — a random
+process every run draws anew — 100 s windows; beside it the figure with the wander and the
+difference split by term group, :func:`law_decomposition`), raw 100 s bias stability ratio twin /
+original; the noise fit against the unit's drawn ARW and bias instability; and one compensator study (LS cubic in T, LS linear in all probes, stepwise, LSSVM;
 trained on the 20 h run, scored on the 10 h run against each run's true bias) on the twin and on
 the original: the Spearman rank correlation of the two rankings.
 
