@@ -78,8 +78,11 @@ class NoiseFit:
     q_fixed: bool = False
 
     def rows(self) -> list[dict]:
+        """One row per term; Q says when it is the pulse quantum/√12, not a fitted value."""
         return [{"term": k, "estimate": v, "ci95_low": self.intervals[k][0],
-                 "ci95_high": self.intervals[k][1]} for k, v in self.values.items()]
+                 "ci95_high": self.intervals[k][1],
+                 "how": ("fixed: pulse quantum/√12" if k == "q_arcsec" and self.q_fixed
+                         else "Allan fit")} for k, v in self.values.items()]
 
 
 _SCALE = {"q_arcsec": 1.0, "arw_deg_per_sqrt_h": 1.0 / 60.0, "bi_deg_per_h": 1.0,
