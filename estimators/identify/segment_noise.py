@@ -24,11 +24,10 @@ arcsec):
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from rlgsim.estimators.identify.allan_noise import NoiseFit
+from rlgsim.estimators.identify.window_noise import flicker_bank
 
 __all__ = ["segment_mean_covariance", "segment_covariance_from_fit",
            "gauss_markov_segment_covariance"]
@@ -83,14 +82,8 @@ def segment_mean_covariance(starts_s: np.ndarray, lengths_s: np.ndarray, *, n: f
     if k > 0:
         cov += k ** 2 * (s_e + T_e / 2.0)
         cov[np.diag_indices(m)] -= k ** 2 * T / 6.0
-    if b > 0 and tau_max_s > tau_min_s:
-        j = max(2, int(round(math.log10(tau_max_s / tau_min_s) * per_decade)) + 1)
-        taus = np.geomspace(tau_min_s, tau_max_s, j)
-        delta = math.log(taus[1] / taus[0])
-        w = np.ones(j)
-        w[0] = w[-1] = 0.5
-        for tau, wj in zip(taus, w):
-            cov += gauss_markov_segment_covariance(s, T, wj * b ** 2 * delta / math.pi, tau)
+    for var, tau in flicker_bank(b, tau_min_s, tau_max_s, per_decade):
+        cov += gauss_markov_segment_covariance(s, T, var, tau)
     return cov
 
 

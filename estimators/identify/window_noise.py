@@ -80,15 +80,26 @@ def window_mean_covariance(starts_s: np.ndarray, window_s: float, *, n: float = 
         lo = np.minimum(s[:, None], s[None, :])
         cov += k ** 2 * (lo + T / 2.0)
         cov[np.diag_indices(m)] -= k ** 2 * T / 6.0
-    if b > 0 and tau_max_s > tau_min_s:
-        j = max(2, int(round(math.log10(tau_max_s / tau_min_s) * per_decade)) + 1)
-        taus = np.geomspace(tau_min_s, tau_max_s, j)
-        delta = math.log(taus[1] / taus[0])
-        w = np.ones(j)
-        w[0] = w[-1] = 0.5
-        for tau, wj in zip(taus, w):
-            cov += gauss_markov_window_covariance(s, T, wj * b ** 2 * delta / math.pi, tau)
+    for var, tau in flicker_bank(b, tau_min_s, tau_max_s, per_decade):
+        cov += gauss_markov_window_covariance(s, T, var, tau)
     return cov
+
+
+def flicker_bank(b: float, tau_min_s: float, tau_max_s: float,
+                 per_decade: int) -> list[tuple[float, float]]:
+    """The Gauss–Markov processes (variance [(°/h)²], correlation time [s]) whose sum stands
+    for flicker of bias instability ``b`` [°/h] between ``tau_min_s`` and ``tau_max_s``:
+    correlation times evenly spaced in log, ``per_decade`` per decade, each of variance
+    ``b² Δ/π`` (Δ the log spacing; trapezoid weights at the ends) — the 1/f spectrum as a
+    superposition of Lorentzians (Keshner 1982). Empty without flicker."""
+    if not (b > 0 and tau_max_s > tau_min_s):
+        return []
+    j = max(2, int(round(math.log10(tau_max_s / tau_min_s) * per_decade)) + 1)
+    taus = np.geomspace(tau_min_s, tau_max_s, j)
+    delta = math.log(taus[1] / taus[0])
+    w = np.ones(j)
+    w[0] = w[-1] = 0.5
+    return [(float(wj * b ** 2 * delta / math.pi), float(tau)) for tau, wj in zip(taus, w)]
 
 
 def covariance_from_fit(noise: NoiseFit, starts_s: np.ndarray, window_s: float, *,
