@@ -4,7 +4,8 @@ does, each beside issue 16's target (cold ≤ 60 s on 2 cores), with the machine
 Each study runs in a fresh temporary folder: "cold" simulates its datasets, "warm" (unless
 ``--cold-only``) reuses them (the second ``rlgsim study`` of the same study), so the difference
 is the simulation time and the warm figure is the fitting, scoring and report time. Beside the
-wall time: the CPU seconds of this process and its worker processes (user + system) — on a
+wall time: the CPU seconds of this process and its worker processes (user + system; the
+worker pool is shut down after each run so that its CPU is counted) — on a
 shared machine the wall time grows with the load, the CPU time much less, so CPU / cores is
 what the study would take on an idle machine if its work spread over all cores — and the load
 average before and after. Studies whose report has a timing table (paper000: timing.csv)
@@ -42,9 +43,16 @@ def _cpu() -> float:
 
 
 def _timed(study, folder: str) -> tuple[float, float]:
+    """Wall and CPU seconds of one run. The worker pool a recipe started (joblib's reusable
+    loky executor) is shut down after the wall time is taken: its processes are then reaped by
+    this one, so their CPU counts in ``RUSAGE_CHILDREN`` (a live worker's CPU does not), and
+    the next study starts its own pool, as a fresh ``rlgsim study`` command does."""
+    from joblib.externals.loky import get_reusable_executor
     t0, c0 = time.perf_counter(), _cpu()
     run_study(study, folder, progress=False)
-    return time.perf_counter() - t0, _cpu() - c0
+    wall = time.perf_counter() - t0
+    get_reusable_executor().shutdown(wait=True)
+    return wall, _cpu() - c0
 
 
 def _steps(folder: str) -> dict[str, float]:
