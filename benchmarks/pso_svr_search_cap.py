@@ -13,6 +13,8 @@ choice the converged ratio of the search minimum is printed too. Variants (PSOSV
     tol0.1         search_tol = 0.1 (libsvm's stopping tolerance of the search fits)
     cap1000-tol0.1 both
     grid0.05       resolution = 0.05 decade
+    grid0.05-tol0.1 both
+    grid0.1        resolution = 0.1 decade
     1se            selection = "one_se" (cap 10 000)
     1se-cap1000    selection = "one_se", search_max_iter = 1000
     1se-cap3000    selection = "one_se", search_max_iter = 3000
@@ -46,6 +48,8 @@ VARIANTS = {
     "tol0.1": {"search_tol": 0.1},
     "cap1000-tol0.1": {"search_max_iter": 1000, "search_tol": 0.1},
     "grid0.05": {"resolution": 0.05},
+    "grid0.05-tol0.1": {"resolution": 0.05, "search_tol": 0.1},
+    "grid0.1": {"resolution": 0.1},
     "1se": {"selection": "one_se", "search_max_iter": 10_000},
     "1se-cap1000": {"selection": "one_se", "search_max_iter": 1000},
     "1se-cap3000": {"selection": "one_se", "search_max_iter": 3000},
