@@ -110,6 +110,20 @@ def load_thermal_preset(ref: str, *, base_dir: pathlib.Path | None = None,
     return ThermalPreset(name=f.name, source=f.source, text=f.text, network=network, probes=probes)
 
 
+def validate_device_tables(data: Mapping[str, Any], ctx: Ctx) -> tuple[dict, dict]:
+    """The sensor tables of a device preset's ``data`` (:data:`DEVICE_TABLES`), each checked by
+    its module's validator: (raw tables, validated parts); a mistake is one UserInputError
+    line naming ``ctx``'s file and the key."""
+    tables: dict[str, dict] = {}
+    parts: dict[str, Any] = {}
+    for key, validate in DEVICE_TABLES.items():
+        if key in data:
+            tables[key] = get_table(data, key, ctx)
+            if validate is not None:
+                parts[key] = validate(tables[key], ctx.child(key))
+    return tables, parts
+
+
 def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
                 context: str | None = None) -> Device:
     """Load and validate a device preset (``scenarios/devices/<name>.toml`` or a path)."""
@@ -122,13 +136,7 @@ def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
     thermal_ref = get_str(dev, "thermal_preset", dctx)
     thermal = load_thermal_preset(thermal_ref, base_dir=f.base_dir,
                                   context=f"{f.source}: device.thermal_preset")
-    tables: dict[str, dict] = {}
-    parts: dict[str, Any] = {}
-    for key, validate in DEVICE_TABLES.items():
-        if key in f.data:
-            tables[key] = get_table(f.data, key, ctx)
-            if validate is not None:
-                parts[key] = validate(tables[key], ctx.child(key))
+    tables, parts = validate_device_tables(f.data, ctx)
     return Device(name=get_str(dev, "name", dctx, f.name),
                   description=get_str(dev, "description", dctx, ""),
                   reference=get_str(dev, "source", dctx, ""),

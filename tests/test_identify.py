@@ -163,6 +163,21 @@ def test_bad_recordings_are_refused_with_one_line(tmp_path, flat_recording, caps
     assert not (tmp_path / "a").exists() and not (tmp_path / "d").exists()
 
 
+def test_a_bad_device_template_is_refused_with_one_line(tmp_path):
+    """The template's tables pass the simulator's own validators before the twin reads them
+    (a mode-hop table with a misspelt key was a KeyError deep in the hop search)."""
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.sim import presets
+    from rlgsim.sim.identify.twin import load_templates
+    text = presets.load_device_file("trplg_001").text
+    bad = tmp_path / "bad_device.toml"
+    bad.write_text(text.replace("bias_step_deg_per_h", "bias_stepp_deg_per_h", 1))
+    with pytest.raises(UserInputError, match=r"bad_device\.toml: anomalies\.mode_hop\."
+                                             r"bias_stepp_deg_per_h: unknown key"):
+        load_templates("unit.csv", str(bad), None)
+    assert load_templates("unit.csv", "trplg_001", None)[0] == "trplg_001"
+
+
 def test_short_gaps_of_the_chamber_air_are_bridged_and_long_ones_refused():
     from rlgsim.ground.errors import UserInputError
     from rlgsim.sim.identify.recording_data import _bridge

@@ -54,7 +54,7 @@ from rlgsim.estimators.identify.step_detection import StepFit, detect_steps, ste
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 
 __all__ = ["HOP_ALPHA", "Hop", "HopFit", "fit_hops", "find_hops", "describe_hops",
-           "hop_per_step", "hop_name", "hop_times"]
+           "hop_per_step", "hop_name"]
 
 #: family false-alarm level of the hop scan per recording: the probability of one or more false
 #: hops in a hop-free recording whose noise the model describes is at most 1 % (Bonferroni)
@@ -136,17 +136,17 @@ def _hop_terms(n: int, index: tuple[int, ...]) -> list[Term]:
     return [Term(hop_name(i), (lambda th, v=cols[:, i].copy(): v)) for i in range(len(index))]
 
 
-def fit_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLaw, *,
-             alpha: float = HOP_ALPHA) -> tuple[SelectedLaw, StepFit, tuple[int, ...], int]:
+def fit_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, *,
+             alpha: float = HOP_ALPHA) -> tuple[StepFit, tuple[int, ...], int, SelectedLaw]:
     """The blind scan for hops of the window bias ``y`` under the noise covariance ``cov``
     (module docstring). The scan's law is the best subset of the *linear* candidates (chosen
     again with the hops found so far as fixed regressors, until the set of hops no longer
     changes): the nonlinear knee and step terms are sigmoids in temperature, and a hop pair
     is a sigmoid in temperature everywhere but inside its hysteresis loop — with them in the
     scan's law a pair is absorbed before it can be tested (seen: a 0.04 °/h pair taken as a
-    knee). Returns the full law (every candidate) chosen with the hops as fixed regressors
-    (``sel`` itself when there are none), the last scan, the hops' window indices (the first
-    window after each) and the number of rounds."""
+    knee). Returns the last scan, the hops' window indices (the first window after each), the
+    number of rounds and the scan's linear law (the full law with the hops as fixed
+    regressors is chosen by :func:`find_hops`)."""
     n = y.size
     lin = [c for c in cands if not c.k]
     index: tuple[int, ...] = ()
@@ -158,14 +158,7 @@ def fit_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLaw
         index = scan.index
         sel_lin = select_terms(y, lin, noise_cov=cov, fixed=_hop_terms(n, index))
         scan = detect_steps(y, _law_design(sel_lin, lin, n), cov, alpha=alpha)
-    return sel, scan, index, rounds, sel_lin
-
-
-def hop_times(index: tuple[int, ...], t_end_s: np.ndarray, window_s: float
-              ) -> tuple[float, ...]:
-    """Each hop's time [s]: the start of the first window after it."""
-    te = np.asarray(t_end_s, dtype=float)
-    return tuple(float(te[j] - window_s) for j in index)
+    return scan, index, rounds, sel_lin
 
 
 def _t_stat(y: np.ndarray, X: np.ndarray, col: np.ndarray, L: np.ndarray
@@ -191,7 +184,7 @@ def find_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLa
     from scipy.stats import norm
     from rlgsim.estimators.identify.step_detection import _cholesky
     n = y.size
-    sel, scan, idx, rounds, sel_lin = fit_hops(y, cands, cov, sel, alpha=alpha / 2.0)
+    scan, idx, rounds, sel_lin = fit_hops(y, cands, cov, alpha=alpha / 2.0)
     lin = [c for c in cands if not c.k]
     template = (device.get("anomalies", {}) or {}).get("mode_hop")
     nodes = _tc_nodes(device, law_node)

@@ -64,11 +64,14 @@ def find_spikes(rate_deg_per_h: np.ndarray, sample_rate_hz: float, pulses_per_ar
     good = ok & np.isfinite(r)
     mad = float(np.median(np.abs(r[good] - np.median(r[good])))) if good.any() else 0.0
     thr = max(float(MIN_PULSES), 8.0 * 1.4826 * mad)
-    hits = np.flatnonzero(good & (np.abs(r) >= thr - 0.5))
-    sizes = tuple(int(round(v)) for v in r[hits])
+    # a spike is a whole number of pulses: the smallest counted size, and the same rule for
+    # the selection and the reported threshold (sizes below smin are never counted)
+    smin = int(math.ceil(thr - 0.5))
+    whole = np.rint(np.where(good, r, 0.0))
+    hits = np.flatnonzero(good & (np.abs(whole) >= smin))
+    sizes = tuple(int(v) for v in whole[hits])
     times = tuple(float((i + 1) / sample_rate_hz) for i in hits)
     hours = float(ok.sum() / sample_rate_hz / 3600.0)
-    smin = int(math.ceil(thr - 0.5))
     k = len(hits)
     lo, hi = _garwood(k)
     if k:

@@ -73,6 +73,7 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
     if device_template is not None:
         f = presets.load_device_file(device_template)
         dev_name, dev, base = f.name, f.data, f.base_dir
+        dev_src = str(f.source)
     elif not is_recording(source):
         import h5py
         try:
@@ -90,6 +91,7 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
             if thermal_template is None and ttext:
                 tname = str(dev.get("device", {}).get("thermal_preset", "thermal preset"))
                 _one_gyro(dev_name, dev)
+                _check_device_tables(f"{source}: device_text", dev)
                 return dev_name, dev, f"{tname} (as embedded in the dataset)", \
                     tomllib.loads(ttext)
     if dev is None:
@@ -97,11 +99,21 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
                              f"preset whose law family and noise keys the twin takes; e.g. "
                              f"trplg_001)")
     _one_gyro(dev_name, dev)
+    _check_device_tables(dev_src if device_template is not None else f"{source}: device_text",
+                         dev)
     tref = thermal_template or dev.get("device", {}).get("thermal_preset")
     if not tref:
         raise UserInputError(f"{dev_name}: no thermal preset; give --thermal-template PRESET")
     t = presets.load_thermal_file(tref, base_dir=base)
     return dev_name, dev, t.name, t.data
+
+
+def _check_device_tables(where: str, dev: dict) -> None:
+    """The template's sensor tables checked by the simulator's own validators (the twin's
+    modules read them raw: a bad template is one line naming the key, not a traceback)."""
+    from rlgsim.sim.config import Ctx
+    from rlgsim.sim.scenario import validate_device_tables
+    validate_device_tables(dev, Ctx(where))
 
 
 def _one_gyro(dev_name: str, dev: dict) -> None:
