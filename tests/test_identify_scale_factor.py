@@ -277,3 +277,21 @@ def test_multi_position_programme_finds_no_false_read_out_spikes(tmp_path):
     assert sf.identified and set(np.round(np.abs(sf.segments["rate_deg_s"]), 6)) == {20.0}
     v, se = sf.values["value_ppm"]
     assert abs(v - truth["gyro.scale_factor.value[z]"]) < 4 * se
+
+
+def test_logged_angles_with_jitter_keep_their_constant_rate_segments():
+    """Angles logged at 1 Hz with 1e-4° resolution and time-stamp jitter: each ±10 °/s rotation
+    and each rest is one segment (exact rates, as a simulated dataset gives, must not be needed)
+    and the segment's rate is the table's mean rate over it."""
+    from rlgsim.sim.identify.table_motion import _from_knots
+    rng = np.random.default_rng(5)
+    t_k = np.arange(0.0, 400.0 + 1.0, 1.0)
+    rate = np.where(t_k < 100, 0.0, np.where(t_k < 200, 10.0, np.where(t_k < 300, 0.0, -10.0)))
+    angle = np.concatenate(([0.0], np.cumsum(rate[:-1] * np.diff(t_k))))
+    angle = np.round(angle + rng.normal(0.0, 2e-5, angle.size) * (rate != 0), 4)
+    # the inner axis turns the z gyro (the outer axis lies in the body's x-y plane)
+    tm = _from_knots(t_k, np.zeros_like(angle), angle, 4000, 10.0, np.array([0.0, 0.0, 1.0]),
+                     45.0, "test")
+    assert len(tm.segments) == 2, tm.segments
+    np.testing.assert_allclose(tm.segment_rate_deg_s, [10.0, -10.0], rtol=1e-4)
+    assert np.all(np.diff(tm.segments, axis=1) >= 900)

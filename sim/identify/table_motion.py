@@ -44,6 +44,10 @@ _DEG_PER_H = DEG / HOUR          # rad/s per °/h
 #: a segment's table rate on the gyro axis below this [°/s] is a turn about a perpendicular
 #: axis (cos 90° in floating point), not a rate segment
 MIN_RATE_DEG_S = 1e-9
+#: two reading intervals belong to one constant-rate run when their rates agree to this
+#: relative tolerance (or RATE_ATOL_DEG_S): far above logged-angle jitter, far below a step
+RATE_RTOL = 1e-3
+RATE_ATOL_DEG_S = 1e-6
 _CHUNK = 1 << 16
 
 
@@ -94,17 +98,18 @@ def _from_knots(t_k: np.ndarray, outer_k: np.ndarray, inner_k: np.ndarray, n: in
     ok = dtk > 0
     r_o = np.where(ok, np.diff(outer_k) / np.where(ok, dtk, 1.0), 0.0)
     r_i = np.where(ok, np.diff(inner_k) / np.where(ok, dtk, 1.0), 0.0)
+    # an interval continues the previous one's run when both rates agree to RATE_RTOL: logged
+    # angles carry encoder resolution and time-stamp jitter (1e-4° over 1 s at 10 °/s is 1e-5
+    # of the rate), while the programme's rate steps and acceleration phases change the rate
+    # by far more; each run's rate is then the mean of the table's own rate over it (exact)
+    turning = ok & ((r_o != 0.0) | (r_i != 0.0))
+    cont = (turning[1:] & turning[:-1]
+            & np.isclose(r_o[1:], r_o[:-1], rtol=RATE_RTOL, atol=RATE_ATOL_DEG_S)
+            & np.isclose(r_i[1:], r_i[:-1], rtol=RATE_RTOL, atol=RATE_ATOL_DEG_S))
+    first = np.flatnonzero(turning & ~np.concatenate(([False], cont)))
+    last = np.flatnonzero(turning & ~np.concatenate((cont, [False])))
     segs, rates = [], []
-    k = 0
-    m = r_o.size
-    while k < m:
-        if not ok[k] or (r_o[k] == 0.0 and r_i[k] == 0.0):
-            k += 1
-            continue
-        j = k + 1
-        while j < m and ok[j] and np.isclose(r_o[j], r_o[k], rtol=1e-6, atol=1e-9) \
-                and np.isclose(r_i[j], r_i[k], rtol=1e-6, atol=1e-9):
-            j += 1
+    for k, j in zip(first, last + 1):                # one pass per run, not per reading
         ta, tb = t_k[k], t_k[j]
         i0 = int(np.ceil(ta * f - 1e-6))
         i1 = min(int(np.floor(tb * f + 1e-6)), n)
@@ -113,7 +118,6 @@ def _from_knots(t_k: np.ndarray, outer_k: np.ndarray, inner_k: np.ndarray, n: in
             if abs(rate) > MIN_RATE_DEG_S:          # not a turn about an axis ⟂ the gyro
                 segs.append((i0, i1))
                 rates.append(rate)
-        k = j
     return TableMotion(input_deg_per_h=table_deg_per_h + earth, table_deg_per_h=table_deg_per_h,
                        moving=moving, segments=np.array(segs, dtype=np.int64).reshape(-1, 2),
                        segment_rate_deg_s=np.array(rates), origin=origin)
