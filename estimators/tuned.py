@@ -290,8 +290,11 @@ def batch_means_se(values: np.ndarray) -> float:
     SE = std(batch means, ddof=1) / sqrt(number of batches) (batch size ~ sqrt(n): Flegal &
     Jones 2010, "Batch means and spectral variance estimators in Markov chain Monte Carlo",
     Ann. Statist. 38(2)). Correlation shorter than a batch is accounted for; the plain
-    std/sqrt(n) would understate the SE of residuals that drift together over many rows."""
+    std/sqrt(n) would understate the SE of residuals that drift together over many rows.
+    NaN for fewer than 4 values."""
     v = np.asarray(values, dtype=float)
+    if v.size < 4:              # fewer than 2 batches of 2: no estimate (NaN, without warnings)
+        return float("nan")
     b = max(2, int(np.sqrt(v.size)))
     means = np.array([c.mean() for c in np.array_split(v, b)])
     return float(np.std(means, ddof=1) / np.sqrt(b))

@@ -368,3 +368,12 @@ def test_holdout_tail_and_dispatch():
         time_kfold(3, 5)
     with pytest.raises(ValueError, match="validation must be"):
         validation_splits(10, True)
+
+
+def test_batch_means_se_is_nan_without_warnings_for_too_few_values():
+    import warnings
+    from rlgsim.estimators.tuned import batch_means_se
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(batch_means_se(np.ones(3)))
+    assert batch_means_se(np.array([1.0, 1.0, 3.0, 3.0])) == pytest.approx(1.0)
