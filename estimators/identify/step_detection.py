@@ -41,8 +41,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
+from scipy.linalg import solve_triangular
 from scipy.stats import norm
+
+from rlgsim.estimators.identify.term_selection import jittered_cholesky
 
 __all__ = ["StepFit", "detect_steps", "bonferroni_threshold", "step_columns"]
 
@@ -76,17 +78,6 @@ def step_columns(n: int, positions: np.ndarray) -> np.ndarray:
     return (i >= np.asarray(positions, dtype=int)[None, :]).astype(float)
 
 
-def _cholesky(C: np.ndarray) -> np.ndarray:
-    n = C.shape[0]
-    jitter = 0.0
-    for _ in range(6):
-        try:
-            return cholesky(C + jitter * np.eye(n), lower=True)
-        except np.linalg.LinAlgError:
-            jitter = max(jitter * 100.0, 1e-10 * float(np.mean(np.diag(C))))
-    raise ValueError("the noise covariance is not positive definite")
-
-
 def _scan(yw: np.ndarray, Xw: np.ndarray, Sw: np.ndarray
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """z of every candidate column of ``Sw`` given ``Xw`` (whitened), the step sizes, their
@@ -117,7 +108,7 @@ def detect_steps(y: np.ndarray, X: np.ndarray, cov: np.ndarray, *, alpha: float 
     thr = bonferroni_threshold(alpha, positions.size)
     if positions.size == 0:
         return StepFit((), (), (), (), thr, alpha, 0, 0.0)
-    L = _cholesky(np.asarray(cov, dtype=float))
+    L = jittered_cholesky(np.asarray(cov, dtype=float))
     yw = solve_triangular(L, y, lower=True)
     Xw = solve_triangular(L, X, lower=True)
     Sw = solve_triangular(L, step_columns(n, positions), lower=True)

@@ -394,24 +394,31 @@ def _refine_theta(y: np.ndarray, base: np.ndarray, t: Term, th0: np.ndarray) -> 
         return th0
 
 
-def _whitener(noise_cov: np.ndarray | None, n: int) -> Callable[[np.ndarray], np.ndarray]:
-    """``v ↦ L⁻¹v`` with ``L`` the Cholesky factor of ``noise_cov`` (a relative jitter of
-    1e-10 on the diagonal if it is numerically singular); the identity without one."""
-    if noise_cov is None:
-        return lambda v: v
-    from scipy.linalg import cholesky, solve_triangular
-    C = np.asarray(noise_cov, dtype=float)
-    if C.shape != (n, n):
-        raise ValueError(f"noise_cov must be ({n}, {n}), got {C.shape}")
+def jittered_cholesky(C: np.ndarray) -> np.ndarray:
+    """Lower Cholesky factor of the covariance ``C``, with a relative jitter (starting at
+    1e-10 of the mean diagonal, ×100 per try, six tries) on the diagonal when ``C`` is
+    numerically singular; ValueError when it is not positive definite even then."""
+    from scipy.linalg import cholesky
+    n = C.shape[0]
     jitter = 0.0
     for _ in range(6):
         try:
-            L = cholesky(C + jitter * np.eye(n), lower=True)
-            break
+            return cholesky(C + jitter * np.eye(n), lower=True)
         except np.linalg.LinAlgError:
             jitter = max(jitter * 100.0, 1e-10 * float(np.mean(np.diag(C))))
-    else:
-        raise ValueError("noise_cov is not positive definite")
+    raise ValueError("the noise covariance is not positive definite")
+
+
+def _whitener(noise_cov: np.ndarray | None, n: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``v ↦ L⁻¹v`` with ``L`` the Cholesky factor of ``noise_cov`` (:func:`jittered_cholesky`);
+    the identity without one."""
+    if noise_cov is None:
+        return lambda v: v
+    from scipy.linalg import solve_triangular
+    C = np.asarray(noise_cov, dtype=float)
+    if C.shape != (n, n):
+        raise ValueError(f"noise_cov must be ({n}, {n}), got {C.shape}")
+    L = jittered_cholesky(C)
     return lambda v: solve_triangular(L, np.asarray(v, dtype=float), lower=True)
 
 

@@ -51,7 +51,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rlgsim.estimators.identify.step_detection import StepFit, detect_steps, step_columns
-from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
+from rlgsim.estimators.identify.term_selection import (SelectedLaw, Term, jittered_cholesky,
+                                                       select_terms)
+from rlgsim.sim.identify.law_fit import node_column
 
 __all__ = ["HOP_ALPHA", "Hop", "HopFit", "fit_hops", "find_hops", "describe_hops",
            "hop_per_step", "hop_name"]
@@ -182,13 +184,12 @@ def find_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLa
     template-guided search ``(((z, threshold) per predicted hop not found blind), hops the
     template predicts, hops found by it)`` (None without a template model)."""
     from scipy.stats import norm
-    from rlgsim.estimators.identify.step_detection import _cholesky
     n = y.size
     scan, idx, rounds, sel_lin = fit_hops(y, cands, cov, alpha=alpha / 2.0)
     lin = [c for c in cands if not c.k]
     template = (device.get("anomalies", {}) or {}).get("mode_hop")
     nodes = _tc_nodes(device, law_node)
-    tc = nodes_c[:, [_node_index(block, nd, node_names) for nd in nodes]].mean(axis=1)
+    tc = nodes_c[:, [node_column(block, nd, node_names) for nd in nodes]].mean(axis=1)
     t = np.asarray(t_s, dtype=float)
     pred = ([p for p in _simulated_hops(template, nodes, t, nodes_c, node_names, block)]
             if template else [])
@@ -217,7 +218,7 @@ def find_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLa
         js = np.flatnonzero(ok)
         j0 = int(np.searchsorted(starts, t_h))
         local.append(js if js.size else np.array([min(max(j0, 2), n - 2)]))
-    L = _cholesky(np.asarray(cov, dtype=float))
+    L = jittered_cholesky(np.asarray(cov, dtype=float))
     # a predicted hop whose range holds a hop the blind scan found is that hop
     todo = [h for h, js in enumerate(local) if not (set(js.tolist()) & set(idx))]
     found, zs = [], []
@@ -282,11 +283,6 @@ def _tc_nodes(device: dict, law_node: str) -> tuple[str, ...]:
     return tuple(mh["nodes"]) if mh and mh.get("nodes") else (law_node,)
 
 
-def _node_index(block: str, name: str, names: tuple[str, ...]) -> int:
-    full = f"{block}.{name}" if block else name
-    return names.index(full) if full in names else names.index(name)
-
-
 def _simulated_hops(mh: dict, nodes: tuple[str, ...], t_s: np.ndarray, nodes_c: np.ndarray,
                     node_names: tuple[str, ...], block: str) -> tuple[tuple[float, int], ...]:
     """The hops the simulator's own model ``mh`` (simulator keys) makes on the twin's node
@@ -312,7 +308,7 @@ def describe_hops(sel: SelectedLaw, scan: StepFit, index: tuple[int, ...], round
     and the twin's mode-hop table (module docstring). ``t_end_s`` are the end times of the
     windows the law was fitted on; returns the HopFit and the hop times [s]."""
     nodes = _tc_nodes(device, law_node)
-    idx = [_node_index(block, nd, node_names) for nd in nodes]
+    idx = [node_column(block, nd, node_names) for nd in nodes]
     tc = nodes_c[:, idx].mean(axis=1)
     t = np.asarray(t_s, dtype=float)
     te = np.asarray(t_end_s, dtype=float)

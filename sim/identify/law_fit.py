@@ -99,7 +99,9 @@ def _subset(cands: list[Term], keep: np.ndarray) -> list[Term]:
                  t.grid, t.lower, t.upper) for t in cands]
 
 
-def _node(block: str, name: str, names: tuple[str, ...]) -> int:
+def node_column(block: str, name: str, names: tuple[str, ...]) -> int:
+    """Column of node ``name`` among the twin network's ``names``: ``"block.name"`` when
+    the network has it (a device block's node), else ``name`` itself."""
     full = f"{block}.{name}" if block else name
     if full in names:
         return names.index(full)
@@ -198,7 +200,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     u_t_ref = float(utab.get("t_ref_c", t_ref))
     if rec.uhfo_v is not None:
         uhfo_node = str(utab.get("node", "discharge"))
-        Tu = nodes_c[:, _node(block, uhfo_node, node_names)]
+        Tu = nodes_c[:, node_column(block, uhfo_node, node_names)]
         uw = win(rec.uhfo_v)
         ucands = _candidates(Tu, u_t_ref, step, win, {}, {}, nonlinear=False)
         uhfo_sel = select_terms(uw, ucands)
@@ -230,7 +232,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                          np.repeat(rec.power > 0.5, per)[:n_s])
     quantum = 1.0 / pulses_per_arcsec
     # ------------------------------------------------------------------ bias law
-    T = nodes_c[:, _node(block, bias_node, node_names)]
+    T = nodes_c[:, node_column(block, bias_node, node_names)]
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
     outliers: tuple[float, ...] = ()
@@ -339,7 +341,7 @@ def bias_features(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str
     def win(v: np.ndarray) -> np.ndarray:
         return np.asarray(window_average(np.asarray(v, dtype=float), 1.0 / rec.step_s,
                                          rec.window_s))[rows]
-    T = nodes_c[:, _node(block, laws.bias_node, node_names)]
+    T = nodes_c[:, node_column(block, laws.bias_node, node_names)]
     extra, _ = _bias_extra(rec, nodes_c, node_names, block, law, laws.bias_node, laws.u0_v)
     sel = laws.bias
     out = {}
@@ -370,7 +372,7 @@ def _bias_extra(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, 
         if key in extra or f"gradient[{b}-{a}]" in extra:
             continue
         try:
-            ia, ib = _node(block, a, node_names), _node(block, b, node_names)
+            ia, ib = node_column(block, a, node_names), node_column(block, b, node_names)
         except ValueError:
             continue
         diff = nodes_c[:, ia] - nodes_c[:, ib]

@@ -43,7 +43,7 @@ import numpy as np
 
 from rlgsim.estimators.identify.segment_noise import segment_covariance_from_fit
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
-from rlgsim.sim.identify.law_fit import LawFit, _bias_extra, _flicker_band, _node, _per_step
+from rlgsim.sim.identify.law_fit import LawFit, _bias_extra, _flicker_band, _per_step, node_column
 from rlgsim.sim.identify.recording_data import RecordingData
 
 __all__ = ["ScaleFactorFit", "fit_scale_factor", "scale_factor_table", "SF_KEYS",
@@ -128,7 +128,7 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     law, node, t_ref = _template_law(device)
     gyro = device.get("gyro", {})
     block = (gyro.get("blocks") or [""])[0]
-    T_step = nodes_c[:, _node(block, node, node_names)]
+    T_step = nodes_c[:, node_column(block, node, node_names)]
     f = rec.sample_rate_hz
     per = max(1, int(round(f * rec.step_s)))              # gyro samples per thermal step
     m = T_step.size
@@ -136,7 +136,7 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     family = ["c1", "c2"] + [t for t in ("c3", "knee") if float(law.get(SF_KEYS[t], 0.0))]
     # the bias law's linear part per step (its error enters the segment covariance)
     bsel = laws.bias
-    bT = nodes_c[:, _node(block, laws.bias_node, node_names)]
+    bT = nodes_c[:, node_column(block, laws.bias_node, node_names)]
     blaw = dict(gyro.get("bias", {}))
     extra, _ = _bias_extra(rec, nodes_c, node_names, block, blaw, laws.bias_node, laws.u0_v)
     bfun = _per_step(bT, laws.t_ref_c, rec.step_s, extra)
