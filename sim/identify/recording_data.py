@@ -183,12 +183,12 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
             dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
             k = float(dev.get("gyro", {}).get("scale_factor_pulses_per_arcsec", 2.14))
             rate = pulses * f / k                   # arcsec/s, which is °/h
-            if motion:
-                import h5py
-                with h5py.File(source, "r") as h5:
-                    table = motion_from_dataset(h5, gyro, rate.size, f)
     finally:
         tree.close()
+    if motion and table is None and not is_recording(source):
+        import h5py                             # the dataset's motion arrays, once it is closed
+        with h5py.File(source, "r") as h5:
+            table = motion_from_dataset(h5, gyro, rate.size, f)
     # a table at rest away from zero: no motion, but its attitude still sets the Earth rate
     at_rest = table if table is not None and not table.moving.any() else None
     if at_rest is not None:
