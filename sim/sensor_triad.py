@@ -331,54 +331,57 @@ def count_pulses(remainder: np.ndarray, scale_factor: np.ndarray, bias: np.ndarr
     two). ``steps``: :func:`step_inputs` of ``x_t`` (steps at rest evaluated once per step),
     or None.
 
-    ``compiled`` (default): one pass per channel in compiled code
-    (:func:`rlgsim.sim._pulse_kernel.count_channel`, the same operations in the same order);
+    ``compiled`` (default): every channel in one call of compiled code
+    (:func:`rlgsim.sim._pulse_kernel.count_block`, the same operations in the same order);
     False: the NumPy reference path (:func:`_count_pulses_numpy`), which the tests compare it
     with and which also raises the counter's range error for a channel out of range."""
     if not compiled or x_t.shape[1] == 0:
         return _count_pulses_numpy(remainder, scale_factor, bias, installation, x_t, z, sigma,
                                    sample_dt, idx, power, own_axis, scale_factor_neg, steps)
     from rlgsim.sim import pulses as counter
-    from rlgsim.sim._pulse_kernel import count_channel
+    from rlgsim.sim._pulse_kernel import count_block
     n, c = x_t.shape[1], bias.shape[1]
     one = float(counter.ONE)
     out = np.empty((n, c), dtype=np.int32)
-    new = np.zeros(c, dtype=np.int64)
-    a = bias * sample_dt
-    own = np.full(c, -1) if own_axis is None else np.asarray(own_axis)
-    off = _unpowered(power, idx)
-    off = _NO_BOOL if off is None else np.ascontiguousarray(off)
+    new = np.empty(c, dtype=np.int64)
+    peak_bits = np.empty(c, dtype=np.int64)
+    own = (np.full(c, -1, dtype=np.int64) if own_axis is None
+           else np.ascontiguousarray(own_axis, dtype=np.int64))
     r, step_of = (idx, _NO_INT) if isinstance(idx, int) else (0, np.ascontiguousarray(idx,
                                                                                      np.int64))
     uniform, first = ((_NO_BOOL, _NO_FIRST) if steps is None
                       else (np.ascontiguousarray(steps[0]), np.ascontiguousarray(steps[1])))
-    x = np.ascontiguousarray(x_t, dtype=np.float64)
-    for s in range(c):
-        zs = _NO_Z if z is None else np.ascontiguousarray(z[s])
-        k = np.ascontiguousarray(scale_factor[:, s]) * one       # exact: a power of two
-        kn = (_NO_FLOAT if scale_factor_neg is None
-              else np.ascontiguousarray(scale_factor_neg[:, s]) * one)
-        rem, hi, lo = count_channel(x, np.ascontiguousarray(installation[:, s]),
-                                    np.ascontiguousarray(a[:, s]), zs,
-                                    float(sigma[s]) if z is not None else 0.0, k, kn,
-                                    r, step_of, uniform, first, int(own[s]), off,
-                                    int(remainder[s]), out, s)
-        peak = max(hi, -lo)                          # NaN: the test below fails
-        if peak <= counter.MAX_SAMPLE_PULSES * one and peak * n <= counter.MAX_BLOCK_PULSES * one:
-            new[s] = rem
-            continue
+    count_block(np.ascontiguousarray(x_t, dtype=np.float64),
+                np.ascontiguousarray(installation, dtype=np.float64),
+                np.ascontiguousarray(bias, dtype=np.float64), float(sample_dt),
+                _NO_Z if z is None else np.ascontiguousarray(z, dtype=np.float32),
+                np.ascontiguousarray(sigma, dtype=np.float64),
+                np.ascontiguousarray(scale_factor, dtype=np.float64),
+                (_NO_K if scale_factor_neg is None
+                 else np.ascontiguousarray(scale_factor_neg, dtype=np.float64)),
+                one, r, step_of, uniform, first, own,
+                _NO_FLOAT if power is None else np.ascontiguousarray(power, dtype=np.float64),
+                np.ascontiguousarray(remainder, dtype=np.int64), out, new, peak_bits)
+    peak = peak_bits.view(np.float64)                # NaN: the test below fails
+    bad = ~((peak <= counter.MAX_SAMPLE_PULSES * one)
+            & (peak * n <= counter.MAX_BLOCK_PULSES * one))
+    if bad.any():
         # out of the fast test's range: the NumPy path decides (and raises the range error)
-        u, tmp = np.empty(n), np.empty(n)
-        _channel(u, tmp, s, scale_factor, a, installation, x_t, z, sigma, idx, int(own[s]),
-                 scale_factor_neg, None if off.size == 0 else off, one, steps)
-        _, new[s] = counter.count_scaled(u, int(remainder[s]), out[:, s])
+        a = bias * sample_dt
+        off = _unpowered(power, idx)
+        for s in np.flatnonzero(bad):
+            u, tmp = np.empty(n), np.empty(n)
+            _channel(u, tmp, s, scale_factor, a, installation, x_t, z, sigma, idx, int(own[s]),
+                     scale_factor_neg, off, one, steps)
+            _, new[s] = counter.count_scaled(u, int(remainder[s]), out[:, s])
     return out, new
 
 
 _NO_BOOL = np.zeros(0, dtype=np.bool_)
 _NO_INT = np.zeros(0, dtype=np.int64)
 _NO_FLOAT = np.zeros(0)
-_NO_Z = np.zeros(0, dtype=np.float32)
+_NO_K = np.zeros((0, 0))
+_NO_Z = np.zeros((1, 0), dtype=np.float32)
 _NO_FIRST = np.zeros((3, 0))
 
 

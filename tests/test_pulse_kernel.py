@@ -140,14 +140,14 @@ def test_the_kernel_has_no_fused_multiply_add():
     from numba import njit
 
     import rlgsim.sim._pulse_kernel as kernel
-    fresh = njit(nogil=True)(kernel.count_channel.py_func)     # uncached: its code inspectable
+    fresh = njit(nogil=True)(kernel.count_block.py_func)       # uncached: its code inspectable
     kw = block(0, 4, 100.0, 1.0, rest=True, noise=True, neg=True, power_off=True)
-    kernel_args = (kw["x_t"], np.ascontiguousarray(kw["installation"][:, 0]),
-                   np.ascontiguousarray(kw["bias"][:, 0] * 0.01), np.ascontiguousarray(kw["z"][0]),
-                   float(kw["sigma"][0]), kw["scale_factor"][:, 0] * pulses.ONE,
-                   kw["scale_factor_neg"][:, 0] * pulses.ONE, 100, np.zeros(0, np.int64),
-                   kw["steps"][0], kw["steps"][1], 0, np.zeros(400, bool), 0,
-                   np.empty((400, 3), np.int32), 0)
+    n, c = kw["x_t"].shape[1], 3
+    kernel_args = (kw["x_t"], kw["installation"], kw["bias"], 0.01, kw["z"], kw["sigma"],
+                   kw["scale_factor"], kw["scale_factor_neg"], float(pulses.ONE), 100,
+                   np.zeros(0, np.int64), kw["steps"][0], kw["steps"][1], np.arange(c),
+                   kw["power"], kw["remainder"], np.empty((n, c), np.int32),
+                   np.empty(c, np.int64), np.empty(c, np.int64))
     fresh(*kernel_args)
     asm = fresh.inspect_asm(fresh.signatures[0]).lower()
     assert "fmadd" not in asm and "fmsub" not in asm and "fnmadd" not in asm
