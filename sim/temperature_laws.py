@@ -228,21 +228,32 @@ class Law:
     coef: dict[str, np.ndarray]
     gradients: tuple[Gradient, ...]
     _idx: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    _terms: dict[str, bool] = field(default_factory=dict, repr=False, compare=False)
+    _langmuir: np.ndarray | None = field(default=None, repr=False, compare=False)
+    _gradient_idx: tuple = field(default=(), repr=False, compare=False)
 
     def bind(self, blocks: Sequence[str], node_names: Sequence[str]) -> None:
-        """Resolve node names for components whose sensor blocks are ``blocks`` (n,).
+        """Resolve node names for components whose sensor blocks are ``blocks`` (n,), and fix
+        which optional terms :meth:`evaluate` adds (a term whose coefficients are all zero is
+        skipped — decided here once, not at every block: the coefficients of a realised law do
+        not change after it is bound).
 
         Raises KeyError (with the node name) for a node not in the network.
         """
         def idx(name: str) -> np.ndarray:
             return np.array([resolve_node(name, blk, node_names) for blk in blocks])
+        c = self.coef
         self._idx = {"T": idx(self.spec.node)}
         for i, g in enumerate(self.gradients):
             self._idx[f"a{i}"] = idx(g.a)
             self._idx[f"b{i}"] = idx(g.b)
-        if "langmuir" in self.coef and np.any(self.coef["langmuir"] * self.coef["leg_imbalance"]):
+        if "langmuir" in c and np.any(c["langmuir"] * c["leg_imbalance"]):
             self._idx["D"] = idx(self.spec.arm_nodes[0])
             self._idx["E"] = idx(self.spec.arm_nodes[1])
+        self._terms = {k: bool(np.any(c[k])) for k in ("knee", "step", "rate", "uhfo")}
+        self._langmuir = (c["langmuir"] * c["leg_imbalance"]) if "D" in self._idx else None
+        self._gradient_idx = tuple((g.coeff, self._idx[f"a{k}"], self._idx[f"b{k}"])
+                                   for k, g in enumerate(self.gradients))
 
     @property
     def uses_uhfo(self) -> bool:
@@ -250,30 +261,34 @@ class Law:
 
     def evaluate(self, nodes_c: np.ndarray, start_c: np.ndarray, dt: float,
                  uhfo_dev_v: np.ndarray | None = None) -> np.ndarray:
-        """The parameter in SI on the thermal grid, (m, n).
+        """The parameter in SI on the thermal grid, (m, n) (after :meth:`bind`).
 
         ``nodes_c`` (m, N) node temperatures at the step ends [°C], ``start_c`` (N,) at the
         block start (for dT/dt of the first step), ``dt`` the step [s], ``uhfo_dev_v`` (m, n)
         U − U_0 [V] of each component's gyro (required when the law has a UHFO term).
+
+        The terms in the order of the module docstring, each added to the sum so far.
         """
         c = self.coef
+        terms = self._terms
         i = self._idx["T"]
         temp = nodes_c[:, i]
         x = temp - self.spec.t_ref_c
         out = c["value"] + x * (c["c1"] + x * (c["c2"] + x * c["c3"]))
-        if np.any(c["knee"]):
+        if terms["knee"]:
             out = out + c["knee"] * np.tanh((temp - c["knee_c"]) / c["knee_width"])
-        if np.any(c["step"]):
+        if terms["step"]:
             out = out + c["step"] / (1.0 + np.exp(-(temp - c["step_c"]) / c["step_width"]))
-        if np.any(c["rate"]):
-            prev = np.vstack([start_c[i][None, :], temp[:-1]])
-            out = out + c["rate"] * ((temp - prev) * (60.0 / dt))
-        for k, g in enumerate(self.gradients):
-            out = out + g.coeff * (nodes_c[:, self._idx[f"a{k}"]] - nodes_c[:, self._idx[f"b{k}"]])
-        if "D" in self._idx:
-            out = out + (c["langmuir"] * c["leg_imbalance"]) * (
-                nodes_c[:, self._idx["D"]] - nodes_c[:, self._idx["E"]])
-        if self.uses_uhfo:
+        if terms["rate"]:
+            diff = np.empty_like(temp)                 # backward difference, first step from
+            np.subtract(temp[0], start_c[i], out=diff[0])          # the block start
+            np.subtract(temp[1:], temp[:-1], out=diff[1:])
+            out = out + c["rate"] * (diff * (60.0 / dt))
+        for coeff, a, b in self._gradient_idx:
+            out = out + coeff * (nodes_c[:, a] - nodes_c[:, b])
+        if self._langmuir is not None:
+            out = out + self._langmuir * (nodes_c[:, self._idx["D"]] - nodes_c[:, self._idx["E"]])
+        if terms["uhfo"]:
             if uhfo_dev_v is None:
                 raise ValueError(f"{self.spec.name}: law has a UHFO term but no UHFO was given")
             out = out + c["uhfo"] * uhfo_dev_v
