@@ -178,3 +178,24 @@ def count_block(x_t, rows, bias, sample_dt, z, sigma, k_pos, k_neg, one, r, step
     for s in range(c):
         new[s] = phi[s] - (prev[s] << 30)
         peak_bits[s] = hb[s]
+
+
+@njit(cache=True, nogil=True)
+def steps_at_rest(x_t, r, uniform, first):  # pragma: no cover
+    """For increments ``x_t`` (3, m·r) float64, C-contiguous: ``uniform[i]`` whether every
+    sample of step ``i`` (``r`` samples) has the bits of the step's first sample on all three
+    axes, and ``first[:, i]`` that sample (:func:`rlgsim.sim.sensor_triad.step_inputs`).
+    The bits are compared by an OR of XORs over the step, an integer reduction that
+    vectorises (an early exit at the first difference would not)."""
+    m = uniform.shape[0]
+    bits = x_t.view(np.int64)
+    for i in range(m):
+        j0 = i * r
+        acc = np.int64(0)
+        for k in range(3):
+            row = bits[k, j0:j0 + r]
+            f = row[0]
+            for t in range(r):
+                acc |= row[np.uint64(t)] ^ f
+            first[k, i] = x_t[k, j0]
+        uniform[i] = acc == 0

@@ -22,6 +22,7 @@ equation (:func:`phase_increments`), the per-axis bookkeeping (:func:`axis_indic
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
 from typing import Any, Callable, ClassVar, Mapping, Sequence
 
@@ -202,16 +203,29 @@ def row_times(u: np.ndarray, tmp: np.ndarray, row: np.ndarray, x_t: np.ndarray, 
             u += tmp
 
 
-def step_inputs(x_t: np.ndarray, m: int, idx: np.ndarray | int
-                ) -> tuple[np.ndarray, np.ndarray] | None:
+def step_inputs(x_t: np.ndarray, m: int, idx: np.ndarray | int, *,
+                compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """For the increments ``x_t`` (3, n) of a block of ``m`` steps: which steps hold the same
     increment (bit for bit, all three axes) in every sample — the turntable at rest: a static
     sample's increment depends only on the position — and each step's first sample (3, m).
     None unless every step holds ``idx`` samples. :func:`count_pulses` evaluates the
     measurement equation of such steps once per step: the same operations on the same
-    numbers, so the same result for every sample."""
+    numbers, so the same result for every sample.
+
+    ``compiled``: compare in compiled code (:func:`rlgsim.sim._pulse_kernel.steps_at_rest`,
+    one pass without temporaries, the GIL released) or with NumPy — the same arrays; None
+    (default): compiled when the compiled counter is already loaded in this process (a
+    long run, :mod:`rlgsim.sim.imu`), so a short run never imports numba for it."""
     if not isinstance(idx, int) or x_t.shape[1] != m * idx:
         return None
+    if compiled is None:
+        compiled = "rlgsim.sim._pulse_kernel" in sys.modules
+    if compiled and m > 0:
+        from rlgsim.sim._pulse_kernel import steps_at_rest
+        uniform = np.empty(m, dtype=np.bool_)
+        first = np.empty((3, m))
+        steps_at_rest(np.ascontiguousarray(x_t, dtype=np.float64), idx, uniform, first)
+        return uniform, first
     xs = x_t.reshape(3, m, idx)
     first = np.ascontiguousarray(xs[:, :, 0])
     bits = xs.view(np.int64)                      # bit patterns: ±0 and NaN compared exactly

@@ -95,3 +95,28 @@ def test_only_the_channel_beyond_the_fast_range_test_is_recounted(monkeypatch):
     assert got[150, 1] > 2**29
     np.testing.assert_array_equal(got, ref)
     np.testing.assert_array_equal(rem, ref_rem)
+
+
+@pytest.mark.parametrize("r", [1, 7, 500, 1300])
+def test_compiled_step_scan_equals_the_numpy_one(r):
+    """steps_at_rest: the same steps at rest and first samples as the NumPy comparison, with
+    differences that only the bits see (+0 / −0, NaN payloads) and in any sample or axis."""
+    rng = np.random.default_rng(r)
+    m = 12
+    xs = np.repeat(rng.normal(0, 1e-6, (3, m, 1)), r, axis=2)
+    if r > 1:
+        xs[0, 1, -1] = np.nextafter(xs[0, 1, -1], 1.0)       # last sample, last bit
+        xs[2, 2, r // 2] *= 1.0 + 2**-52
+        xs[:, 3] = 0.0
+        xs[1, 3, 1] = -0.0                                    # equal as floats, not as bits
+        xs[:, 4] = np.nan
+        xs[2, 5, 0] = np.inf                                  # the first sample differs
+        xs[:, 6] = rng.normal(0, 1e-6, (3, r))                # turning
+    x_t = np.ascontiguousarray(xs.reshape(3, m * r))
+    ref_u, ref_f = step_inputs(x_t, m, r, compiled=False)
+    got_u, got_f = step_inputs(x_t, m, r, compiled=True)
+    np.testing.assert_array_equal(got_u, ref_u)
+    assert got_f.tobytes() == ref_f.tobytes() and got_f.flags.c_contiguous
+    if r > 1:
+        assert ref_u.tolist() == [True, False, False, False, True, False, False] + [True] * 5
+    assert step_inputs(x_t, m, r + 1, compiled=True) is None
