@@ -40,6 +40,7 @@ OpenBLAS on a busy machine is many times slower than one thread.
 from __future__ import annotations
 
 import contextlib
+import sys
 import threading
 from typing import Any
 
@@ -159,6 +160,11 @@ class ThermalIntegrator:
                  controller: Any = None) -> None:
         with one_blas_thread():
             self._setup(network, step_s, 0.0 if controller is not None else air_tau_s)
+        #: run the heater loop compiled (rlgsim.sim._thermal_kernel): True, False, or None
+        #: (default) when this process has imported numba already
+        self.compiled: bool | None = None
+        self._kernel: Any = None
+        self._kernel_args: Any = None
         self.chamber_loop = None
         if controller is not None:
             from rlgsim.sim.chamber_controller import ChamberLoop
@@ -447,6 +453,45 @@ class ThermalIntegrator:
         out[:, 1:] = self._nodes(W.T)
         return float(out[-1, 0]), W[:, -1].copy(), hstate
 
+    def _compiled_heater_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray,
+                              W: np.ndarray, integ: Any, power_out: Any) -> np.ndarray | None:
+        """:meth:`_stepwise_loop` for heaters without nonlinear links in compiled code
+        (:mod:`rlgsim.sim._thermal_kernel`, bit-identical); None when it is not used:
+        ``compiled`` False, or None (the default) and numba not yet imported by this process
+        (importing it costs more than a short run saves), or the kernel unavailable."""
+        use = self.compiled
+        if use is None:
+            use = "numba" in sys.modules
+        if not use:
+            return None
+        if self._kernel is None:
+            try:
+                from rlgsim.sim._thermal_kernel import kernel
+                self._kernel = kernel() or False
+            except ImportError:
+                self._kernel = False
+        if self._kernel is False:
+            return None
+        if w0.ndim != 1 or w0.dtype != np.float64 or w0.strides[0] <= 0 or \
+                w0.strides[0] % 8:            # numpy would not call BLAS: keep its loop
+            return None
+        H = len(self.heaters)
+        n = w0.size
+        aux = self._kernel_args
+        if aux is None:
+            aux = self._kernel_args = (
+                np.ascontiguousarray(self._r_s), np.ascontiguousarray(self._r_t),
+                np.ascontiguousarray(self._c_h.T), self._h_kp.copy(), self._h_ki.copy(),
+                self._h_aw.copy(), self._h_max.copy(), self._h_sp.copy(), self._h_tg.copy(),
+                bool(np.any(self._h_tg != 0.0)))
+        rs, rt, cols, kp, ki, aw, pmax, sp0, tg, track = aux
+        integ = np.array(integ, dtype=float)
+        on = np.asarray(u) > 0
+        self._kernel(self._mu, w0, w0.strides[0] // 8, g, on, W.T, np.empty((n, 2)), rs, rt,
+                     track, cols, kp, ki, aw, pmax, sp0, tg, integ, power_out, np.empty(H),
+                     np.empty(H))
+        return integ
+
     def _stepwise_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
                        integ: Any, power_out: Any, air_k: np.ndarray,
                        b_k: np.ndarray | None) -> np.ndarray:
@@ -457,6 +502,10 @@ class ThermalIntegrator:
         for the nonlinear residual this is the exponential Euler method)."""
         mu = self._mu
         H = len(self.heaters)
+        if H and not self.nonlinear_links:
+            done = self._compiled_heater_loop(w0, g, u, W, integ, power_out)
+            if done is not None:
+                return done
         if H:
             rs, rt = self._r_s, self._r_t
             cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(H)]

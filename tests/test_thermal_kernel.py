@@ -1,0 +1,99 @@
+"""The compiled heater loop (sim/_thermal_kernel.py) gives the Python step loop's states,
+heater powers and controller states bit for bit: one and several heaters, a tracking set
+point, saturation at both limits, power switched off and on, split calls."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rlgsim.sim.config import Ctx
+from rlgsim.sim.thermal import ThermalNetwork
+from rlgsim.sim.thermal_integrator import ThermalIntegrator
+
+kernel_module = pytest.importorskip("rlgsim.sim._thermal_kernel")
+
+
+def network(two_heaters: bool, track: bool) -> ThermalNetwork:
+    heaters = {"thermostat": {"node": "base", "sensor": "block", "setpoint_c": 40.0,
+                              "max_power_w": 15.0, "kp_w_per_k": 8.0, "ti_s": 3000.0}}
+    if track:
+        heaters["thermostat"].update(track_node="housing", track_gain=0.5,
+                                     track_reference_c=30.0)
+    if two_heaters:
+        heaters["lid"] = {"node": "housing", "sensor": "housing", "setpoint_c": 35.0,
+                          "max_power_w": 6.0, "kp_w_per_k": 3.0, "ti_s": 900.0}
+    nodes = {"block": {"capacitance_j_per_k": 400.0, "power_w": 1.0},
+             "base": {"capacitance_j_per_k": 2500.0},
+             "housing": {"capacitance_j_per_k": 3000.0, "power_w": 4.0}}
+    for i in range(20):                          # a realistic size: BLAS's unrolled part too
+        nodes[f"n{i}"] = {"capacitance_j_per_k": 50.0 + 10.0 * i}
+    links = [{"between": ["block", "base"], "conductance_w_per_k": 0.6},
+             {"between": ["base", "housing"], "conductance_w_per_k": 1.0},
+             {"between": ["block", "housing"], "conductance_w_per_k": 0.1},
+             {"between": ["housing", "chamber_air"], "conductance_w_per_k": 0.4}]
+    links += [{"between": [f"n{i}", "block" if i % 2 else "base"],
+               "conductance_w_per_k": 0.05 + 0.01 * i} for i in range(20)]
+    return ThermalNetwork.from_config({"nodes": nodes, "links": links, "heaters": heaters},
+                                      Ctx("k.toml", "thermal"))
+
+
+def run(integ: ThermalIntegrator, compiled: bool, splits: list[int], setpoint, power):
+    integ.compiled = compiled
+    st = integ.initial_state(float(setpoint[0]), True)
+    rows, powers, k = [], [], 0
+    for m in splits:
+        states, st = integ.propagate(st, setpoint[k:k + m + 1], power[k:k + m])
+        rows.append(states)
+        powers.append(integ.last_heater_power_w.copy())
+        k += m
+    return np.concatenate(rows), np.concatenate(powers), st
+
+
+@pytest.mark.parametrize("two_heaters", [False, True])
+@pytest.mark.parametrize("track", [False, True])
+def test_compiled_heater_loop_is_bit_identical(two_heaters, track):
+    assert kernel_module.kernel() is not None        # numpy's BLAS found and checked
+    integ = ThermalIntegrator(network(two_heaters, track), 5.0, 60.0)
+    m = 3000
+    t = np.arange(m + 1) * 5.0
+    setpoint = np.where(t < 6000, -30.0, 90.0) + 5.0 * np.sin(t / 500.0)
+    power = np.ones(m)
+    power[700:760] = 0.0                             # off: controllers reset
+    power[2000] = 0.0
+    splits = [1, 119, 120, 600, 1160, 1000]
+    a_states, a_power, a_st = run(integ, False, splits, setpoint, power)
+    b_states, b_power, b_st = run(integ, True, splits, setpoint, power)
+    assert a_states.tobytes() == b_states.tobytes()
+    assert a_power.tobytes() == b_power.tobytes()
+    assert np.asarray(a_st).tobytes() == np.asarray(b_st).tobytes()
+    assert a_st.modal.tobytes() == b_st.modal.tobytes()
+    assert a_st.heaters.tobytes() == b_st.heaters.tobytes()
+    p = a_power[power > 0, 0]
+    assert np.unique(p).size > 100                   # the controller regulates
+    if not (track or two_heaters):    # it reaches both limits: every branch is exercised
+        assert (p == 0.0).any() and (p == 15.0).any()
+
+
+def test_compiled_loop_is_skipped_until_numba_is_imported(monkeypatch):
+    import sys
+    integ = ThermalIntegrator(network(False, False), 5.0, 60.0)
+    monkeypatch.delitem(sys.modules, "numba", raising=False)
+    st = integ.initial_state(20.0, True)
+    integ.propagate(st, np.full(11, 20.0), np.ones(10))
+    assert integ._kernel is None                     # not even looked up
+
+
+def test_the_kernel_has_no_fused_multiply_add():
+    """No fastmath: LLVM may not contract a product and a sum into an FMA (a different
+    rounding than numpy's separate multiply and add)."""
+    from numba import njit
+    fresh = njit(nogil=True)(kernel_module.heater_loop.py_func)   # uncached: inspectable
+    integ = ThermalIntegrator(network(True, True), 5.0, 60.0)
+    integ.compiled = True
+    st = integ.initial_state(20.0, True)
+    integ.propagate(st, np.full(11, 20.0), np.ones(10))
+    sig = kernel_module.heater_loop.signatures[0]
+    fresh.compile(sig)
+    asm = fresh.inspect_asm(sig).lower()
+    assert "fmadd" not in asm and "fmsub" not in asm and "fnmadd" not in asm
