@@ -35,6 +35,7 @@ Preset format (``[probes]`` table of a thermal preset, next to ``[thermal]``)::
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -174,11 +175,22 @@ class ProbeSet:
             cache[step_s] = (a, c)
         return cache[step_s]
 
-    def read(self, state: Any, node_temps: Any, step_s: float, rng: np.random.Generator
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def _lagged(self) -> np.ndarray:
+        cache = self._coeff_cache            # type: ignore[attr-defined]
+        if "lagged" not in cache:
+            cache["lagged"] = self.tau_s > 0
+        return cache["lagged"]
+
+    def read(self, state: Any, node_temps: Any, step_s: float, rng: np.random.Generator,
+             compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Readings (m, n_probes) [°C] at the grid points of ``node_temps`` (m, n) — the node
         temperatures one step ``step_s`` [s] apart, following the instant of ``state`` — and
-        the new state. Noise: one ``rng.standard_normal((m, n_probes))`` draw."""
+        the new state. Noise: one ``rng.standard_normal((m, n_probes))`` draw.
+
+        ``compiled``: compute the block in one call of compiled code
+        (:func:`rlgsim.sim._probe_kernel.read_block`, the same operations in the same order);
+        None (default): when this process has imported numba already (importing it costs
+        more than a short run saves); False: the NumPy path below."""
         T = np.asarray(node_temps, dtype=float)
         if T.ndim != 2:
             raise ValueError("node_temps must be (m, n_nodes)")
@@ -190,6 +202,14 @@ class ProbeSet:
         m = T.shape[0]
         if m == 0:
             return np.empty((0, self.n_probes)), st.copy()
+        kernel = _compiled_reader(compiled)
+        if kernel is not None:
+            a, c = self._coefficients(float(step_s))
+            reading = rng.standard_normal((m, self.n_probes))
+            new_state = np.empty((2, self.n_probes))
+            kernel(T, self.node_index, st, a, c, self._lagged(), self.noise_sigma_c,
+                   self.resolution_c, reading, new_state)
+            return reading, new_state
         # work probe-major (n_probes, m): each probe's trace contiguous for lfilter
         X = T.T[self.node_index]                        # probed node temperatures
         prev = np.empty_like(X)                         # T[k] for the step k → k+1
@@ -220,6 +240,20 @@ class ProbeSet:
             cols = np.flatnonzero(q > 0)
             reading[:, cols] = np.round(reading[:, cols] / q[cols]) * q[cols]
         return reading, new_state
+
+
+def _compiled_reader(compiled: bool | None) -> Any:
+    """:func:`rlgsim.sim._probe_kernel.read_block` if it is to be used (see
+    :meth:`ProbeSet.read`) and numba is importable, else None."""
+    if compiled is None:
+        compiled = "numba" in sys.modules
+    if not compiled:
+        return None
+    try:
+        from rlgsim.sim._probe_kernel import read_block
+    except ImportError:                          # pragma: no cover - numba is optional
+        return None
+    return read_block
 
 
 def _param(spec: Mapping[str, Any], key: str, ctx: Ctx, default: Any) -> float | None:
