@@ -13,6 +13,8 @@ compare whole runs). Per step ``k`` and mode ``i`` the same IEEE-754 float64 ope
 same order, without ``fastmath`` (LLVM neither reassociates nor contracts a product and a sum
 into a fused multiply-add)::
 
+    g_ik = c_0i·x_0k;  g_ik = g_ik + c_ti·x_tk  (t = 1, 2, …: setpoint, its step, power, air,
+    boundaries — numpy's outer products summed in the same order)
     w_i = μ_i·ws_i;  w_i = w_i + g_ik;  then per heater j in order (powered steps only):
     e = sp_j − ts_j;  v = kp_j·e + I_j;  P = clip(v, 0, Pmax_j);  I_j = (I_j + ki_j·e) + aw_j·(P − v)
     if P ≠ 0:  w_i = w_i + (c_ij·P)
@@ -94,19 +96,21 @@ def read_rows(rows, x_ptr, inc, out):                           # pragma: no cov
 
 
 @njit(nogil=True, cache=True)
-def heater_loop(mu, w0, inc0, g, on, WT, scratch, rs, rt, track, cols, kp, ki, aw, pmax,
-                sp0, tg, integ, power_out, ts, tt):              # pragma: no cover (compiled)
+def heater_loop(mu, w0, inc0, coef, inputs, on, WT, scratch, rs, rt, track, cols, kp, ki, aw,
+                pmax, sp0, tg, integ, power_out, ts, tt):        # pragma: no cover (compiled)
     """The step loop (module docstring) over ``m = g.shape[1]`` steps.
 
     ``mu`` (n,) modal factors; ``w0`` (n,) modal state at the block start, read by the sensors
-    with stride ``inc0``; ``g`` (n, m) modal forcing; ``on`` (m,) bool powered; ``WT`` (m, n)
+    with stride ``inc0``; the modal forcing ``g_ik = Σ_t coef[t, i]·inputs[t, k]`` summed in
+    the order of ``t`` (``coef`` (nt, n), ``inputs`` (nt, m)); ``on`` (m,) bool powered; ``WT`` (m, n)
     output, row k the state after step k; ``scratch`` (n, 2) the sensors' copy of the state
     (column 0, stride 2); ``rs``/``rt`` (H, n) sensor/tracked-node read-out rows; ``track``
     bool; ``cols`` (H, n) heater input columns (× P [W]); ``kp, ki, aw, pmax, sp0, tg`` (H,)
     controller constants; ``integ`` (H,) integrator states (updated); ``power_out`` (m, H)
     heater powers [W]; ``ts, tt`` (H,) work buffers."""
     n = mu.size
-    m = g.shape[1]
+    m = inputs.shape[1]
+    nt = coef.shape[0]
     H = kp.size
     for k in range(m):
         powered = on[k]
@@ -128,7 +132,10 @@ def heater_loop(mu, w0, inc0, g, on, WT, scratch, rs, rt, track, cols, kp, ki, a
             for i in range(n):
                 w[i] = mu[i] * ws[i]
         for i in range(n):
-            w[i] = w[i] + g[i, k]
+            gi = coef[0, i] * inputs[0, k]
+            for t in range(1, nt):
+                gi = gi + coef[t, i] * inputs[t, k]
+            w[i] = w[i] + gi
         if powered:
             for j in range(H):
                 sp = sp0[j] + tg[j] * tt[j] if track else sp0[j]

@@ -165,6 +165,7 @@ class ThermalIntegrator:
         self.compiled: bool | None = None
         self._kernel: Any = None
         self._kernel_args: Any = None
+        self._kernel_coef: np.ndarray | None = None
         self.chamber_loop = None
         if controller is not None:
             from rlgsim.sim.chamber_controller import ChamberLoop
@@ -429,34 +430,44 @@ class ThermalIntegrator:
         else:
             air_next = s[1:]
             air_k = sk
-        # modal forcing g_i[k] (n, m), then one first-order recurrence per mode
-        g = np.multiply.outer(self._c_s, sk)
-        g += np.multiply.outer(self._c_ds, ds)
-        g += np.multiply.outer(self._c_u, u)
+        # modal forcing g_i[k] = Σ_t c_t[i]·x_t[k] (n, m), summed in this order, then one
+        # first-order recurrence per mode
+        terms = [(self._c_s, sk), (self._c_ds, ds), (self._c_u, u)]
         if self.air_tau_s > 0:
-            g += np.multiply.outer(self._c_air, air_k)
+            terms.append((self._c_air, air_k))
         if b is not None:                    # further boundaries: element-wise (no BLAS)
             db = np.diff(b, axis=0)
             for j in range(b.shape[1]):
-                g += np.multiply.outer(self._c_b[j], b[:-1, j])
-                g += np.multiply.outer(self._c_db[j], db[:, j])
+                terms.append((self._c_b[j], b[:-1, j]))
+                terms.append((self._c_db[j], db[:, j]))
         # modal rows by step (m, n): the stepwise loop writes one contiguous row per step
         W = np.empty((m, n)).T
-        if self.heaters or self.nonlinear_links:
-            hstate = self._stepwise_loop(w0, g, u, W, hstate, hpower, air_k,
-                                         None if b is None else b[:-1])
+        done = None
+        if self.heaters and not self.nonlinear_links:
+            done = self._compiled_heater_loop(w0, terms, u, W, hstate, hpower)
+        if done is not None:
+            hstate = done
         else:
-            for i in range(n):
-                W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
-                                               zi=[self._mu[i] * w0[i]])
+            g = np.multiply.outer(*terms[0])
+            for c, x in terms[1:]:
+                g += np.multiply.outer(c, x)
+            if self.heaters or self.nonlinear_links:
+                hstate = self._stepwise_loop(w0, g, u, W, hstate, hpower, air_k,
+                                             None if b is None else b[:-1])
+            else:
+                for i in range(n):
+                    W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
+                                                   zi=[self._mu[i] * w0[i]])
         out[:, 0] = air_next
         out[:, 1:] = self._nodes(W.T)
         return float(out[-1, 0]), W[:, -1].copy(), hstate
 
-    def _compiled_heater_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray,
+    def _compiled_heater_loop(self, w0: np.ndarray, terms: list, u: np.ndarray,
                               W: np.ndarray, integ: Any, power_out: Any) -> np.ndarray | None:
         """:meth:`_stepwise_loop` for heaters without nonlinear links in compiled code
-        (:mod:`rlgsim.sim._thermal_kernel`, bit-identical); None when it is not used:
+        (:mod:`rlgsim.sim._thermal_kernel`, bit-identical), the modal forcing summed from
+        ``terms`` ``[(c_t (n,), x_t (m,))]`` inside; the controllers' integrator states, or
+        None when it is not used:
         ``compiled`` False, or None (the default) and numba not yet imported by this process
         (importing it costs more than a short run saves), or the kernel unavailable."""
         use = self.compiled
@@ -485,11 +496,19 @@ class ThermalIntegrator:
                 self._h_aw.copy(), self._h_max.copy(), self._h_sp.copy(), self._h_tg.copy(),
                 bool(np.any(self._h_tg != 0.0)))
         rs, rt, cols, kp, ki, aw, pmax, sp0, tg, track = aux
+        coef = self._kernel_coef
+        if coef is None or coef.shape[0] != len(terms):
+            coef = np.array([c for c, _ in terms], dtype=float)
+            if len(terms) <= 4:               # no boundaries: the same every call
+                self._kernel_coef = coef
+        inputs = np.empty((len(terms), u.size))
+        for t, (_, x) in enumerate(terms):
+            inputs[t] = x
         integ = np.array(integ, dtype=float)
         on = np.asarray(u) > 0
-        self._kernel(self._mu, w0, w0.strides[0] // 8, g, on, W.T, np.empty((n, 2)), rs, rt,
-                     track, cols, kp, ki, aw, pmax, sp0, tg, integ, power_out, np.empty(H),
-                     np.empty(H))
+        self._kernel(self._mu, w0, w0.strides[0] // 8, coef, inputs, on, W.T,
+                     np.empty((n, 2)), rs, rt, track, cols, kp, ki, aw, pmax, sp0, tg, integ,
+                     power_out, np.empty(H), np.empty(H))
         return integ
 
     def _stepwise_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
@@ -502,10 +521,6 @@ class ThermalIntegrator:
         for the nonlinear residual this is the exponential Euler method)."""
         mu = self._mu
         H = len(self.heaters)
-        if H and not self.nonlinear_links:
-            done = self._compiled_heater_loop(w0, g, u, W, integ, power_out)
-            if done is not None:
-                return done
         if H:
             rs, rt = self._r_s, self._r_t
             cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(H)]

@@ -14,7 +14,7 @@ from rlgsim.sim.thermal_integrator import ThermalIntegrator
 kernel_module = pytest.importorskip("rlgsim.sim._thermal_kernel")
 
 
-def network(two_heaters: bool, track: bool) -> ThermalNetwork:
+def network(two_heaters: bool, track: bool, boundary: bool = False) -> ThermalNetwork:
     heaters = {"thermostat": {"node": "base", "sensor": "block", "setpoint_c": 40.0,
                               "max_power_w": 15.0, "kp_w_per_k": 8.0, "ti_s": 3000.0}}
     if track:
@@ -34,8 +34,12 @@ def network(two_heaters: bool, track: bool) -> ThermalNetwork:
              {"between": ["housing", "chamber_air"], "conductance_w_per_k": 0.4}]
     links += [{"between": [f"n{i}", "block" if i % 2 else "base"],
                "conductance_w_per_k": 0.05 + 0.01 * i} for i in range(20)]
-    return ThermalNetwork.from_config({"nodes": nodes, "links": links, "heaters": heaters},
-                                      Ctx("k.toml", "thermal"))
+    table = {"nodes": nodes, "links": links, "heaters": heaters}
+    if boundary:                                 # two more forcing terms per step
+        table["boundaries"] = {"lab": {"temperature_c": 23.0, "amplitude_c": 1.5,
+                                       "period_h": 2.0}}
+        links.append({"between": ["n3", "lab"], "conductance_w_per_k": 0.8})
+    return ThermalNetwork.from_config(table, Ctx("k.toml", "thermal"))
 
 
 def run(integ: ThermalIntegrator, compiled: bool, splits: list[int], setpoint, power):
@@ -50,11 +54,13 @@ def run(integ: ThermalIntegrator, compiled: bool, splits: list[int], setpoint, p
     return np.concatenate(rows), np.concatenate(powers), st
 
 
-@pytest.mark.parametrize("two_heaters", [False, True])
-@pytest.mark.parametrize("track", [False, True])
-def test_compiled_heater_loop_is_bit_identical(two_heaters, track):
+@pytest.mark.parametrize("two_heaters, track, boundary, air_tau_s",
+                         [(False, False, False, 60.0), (True, False, False, 60.0),
+                          (False, True, False, 60.0), (True, True, False, 0.0),
+                          (False, False, True, 60.0), (True, False, True, 0.0)])
+def test_compiled_heater_loop_is_bit_identical(two_heaters, track, boundary, air_tau_s):
     assert kernel_module.kernel() is not None        # numpy's BLAS found and checked
-    integ = ThermalIntegrator(network(two_heaters, track), 5.0, 60.0)
+    integ = ThermalIntegrator(network(two_heaters, track, boundary), 5.0, air_tau_s)
     m = 3000
     t = np.arange(m + 1) * 5.0
     setpoint = np.where(t < 6000, -30.0, 90.0) + 5.0 * np.sin(t / 500.0)
@@ -70,7 +76,7 @@ def test_compiled_heater_loop_is_bit_identical(two_heaters, track):
     assert a_st.modal.tobytes() == b_st.modal.tobytes()
     assert a_st.heaters.tobytes() == b_st.heaters.tobytes()
     p = a_power[power > 0, 0]
-    assert np.unique(p).size > 100                   # the controller regulates
+    assert np.unique(p).size > 50                    # the controller regulates
     if not (track or two_heaters):    # it reaches both limits: every branch is exercised
         assert (p == 0.0).any() and (p == 15.0).any()
 
