@@ -25,7 +25,10 @@ exact (no Euler, no step-size error):
   rate coincides with the air's.
 * Vectorised: each mode is a first-order recurrence, run over the whole block at once by
   :func:`scipy.signal.lfilter` with its internal state ``zi`` carried between calls; node
-  temperatures are ``T = C^-½ V w`` (one matrix product per block of rows).
+  temperatures are ``T = C^-½ V w`` (one matrix product per block of rows). Heaters and
+  nonlinear links make the input depend on the state: the recurrence then runs step by step
+  (:meth:`ThermalIntegrator._stepwise_loop`); for heaters alone in compiled code once numba is
+  loaded (:mod:`rlgsim.sim._thermal_kernel`, the same operations and BLAS calls).
 
 Splitting one call into several (carrying the returned state) gives bit-identical results: the
 returned state is a :class:`ThermalState` — an ordinary ``(1 + n,)`` array ``[T_air, T_nodes]``
@@ -312,21 +315,30 @@ class ThermalIntegrator:
         return ThermalState(np.concatenate(([chamber[0]], self._nodes(w[None, :])[0])), w,
                             chamber, 0.0, heaters)
 
-    def _nodes(self, W: np.ndarray) -> np.ndarray:
-        """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks."""
+    def _nodes(self, W: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Node temperatures (m, n) from modal rows (m, n), in fixed-shape row blocks (into
+        ``out`` (m, n) when given)."""
         m, n = W.shape
-        out = np.empty((m, n))
+        if out is None:
+            out = np.empty((m, n))
+        if _depth:                          # BLAS already limited (a simulation's run)
+            self._node_blocks(W, out)
+        else:
+            with one_blas_thread():
+                self._node_blocks(W, out)
+        return out
+
+    def _node_blocks(self, W: np.ndarray, out: np.ndarray) -> None:
+        m, n = W.shape
         buf = np.zeros((_ROW_BLOCK, n))
         res = np.empty((_ROW_BLOCK, n))
-        with one_blas_thread():
-            for r0 in range(0, m, _ROW_BLOCK):
-                r1 = min(m, r0 + _ROW_BLOCK)
-                buf[: r1 - r0] = W[r0:r1]
-                if r1 - r0 < _ROW_BLOCK:
-                    buf[r1 - r0:] = 0.0
-                np.matmul(buf, self._to_nodes_T, out=res)
-                out[r0:r1] = res[: r1 - r0]
-        return out
+        for r0 in range(0, m, _ROW_BLOCK):
+            r1 = min(m, r0 + _ROW_BLOCK)
+            buf[: r1 - r0] = W[r0:r1]
+            if r1 - r0 < _ROW_BLOCK and r0 > 0:       # (the first block's tail is zero)
+                buf[r1 - r0:] = 0.0
+            np.matmul(buf, self._to_nodes_T, out=res)
+            out[r0:r1] = res[: r1 - r0]
 
     # ----------------------------------------------------------------- dataset record
 
@@ -459,7 +471,7 @@ class ThermalIntegrator:
                     W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
                                                    zi=[self._mu[i] * w0[i]])
         out[:, 0] = air_next
-        out[:, 1:] = self._nodes(W.T)
+        self._nodes(W.T, out[:, 1:])
         return float(out[-1, 0]), W[:, -1].copy(), hstate
 
     def _compiled_heater_loop(self, w0: np.ndarray, terms: list, u: np.ndarray,

@@ -14,7 +14,9 @@ the thermal integrator uses), so the exact discretisation over a step ``h`` is::
 The reading is ``round((θ[k] + σ·n[k]) / q)·q`` with ``n[k]`` standard normal draws from the
 generator handed in (resolution ``q``; ``q = 0`` means no quantisation, ``τ = 0`` no lag).
 The lag runs as :func:`scipy.signal.lfilter` recurrences (one per distinct ``τ``) with their
-state carried between calls, so splitting a trace into blocks gives bit-identical lags.
+state carried between calls, so splitting a trace into blocks gives bit-identical lags. Once
+numba is loaded a block is read in one compiled pass instead (:mod:`rlgsim.sim._probe_kernel`:
+the same operations, the same readings).
 
 Preset format (``[probes]`` table of a thermal preset, next to ``[thermal]``)::
 
