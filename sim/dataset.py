@@ -25,8 +25,11 @@ format marker and version); :func:`summary` is what ``rlgsim info`` prints.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
+import itertools
 import os
 import pathlib
+import sys
 from typing import Any, Iterable, Iterator, Mapping
 
 import h5py
@@ -213,7 +216,9 @@ class GroupWriter:
 
     def flush(self) -> None:
         """Write every staged row (the partial last chunks) and size the coordinate-less
-        dimensions; the group's datasets then hold every appended row."""
+        dimensions; the group's datasets then hold every appended row once their stages are
+        closed (:class:`DatasetWriter` and :func:`add_group` close them: whole chunks of a
+        scale-offset dataset may wait until then, as they would in HDF5's chunk cache)."""
         for st in self._staged.values():
             st.flush()
         for dim in self._dim_only:
@@ -231,9 +236,15 @@ class _ChunkStage:
     (through its chunk cache and, for filtered datasets, the filter). Here rows are copied into
     a one-chunk staging buffer (the dataset's dtype: the conversion happens once, in numpy)
     and every run of full chunks goes to the file in one ``write_direct`` — straight from the
-    caller's array when it is aligned. Memory: one chunk per dataset."""
+    caller's array when it is aligned. Memory: one chunk per dataset.
 
-    __slots__ = ("ds", "rows", "written", "buf", "fill", "dtype")
+    A scale-offset dataset's whole chunks are packed here instead of by HDF5's filter and
+    written with ``write_direct_chunk`` when HDF5 would have written them
+    (:mod:`rlgsim.sim._direct_chunks`, :data:`DIRECT_CHUNKS`): the same file, bytes and all.
+    :meth:`close` (in the order the stages were created: the order HDF5 closes the datasets
+    at file close) writes what that path still holds and closes the dataset."""
+
+    __slots__ = ("ds", "rows", "written", "buf", "fill", "dtype", "direct", "flushed", "order")
 
     def __init__(self, ds: h5py.Dataset, start: int) -> None:
         self.ds = ds
@@ -242,11 +253,24 @@ class _ChunkStage:
         self.written = int(start)            # rows in the file (a chunk boundary once staged)
         self.buf = None
         self.fill = 0                        # rows staged in buf
+        self.direct = _direct_chunks(ds, start)
+        self.flushed = False
+        self.order = next(_STAGE_ORDER)      # creation order = the dataset's open order
 
     def _write(self, data: np.ndarray) -> None:
         k = data.shape[0]
         self.ds.resize(self.written + k, axis=0)
-        self.ds.write_direct(data, dest_sel=np.s_[self.written:self.written + k])
+        if self.direct is not None and self.flushed:
+            # rows after a flush: the mirror's chunks go now and HDF5 writes the rest (the
+            # data are right; the file layout need not match a run without the flush)
+            self.direct.close()
+            self.direct = None
+        if self.direct is not None and k % self.rows == 0 and self.written % self.rows == 0:
+            self.direct.write(data, self.written)
+        else:
+            if self.direct is not None:
+                self.direct.make_room()      # what HDF5 evicts to cache this partial chunk
+            self.ds.write_direct(data, dest_sel=np.s_[self.written:self.written + k])
         self.written += k
 
     def append(self, arr: np.ndarray) -> None:
@@ -280,6 +304,48 @@ class _ChunkStage:
         if self.fill:
             self._write(self.buf[:self.fill])
             self.fill = 0
+        self.flushed = True
+
+    def close(self) -> None:
+        """Write what the direct path still holds and close the dataset (as closing the file
+        would: HDF5 then writes the chunks its cache holds)."""
+        if self.direct is not None:
+            self.direct.close()
+            self.direct = None
+        if self.ds.id.valid:
+            self.ds.id.close()
+
+
+#: Whole chunks of scale-offset datasets packed by :mod:`rlgsim.sim._scaleoffset` and written
+#: directly (:mod:`rlgsim.sim._direct_chunks`; the same file bytes as HDF5's filter): None (the
+#: default) when numba is already loaded in the process (the compiled packer; a long run's IMU
+#: stage loads it — importing it only for this would cost a short run more than it saves),
+#: True always, False never (HDF5's filter packs them).
+DIRECT_CHUNKS: bool | None = None
+
+_STAGE_ORDER = itertools.count()
+
+
+def _direct_chunks(ds: h5py.Dataset, start: int):
+    """The direct-chunk path of a dataset (:class:`rlgsim.sim._direct_chunks.DirectChunks`)
+    or None (HDF5's own path)."""
+    if DIRECT_CHUNKS is not False and ds.scaleoffset is not None:
+        numba = "numba" in sys.modules
+        if DIRECT_CHUNKS or numba:
+            from rlgsim.sim._direct_chunks import DirectChunks
+            compiled = numba or importlib.util.find_spec("numba") is not None
+            return DirectChunks.of(ds, start, compiled=compiled)
+    return None
+
+
+def _close_stages(groups: Iterable[GroupWriter]) -> None:
+    """Close every staged dataset of ``groups`` in the order they were opened — the order in
+    which closing the file would close (and flush) them."""
+    stages = sorted((st for g in groups for st in g._staged.values()), key=lambda st: st.order)
+    for st in stages:
+        st.close()
+    for g in groups:
+        g._staged.clear()
 
 
 def remove_stale_temporaries(path: pathlib.Path) -> list[pathlib.Path]:
@@ -348,6 +414,7 @@ class DatasetWriter:
         del self._file.attrs[INCOMPLETE_ATTR]
         self._file.attrs[FORMAT_ATTR] = FORMAT
         self._file.attrs[VERSION_ATTR] = FORMAT_VERSION
+        _close_stages(self._groups)
         self._file.close()
         os.replace(self.tmp_path, self.path)
         return self.path
@@ -396,6 +463,7 @@ def add_group(path: str | os.PathLike, name: str, description: str,
         if name in f:
             del f[name]
         f.move(tmp, name)
+        _close_stages([writer])
 
 
 # --------------------------------------------------------------------------- reading
