@@ -22,10 +22,13 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
    equation in one compiled pass per channel (:mod:`rlgsim.sim._pulse_kernel`; the NumPy
    path for short runs in a process without numba — the same pulses bit for bit).
 
-The state-free inputs of the next block (increments, normals, slow-noise and UHFO drives) are
-computed in two worker threads while the current block runs (:meth:`ImuSimulator._get_inputs`),
-with the thermal steps at rest (every sample the same increment, bit for bit), whose
-measurement equation :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step.
+The state-free inputs of the next blocks (increments, their sums per thermal step and the
+table angles, normals, slow-noise and UHFO drives) are computed two blocks ahead in two worker
+threads while the current block runs (:meth:`ImuSimulator._get_inputs`), with the thermal
+steps at rest (every sample the same increment, bit for bit), whose measurement equation
+:func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step. The samples at rest are
+known from the motion (:attr:`rlgsim.sim.motion.MotionBlock.constant`), so neither the
+comparison of their bits nor their per-step sums go over every sample.
 
 Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
 docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
@@ -49,6 +52,7 @@ import json
 import math
 import sys
 import zlib
+from collections import deque
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -74,6 +78,10 @@ _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 #: of CPU per epoch (six channels: a table at rest / turning; tests/test_pulse_kernel.py's
 #: block timed both ways) — from a few million epochs on (benchmarks/bench_sim.py --counters).
 COMPILED_MIN_EPOCHS = 5_000_000
+
+#: How many blocks ahead of the running one the prefetch threads compute their inputs: two, so
+#: a block whose main-thread work was short does not wait for the inputs of the next.
+PREFETCH_BLOCKS = 2
 
 
 @dataclass(frozen=True)
@@ -313,7 +321,8 @@ class ImuSimulator:
         self.compiled = "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS
         self.anomalies = None                   # rlgsim.sim.anomalies.AnomalyRun (optional)
         self._pool = None
-        self._ahead = None
+        #: prefetched blocks in order: ((b, k0, m, n), [futures of the parts of its inputs])
+        self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
         # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
         acc_axes = a.axes if a is not None else ()
@@ -352,65 +361,93 @@ class ImuSimulator:
         return z
 
     # ---- one block ------------------------------------------------------------------------
-    def _inputs(self, b: int, k0: int, m: int, n: int, za=None) -> dict[str, Any]:
-        """Everything block ``b`` needs that depends on no carried state: the motion's exact
-        increments (and their transposes), the white-noise normals and the slow-noise and UHFO
-        drives. A pure function of (b, k0, m, n) — so it can be computed ahead, in the prefetch
-        thread, without changing a byte. ``za``: a future of the accelerometers' normals
-        (:meth:`_accel_white`) drawn in a second thread meanwhile (each channel has its own
-        generator, so the threads do not change a draw), or None to draw them here."""
+    def _inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
+        """Everything block ``b`` needs that depends on no carried state (:meth:`_kinematics`
+        and :meth:`_drives`). A pure function of (b, k0, m, n) — so it can be computed ahead,
+        in the prefetch threads, without changing a byte."""
+        return {**self._kinematics(b, k0, m, n), **self._drives(b, k0, m, n)}
+
+    def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
+        """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
+        the steps at rest of each (:func:`_step_inputs`), their sums per thermal step, the
+        table at each step's end and the gyros' white-noise normals."""
         mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
-        g, acc, uh = self.r.gyros, self.r.accels, self.r.uhfo
-        out: dict[str, Any] = {
-            "motion": mb, "dth_t": np.ascontiguousarray(mb.dtheta_rad.T),
-            "dv_t": np.ascontiguousarray(mb.dv_m_per_s.T),
-            "zg": self.white("gyro.white", g.axes, self.gyro_white_sigma, b, n),
-            "slow": self.slow.draws(b, m)}
-        if acc is not None:
-            out["za"] = self._accel_white(b, n) if za is None else za.result()
-        # steps at rest (one increment for all their samples): evaluated once per step
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
-        out["steps_g"] = step_inputs(out["dth_t"], m, idx)
-        out["steps_a"] = step_inputs(out["dv_t"], m, idx) if acc is not None else None
-        if uh is not None:
-            out["uhfo"] = uh.draws(self.seed, self.unit, b, m)
+        dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
+        held = _held_steps(mb.constant, m, idx)
+        out: dict[str, Any] = {
+            "motion": mb, "dth_t": dth_t, "dv_t": dv_t,
+            # steps at rest (one increment for all their samples): evaluated once per step
+            "steps_g": _step_inputs(dth_t, m, idx, held),
+            "steps_a": _step_inputs(dv_t, m, idx, held) if self.r.accels is not None else None,
+            "dtheta_step": _step_sums(dth_t, idx, m, held),
+            "dv_step": _step_sums(dv_t, idx, m, held),
+            "zg": self.white("gyro.white", self.r.gyros.axes, self.gyro_white_sigma, b, n)}
+        if n:                               # the table at the ends of each step's last sample
+            outer, inner, segment = self.motion.angles(
+                mb.end_times(_last_sample_of_step(idx, m, n)))
+            out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
 
-    def _accel_white(self, b: int, n: int) -> np.ndarray | None:
-        acc = self.r.accels
-        return self.white("accel.white", acc.axes, self.accel_white_sigma, b, n)
+    def _drives(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
+        """The accelerometers' white-noise normals and the slow-noise and UHFO drives (each
+        channel has its own generator, so computing them in another thread than
+        :meth:`_kinematics` does not change a draw)."""
+        out: dict[str, Any] = {"slow": self.slow.draws(b, m)}
+        if self.r.accels is not None:
+            out["za"] = self.white("accel.white", self.r.accels.axes, self.accel_white_sigma,
+                                   b, n)
+        if self.r.uhfo is not None:
+            out["uhfo"] = self.r.uhfo.draws(self.seed, self.unit, b, m)
+        return out
+
+    def _block_size(self, m: int) -> int:
+        """IMU samples of a block of ``m`` thermal steps: those whose interval ends inside it
+        (a short last block at a low rate may hold none: sample_rate_hz = 0.1,
+        duration_s = 605)."""
+        return int(math.floor(m * self.step_s * self.rate_hz + 1e-9))
 
     def _get_inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
-        """This block's inputs (prefetched when the previous block asked for them) and, when
-        prefetching, start the next block's in the worker thread (same length assumed: a
-        shorter last block is recomputed here)."""
+        """This block's inputs (prefetched when an earlier block asked for them) and, when
+        prefetching, start those of the next :data:`PREFETCH_BLOCKS` blocks in the worker
+        threads (blocks of ``m`` steps assumed, up to the run's end: inputs of a block of
+        another length are recomputed here)."""
         key = (b, k0, m, n)
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None and ahead[0] == key:
-            inputs = ahead[1].result()
+        if self._ahead and self._ahead[0][0] == key:
+            inputs: dict[str, Any] = {}
+            for part in self._ahead.popleft()[1]:
+                inputs.update(part.result())
         else:
-            if ahead is not None:
-                ahead[1].cancel()
+            self._cancel_ahead()
             inputs = self._inputs(*key)
         if self.n_steps is not None and k0 + m >= self.n_steps:
             self.close()                        # the last block: nothing to prefetch
         elif self.prefetch:
             if self._pool is None:
                 from concurrent.futures import ThreadPoolExecutor
-                # two workers: the accelerometers' normals are drawn beside the rest (numpy's
-                # generators release the GIL while they fill an array)
+                # two workers, one for the kinematics and the gyros' normals, one for the
+                # other drives: numpy's generators release the GIL while they fill an array
                 self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="rlgsim-imu")
-            nxt = (b + 1, k0 + m, m, n)
-            za = (self._pool.submit(self._accel_white, b + 1, n)
-                  if self.r.accels is not None else None)
-            self._ahead = (nxt, self._pool.submit(self._inputs, *nxt, za))
+            nb, nk0 = self._ahead[-1][0][:2] if self._ahead else key[:2]
+            while len(self._ahead) < PREFETCH_BLOCKS:
+                nb, nk0 = nb + 1, nk0 + m
+                nm = m if self.n_steps is None else min(m, self.n_steps - nk0)
+                if nm <= 0:
+                    break
+                nxt = (nb, nk0, nm, self._block_size(nm))
+                self._ahead.append((nxt, [self._pool.submit(self._kinematics, *nxt),
+                                          self._pool.submit(self._drives, *nxt)]))
         return inputs
 
+    def _cancel_ahead(self) -> None:
+        for _, parts in self._ahead:
+            for part in parts:
+                part.cancel()
+        self._ahead.clear()
+
     def close(self) -> None:
-        """Stop the prefetch thread (also done when the simulator is garbage-collected)."""
-        if self._ahead is not None:
-            self._ahead[1].cancel()
-            self._ahead = None
+        """Stop the prefetch threads (blocks asked for and not taken are dropped)."""
+        self._cancel_ahead()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
@@ -425,9 +462,7 @@ class ImuSimulator:
         dt = self.step_s
         m = len(trace.t_s)
         k0 = int(round(float(trace.t_s[0]) / dt)) - 1           # first step of the block
-        # samples whose interval ends inside the block (a short last block at a low rate may
-        # hold none: sample_rate_hz = 0.1, duration_s = 605)
-        n = int(math.floor(m * dt * self.rate_hz + 1e-9))
+        n = self._block_size(m)
         inputs = self._get_inputs(b, k0, m, n)
         motion_block = inputs["motion"]
         idx = sample_step_index(n, m, self.rate_hz, dt)
@@ -494,34 +529,80 @@ class ImuSimulator:
                               accel_installation=ap.installation)
 
         # true inputs summed per thermal step
-        truth_time["dtheta_step"] = _step_sums(dth_t, idx, m)
-        truth_time["dv_step"] = _step_sums(dv_t, idx, m)
+        truth_time["dtheta_step"] = inputs["dtheta_step"]
+        truth_time["dv_step"] = inputs["dv_step"]
         rows = {"imu": {"sample": imu_sample, "time": imu_time},
                 "truth": {"time": truth_time}}
         if self.truth_samples:
             rows["truth"]["sample"] = {"dtheta": motion_block.dtheta_rad,
                                        "dv": motion_block.dv_m_per_s}
         # turntable angles and motion index at the end of each thermal step
-        if n:
-            last = _last_sample_of_step(idx, m, n)       # the table at those samples' ends
-            outer, inner, segment = self.motion.angles(motion_block.t_s[last])
+        if n:                        # the table at the ends of the steps' last samples
+            outer, inner, segment = inputs["table"]
         else:                        # no sample in the block: the table at each step's end
             outer, inner, segment = self.motion.angles(trace.t_s)
+            segment = np.asarray(segment).astype(np.int32)
         rows["turntable"] = {"time": {
             "time": trace.t_s, "outer_angle": outer, "inner_angle": inner,
-            "motion_index": np.asarray(segment).astype(np.int32)}}
+            "motion_index": segment}}
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
-def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int) -> np.ndarray:
+def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | int
+                ) -> list[tuple[int, int]] | None:
+    """The runs of steps ``(lo, hi)`` whose ``idx`` samples all lie in one of the
+    ``constant`` runs of samples (:attr:`rlgsim.sim.motion.MotionBlock.constant`: one
+    increment, bit for bit), one per such run; None when the ``m`` steps do not all hold
+    ``idx`` samples."""
+    if not isinstance(idx, int):
+        return None
+    runs = [(-(-lo // idx), min(hi // idx, m)) for lo, hi in constant]
+    return [(lo, hi) for lo, hi in runs if hi > lo]
+
+
+def _step_inputs(x_t: np.ndarray, m: int, idx: np.ndarray | int,
+                 held: list[tuple[int, int]] | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`rlgsim.sim.sensor_triad.step_inputs` of ``x_t`` (3, n), its samples compared
+    only in the steps outside the ``held`` runs (:func:`_held_steps`): a held step's samples
+    are one increment, so it is at rest — the same ``(uniform, first)``."""
+    if held is None or x_t.shape[1] != m * idx:
+        return step_inputs(x_t, m, idx)
+    xs = x_t.reshape(3, m, idx)
+    first = np.ascontiguousarray(xs[:, :, 0])
+    uniform = np.zeros(m, dtype=bool)
+    for lo, hi in held:
+        uniform[lo:hi] = True
+    rest = np.flatnonzero(~uniform)
+    if rest.size:
+        uniform[rest] = step_inputs(xs[:, rest].reshape(3, rest.size * idx), rest.size,
+                                    idx)[0]
+    return uniform, first
+
+
+def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int,
+               held: list[tuple[int, int]] | None = None) -> np.ndarray:
     """Sums of per-sample values ``x_t`` (k, n) over each thermal step: (m, k).
 
-    numpy's pairwise summation over each step's samples (contiguous rows)."""
+    numpy's pairwise summation over each step's samples (contiguous rows). ``held``
+    (:func:`_held_steps`): runs of steps whose samples all repeat one value; each run's first
+    step is summed (the same row of numbers as every step of the run, so the same sum) and
+    its sum repeated."""
     k, n = x_t.shape
-    if isinstance(idx, int):
-        return x_t.reshape(k, m, idx).sum(axis=2).T.copy()
-    out = np.zeros((m, k))
-    np.add.at(out, idx, x_t.T)
+    if not isinstance(idx, int):
+        out = np.zeros((m, k))
+        np.add.at(out, idx, x_t.T)
+        return out
+    xs = x_t.reshape(k, m, idx)
+    if not held:
+        return xs.sum(axis=2).T.copy()
+    out = np.empty((m, k))
+    summed = np.zeros(m, dtype=bool)
+    for lo, hi in held:
+        out[lo:hi] = xs[:, lo:lo + 1].sum(axis=2).T
+        summed[lo:hi] = True
+    rest = np.flatnonzero(~summed)
+    if rest.size:
+        out[rest] = xs[:, rest].sum(axis=2).T
     return out
 
 

@@ -35,7 +35,8 @@ Vectorised over samples; the only Python loop runs over the motions that touch a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Iterable, Mapping
 
 import numpy as np
@@ -80,18 +81,38 @@ class MotionBlock:
     """Exact inputs for ``n`` samples: ``dtheta_rad`` (n, 3) = ∫ω_ib^b dt [rad],
     ``dv_m_per_s`` (n, 3) = ∫f^b dt [m/s], table angles at each sample's end ``outer_deg``,
     ``inner_deg`` (n,) [°, in [0, 360)], ``segment`` (n,) index of the motion in which each
-    sample interval ends, ``t_s`` (n,) sample end times [s]."""
+    sample interval ends; ``first_sample`` k0 and ``rate_hz`` f place sample j on the run's
+    grid, [(k0 + j)/f, (k0 + j + 1)/f); ``constant`` the runs ``(lo, hi)`` of whole samples at
+    rest inside one static motion: samples lo..hi−1 hold one increment, bit for bit (other
+    samples may share theirs too)."""
 
     dtheta_rad: np.ndarray
     dv_m_per_s: np.ndarray
-    outer_deg: np.ndarray
-    inner_deg: np.ndarray
-    segment: np.ndarray
-    t_s: np.ndarray = field(repr=False)
+    outer_deg: np.ndarray | None
+    inner_deg: np.ndarray | None
+    segment: np.ndarray | None
+    first_sample: int = 0
+    rate_hz: float = 1.0
+    constant: tuple[tuple[int, int], ...] = ()
+
+    @cached_property
+    def t_s(self) -> np.ndarray:
+        """(n,) sample end times [s], (k0 + j + 1)/f."""
+        return self.end_times(np.arange(self.dtheta_rad.shape[0]))
+
+    def end_times(self, j: np.ndarray) -> np.ndarray:
+        """End times [s] of samples ``j``: element by element :attr:`t_s` ``[j]``."""
+        return _edges(self.first_sample, np.asarray(j) + 1, self.rate_hz)
 
     def attitude(self) -> np.ndarray:
         """True attitude C_b^n (body → ENU) at each sample's end, (n, 3, 3)."""
         return body_to_enu(self.outer_deg, self.inner_deg)
+
+
+def _edges(k0: int, j: np.ndarray | int, rate_hz: float) -> np.ndarray:
+    """Sample edges (k0 + j)/f [s] of the grid (the start of sample j; ``k0 + j`` exact in
+    float64 below 2^53), element by element the values of ``(k0 + arange(n + 1))/f``."""
+    return (k0 + np.asarray(j, dtype=float)) / rate_hz
 
 
 #: Values assumed when a static segment omits a field (e.g. a bare {"kind": "static"} mount).
@@ -173,6 +194,11 @@ class Motion:
             a = np.einsum("mji,j->mi", c0, vec)                       # C_0^T x^n
             ua = np.cross(self._u, a)
             self._coef[key] = (a, ua, np.cross(self._u, ua))
+        # the (3, 3) factors of a turn's closed form per segment (what _integrate multiplies)
+        self._turn = {key: np.stack([c[0] + self._rate[:, None] * self._u if key == "w" else c[0],
+                                     c[1], c[2]], axis=1)
+                      for key, c in self._coef.items()}
+        self._sorted = bool(np.all(self._t0[1:] >= self._t0[:-1]))
         self._m = m
 
     @property
@@ -240,23 +266,102 @@ class Motion:
 
         Sample j covers [(k0 + j)/f, (k0 + j + 1)/f) with k0 = round(t0_s·f).
         ``angles=False`` leaves ``outer_deg``, ``inner_deg`` and ``segment`` None (a caller
-        that needs the table at a few sample ends asks :meth:`angles` for those ``t_s``: the
-        same values, element by element).
+        that needs the table at a few sample ends asks :meth:`angles` for those
+        :meth:`MotionBlock.end_times`: the same values, element by element).
+
+        The whole samples at rest inside one static motion all hold the product a·(1/f) of
+        :meth:`_integrate` and are filled with it; the samples of turning motions and those
+        straddling a motion boundary are computed by :meth:`_exact` over windows that hold each
+        turning motion's samples whole, so every number is the one the whole-block
+        computation gives (tests/test_motion_fill.py compares the two).
         """
         if n < 0 or rate_hz <= 0:
             raise ValueError(f"need n >= 0 and rate_hz > 0, got n={n}, rate_hz={rate_hz}")
         k0 = round(t0_s * rate_hz)
         if abs(k0 - t0_s * rate_hz) > 1e-6:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
-        edges = (k0 + np.arange(n + 1, dtype=float)) / rate_hz
         if n == 0:
             e = np.zeros((0, 3))
             return MotionBlock(e, e.copy(), np.zeros(0), np.zeros(0),
-                               np.zeros(0, dtype=np.int64), np.zeros(0))
-        if edges[0] < self._t0[0] - _TIME_TOL_S:
+                               np.zeros(0, dtype=np.int64), k0, rate_hz)
+        e0, e1 = _edges(k0, np.array([0, n]), rate_hz)
+        if e0 < self._t0[0] - _TIME_TOL_S:
             raise ValueError(f"t0_s = {t0_s!r} s is before the first turntable segment")
+        # stored axis by axis, (3, n), and handed out as (n, 3) views: each component is one
+        # long run and the IMU stage takes the rows it needs without a copy
+        dth, dv = np.empty((3, n)), np.empty((3, n))
+        fills, windows = self._layout(k0, n, rate_hz, e0, e1)
+        for lo, hi, j in fills:
+            dth[:, lo:hi] = (self._coef["w"][0][j] * (1.0 / rate_hz))[:, None]
+            dv[:, lo:hi] = (self._coef["f"][0][j] * (1.0 / rate_hz))[:, None]
+        for lo, hi in windows:
+            dth[:, lo:hi], dv[:, lo:hi] = (x.T for x in self._exact(k0 + lo, hi - lo, rate_hz))
+        block = MotionBlock(dth.T, dv.T, None, None, None, k0, rate_hz,
+                            tuple((lo, hi) for lo, hi, _ in fills))
+        if angles:
+            block.outer_deg, block.inner_deg, block.segment = self.angles(block.t_s)
+        return block
+
+    def _layout(self, k0: int, n: int, rate_hz: float, e0: float, e1: float
+                ) -> tuple[list[tuple[int, int, int]], list[tuple[int, int]]]:
+        """How :meth:`increments` computes samples 0..n−1 (edges ``e0``, ``e1``): ``fills``
+        ``(lo, hi, j)`` whole samples at rest in static motion ``j``, and ``windows``
+        ``(lo, hi)`` for :meth:`_exact` (turning motions with the samples around their ends,
+        samples straddling a motion boundary)."""
+        inside = self._starts_inside(e0, e1)
+        pos = self._first_edge_at(inside, k0, n, rate_hz)          # 1..n, sorted
+        straddling = set((pos[_edges(k0, pos, rate_hz) != inside] - 1).tolist())
+        # stretches of samples whose starts lie in one motion: from 0 and each boundary's edge
+        starts = np.unique(np.concatenate([[0], pos[pos < n]]))
+        seg = np.maximum(np.searchsorted(self._t0, _edges(k0, starts, rate_hz), side="right")
+                         - 1, 0)
+        fills: list[tuple[int, int, int]] = []
+        exact: list[tuple[int, int]] = []
+        for lo, hi, j in zip(starts.tolist(), [*starts[1:].tolist(), n], seg.tolist()):
+            if self._rate[j] != 0.0:
+                exact.append((lo, hi))
+                continue
+            end = hi - 1 if hi - 1 in straddling else hi       # only a stretch's last sample
+            if end > lo:
+                fills.append((lo, end, j))
+            if end < hi:
+                exact.append((end, hi))
+        windows: list[tuple[int, int]] = []
+        for lo, hi in exact:                    # adjacent pieces in one window
+            if windows and windows[-1][1] == lo:
+                windows[-1] = (windows[-1][0], hi)
+            else:
+                windows.append((lo, hi))
+        return fills, windows
+
+    def _starts_inside(self, lo: float, hi: float) -> np.ndarray:
+        """The segment starts t with lo < t < hi, in order (two binary searches when the
+        starts are sorted, as a timeline's are)."""
+        if not self._sorted:
+            return self._t0[(self._t0 > lo) & (self._t0 < hi)]
+        i = int(np.searchsorted(self._t0, lo, side="right"))
+        k = int(np.searchsorted(self._t0, hi, side="left"))
+        return self._t0[i:k]
+
+    @staticmethod
+    def _first_edge_at(t: np.ndarray, k0: int, n: int, rate_hz: float) -> np.ndarray:
+        """For times ``t`` strictly inside (edge 0, edge n): the index of the first edge ≥ t,
+        ``np.searchsorted(edges, t)`` without the n + 1 edges."""
+        p = np.clip(np.ceil(t * rate_hz) - k0, 1, n).astype(np.int64)
+        for _ in range(4):                      # t·f is within an ulp or two of the answer
+            high = _edges(k0, p - 1, rate_hz) >= t
+            low = _edges(k0, p, rate_hz) < t
+            if not (high.any() or low.any()):
+                return p
+            p = np.clip(p - high + low, 1, n)
+        return np.searchsorted(_edges(k0, np.arange(n + 1), rate_hz), t)
+
+    def _exact(self, k0: int, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """Δθ, Δv (n, 3) of samples k0..k0+n−1 of the ``rate_hz`` grid (n ≥ 1), each
+        sample interval split at the motion boundaries inside it and its pieces summed."""
+        edges = _edges(k0, np.arange(n + 1), rate_hz)
         # split sample intervals at the segment boundaries inside the block
-        inside = self._t0[(self._t0 > edges[0]) & (self._t0 < edges[-1])]
+        inside = self._starts_inside(edges[0], edges[-1])
         if inside.size:
             pos = np.searchsorted(edges, inside)
             inside = inside[edges[pos] != inside]
@@ -272,9 +377,6 @@ class Motion:
         if is_edge is not None:
             split = ~(is_edge[:-1] & is_edge[1:])
             delta[split] = b[split] - a[split]
-        # stored axis by axis, (3, n), and handed out as (n, 3) views: each component is
-        # computed as one long run (a (k, 3) layout made the static products loop over 3
-        # elements at a time) and the IMU stage takes the rows it needs without a copy
         dth = np.empty((3, a.size)).T
         dv = np.empty((3, a.size)).T
         for lo, hi, j in self._runs(a):
@@ -283,10 +385,7 @@ class Motion:
             first = np.searchsorted(pts[:-1], edges[:-1])
             dth = np.add.reduceat(dth, first, axis=0)
             dv = np.add.reduceat(dv, first, axis=0)
-        if not angles:
-            return MotionBlock(dth, dv, None, None, None, edges[1:])
-        outer, inner, segment = self.angles(edges[1:])
-        return MotionBlock(dth, dv, outer, inner, segment, edges[1:])
+        return dth, dv
 
     def _integrate(self, j: int, a: np.ndarray, delta: np.ndarray, dth: np.ndarray,
                    dv: np.ndarray) -> None:
@@ -305,10 +404,8 @@ class Motion:
         wm = w * tm
         s1 = -2.0 * np.sin(wm) * sw
         s2 = delta - 2.0 * np.cos(wm) * sw
-        u = self._u[j]
-        aw, uaw, uuaw = (c[j] for c in self._coef["w"])
-        af, uaf, uuaf = (c[j] for c in self._coef["f"])
         coef = np.stack([delta, s1, s2], axis=1)                       # (k, 3)
-        # einsum: a tall (k, 3) × (3, 3) product through BLAS is 10× slower
-        dth[:] = np.einsum("kj,ji->ki", coef, np.stack([aw + w * u, uaw, uuaw]))
-        dv[:] = np.einsum("kj,ji->ki", coef, np.stack([af, uaf, uuaf]))
+        # einsum: a tall (k, 3) × (3, 3) product through BLAS is 10× slower; the factors are
+        # (a_w + w·u, u×a_w, u×(u×a_w)) and (a_f, u×a_f, u×(u×a_f)) stacked as rows
+        dth[:] = np.einsum("kj,ji->ki", coef, self._turn["w"][j])
+        dv[:] = np.einsum("kj,ji->ki", coef, self._turn["f"][j])

@@ -1,0 +1,52 @@
+"""The seed tree's generators (sim/rng.py) against numpy's own construction,
+``Generator(PCG64(SeedSequence(entropy=seed, spawn_key=(unit, purpose, channel, block))))``:
+the same PCG64 state for seeds of one to four 32-bit words and more, units, names and
+integer channels, blocks on both sides of a 64-block chunk and at the 32-bit limit, and the
+keys outside the precomputed range (numpy's path)."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from rlgsim.sim.rng import generator, seed_sequence
+
+
+def numpy_generator(seed, unit, purpose, channel, block) -> np.random.Generator:
+    return np.random.Generator(np.random.PCG64(
+        seed_sequence(seed, unit, purpose, channel, block)))
+
+
+SEEDS = [0, 1, 7, 12345, 2**31, 2**32 - 1, 2**32, 2**63 - 1, 2**64 + 3, 2**127 + 11, 2**140]
+BLOCKS = [0, 1, 63, 64, 65, 127, 128, 723, 724, 10**6, 2**32 - 1]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_generators_have_numpys_state(seed):
+    rng = np.random.default_rng(seed % 2**32)
+    for block in BLOCKS:
+        unit = int(rng.choice([0, 1, 3, 2**32 - 1]))
+        purpose = str(rng.choice(["gyro.white", "accel.flicker", "uhfo.readout", ""]))
+        channel = rng.choice(["x", "y", "z", "", 0, 5])
+        channel = int(channel) if str(channel).isdigit() else str(channel)
+        got = generator(seed, unit, purpose, channel, block)
+        ref = numpy_generator(seed, unit, purpose, channel, block)
+        assert got.bit_generator.state == ref.bit_generator.state
+        np.testing.assert_array_equal(got.standard_normal(5, dtype=np.float32),
+                                      ref.standard_normal(5, dtype=np.float32))
+
+
+def test_keys_outside_the_precomputed_range_take_numpys_path():
+    for key in [(1, 0, "a", "x", 2**32), (1, 2**32, "a", "x", 0), (1, 0, "a", "x", 2**40)]:
+        assert generator(*key).bit_generator.state == numpy_generator(*key).bit_generator.state
+    with pytest.raises(ValueError):
+        generator(-1, 0, "a", "x", 0)           # as SeedSequence refuses negative entropy
+
+
+def test_numpy_integer_keys_and_pickling():
+    got = generator(np.int64(9), np.int32(2), "probes", np.int64(4), np.int64(70))
+    assert got.bit_generator.state == numpy_generator(9, 2, "probes", 4, 70).bit_generator.state
+    again = pickle.loads(pickle.dumps(got))
+    assert again.bit_generator.state == got.bit_generator.state
