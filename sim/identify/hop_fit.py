@@ -53,7 +53,7 @@ import numpy as np
 from rlgsim.estimators.identify.step_detection import StepFit, detect_steps, step_columns
 from rlgsim.estimators.identify.term_selection import (SelectedLaw, Term, jittered_cholesky,
                                                        select_terms)
-from rlgsim.sim.identify.law_fit import node_column
+from rlgsim.sim.identify.node_names import node_column
 
 __all__ = ["HOP_ALPHA", "Hop", "HopFit", "fit_hops", "find_hops", "describe_hops",
            "hop_per_step", "hop_name"]

@@ -53,6 +53,7 @@ from rlgsim.estimators.features import window_average
 from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 from rlgsim.estimators.identify.window_noise import covariance_from_fit
+from rlgsim.sim.identify.node_names import node_column
 from rlgsim.sim.identify.recording_data import RecordingData
 
 __all__ = ["LawFit", "fit_laws", "law_prediction", "bias_features"]
@@ -97,15 +98,6 @@ def _subset(cands: list[Term], keep: np.ndarray) -> list[Term]:
     """The candidate terms on the windows ``keep`` only."""
     return [Term(t.name, (lambda th, f=t.feature: np.asarray(f(th))[keep]), t.theta_names,
                  t.grid, t.lower, t.upper) for t in cands]
-
-
-def node_column(block: str, name: str, names: tuple[str, ...]) -> int:
-    """Column of node ``name`` among the twin network's ``names``: ``"block.name"`` when
-    the network has it (a device block's node), else ``name`` itself."""
-    full = f"{block}.{name}" if block else name
-    if full in names:
-        return names.index(full)
-    return names.index(name)
 
 
 def _rate_c_per_min(T: np.ndarray, step_s: float) -> np.ndarray:

@@ -43,7 +43,8 @@ import numpy as np
 
 from rlgsim.estimators.identify.segment_noise import segment_covariance_from_fit
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
-from rlgsim.sim.identify.law_fit import LawFit, _bias_extra, _flicker_band, _per_step, node_column
+from rlgsim.sim.identify.law_fit import LawFit, _bias_extra, _flicker_band, _per_step
+from rlgsim.sim.identify.node_names import node_column
 from rlgsim.sim.identify.recording_data import RecordingData
 
 __all__ = ["ScaleFactorFit", "fit_scale_factor", "scale_factor_table", "SF_KEYS",
