@@ -66,16 +66,17 @@ class DirectChunks:
         """Whole chunks ``data`` (a multiple of the chunk's rows) at row ``row`` (a chunk
         boundary; the dataset already extends over them)."""
         buf, ends = encode(self.codec, data, compiled=self.compiled)
+        buf = buf[:ends[-1]].copy()               # what the mirror holds: the encoded bytes
         first = 0
         if not self.started:
             # HDF5 creates the chunk index at the dataset's first write
             self.ds.write_direct(np.ascontiguousarray(data[:self.rows]),
                                  dest_sel=np.s_[row:row + self.rows])
             self.started = True
-            self._insert(row, buf[ends[0]:ends[1]].copy(), held=True)
+            self._insert(row, buf[ends[0]:ends[1]], held=True)
             first = 1
-        for j in range(first, len(ends) - 1):          # a copy each: the mirror holds ~KB
-            self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]].copy())
+        for j in range(first, len(ends) - 1):
+            self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]])
 
     def make_room(self) -> None:
         """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk
