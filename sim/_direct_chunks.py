@@ -42,6 +42,8 @@ class DirectChunks:
         self.chunk_bytes = codec.chunk_elements * codec.dtype.itemsize
         self.capacity = capacity              # bytes of unfiltered chunks; 0: no cache
         self.compiled = compiled
+        #: chunks the cache holds: (n + 1)·chunk_bytes > capacity ⇔ n ≥ capacity // chunk_bytes
+        self.entries = capacity // self.chunk_bytes
         self.pending: deque[tuple[int, np.ndarray]] = deque()   # (first row, encoded bytes)
         self.started = False                  # the chunk index exists
 
@@ -73,36 +75,30 @@ class DirectChunks:
             self.ds.write_direct(np.ascontiguousarray(data[:self.rows]),
                                  dest_sel=np.s_[row:row + self.rows])
             self.started = True
-            self._insert(row, buf[ends[0]:ends[1]], held=True)
             first = 1
+            if self.capacity:
+                self._insert(row, buf[ends[0]:ends[1]])
         for j in range(first, len(ends) - 1):
             self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]])
 
     def make_room(self) -> None:
         """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk
-        written through ``write_direct`` right after)."""
-        while self.pending and self._used() + self.chunk_bytes > self.capacity:
-            self._write_oldest()
+        written through ``write_direct`` right after): the oldest chunks while the cache's
+        bytes and the new chunk's exceed its size."""
+        while self.pending and len(self.pending) >= self.entries:
+            row, chunk = self.pending.popleft()
+            self.ds.id.write_direct_chunk((row, *self.tail), chunk)
 
     def close(self) -> None:
         """Write every chunk the mirror holds, oldest first (what closing the dataset flushes)."""
         while self.pending:
-            self._write_oldest()
+            row, chunk = self.pending.popleft()
+            self.ds.id.write_direct_chunk((row, *self.tail), chunk)
 
-    def _used(self) -> int:
-        return len(self.pending) * self.chunk_bytes
-
-    def _insert(self, row: int, chunk: np.ndarray, held: bool = False) -> None:
-        if self.capacity == 0:                  # no cache: HDF5 writes every chunk at once
-            if not held:                        # (the first one it has written already)
-                self._write_one(row, chunk)
-            return
-        self.make_room()
+    def _insert(self, row: int, chunk: np.ndarray) -> None:
+        """A chunk enters the cache: HDF5 makes room first (no cache: writes it at once)."""
+        if len(self.pending) >= self.entries:
+            self.make_room()
         self.pending.append((row, chunk))
-
-    def _write_oldest(self) -> None:
-        row, chunk = self.pending.popleft()
-        self._write_one(row, chunk)
-
-    def _write_one(self, row: int, chunk: np.ndarray) -> None:
-        self.ds.id.write_direct_chunk((row, *self.tail), chunk)
+        if not self.capacity:
+            self.make_room()

@@ -55,8 +55,9 @@ def test_packed_chunks_are_the_bytes_hdf5_stores(dtype, fill):
     with h5py.File("mem.h5", "w", driver="core", backing_store=False) as f:
         for shape in ((4096, 3), (1000,), (7, 2)):
             for name, x in _chunks(dtype, shape, rng):
+                kw = {} if fill is None else {"fillvalue": fill}
                 ds = f.create_dataset(f"{shape}/{name}", shape=shape, chunks=shape, dtype=dtype,
-                                      scaleoffset=0, **({} if fill is None else {"fillvalue": fill}))
+                                      scaleoffset=0, **kw)
                 ds[...] = x
                 codec = codec_of(ds)
                 assert codec == Codec(np.dtype(dtype), fill or 0, int(np.prod(shape)))
