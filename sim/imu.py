@@ -27,8 +27,9 @@ table angles, normals, slow-noise and UHFO drives) are computed two blocks ahead
 threads while the current block runs (:meth:`ImuSimulator._get_inputs`), with the thermal
 steps at rest (every sample the same increment, bit for bit), whose measurement equation
 :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step. The samples at rest are
-known from the motion (:attr:`rlgsim.sim.motion.MotionBlock.constant`), so neither the
-comparison of their bits nor their per-step sums go over every sample.
+known from the motion (:attr:`rlgsim.sim.motion.MotionBlock.constant`), so their per-step sums
+are taken once per run of them. The slow noise depends on nothing but its own carried state
+and its draws, so the worker threads carry it too, block after block.
 
 Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
 docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
@@ -53,6 +54,7 @@ import math
 import sys
 import zlib
 from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -361,11 +363,13 @@ class ImuSimulator:
         return z
 
     # ---- one block ------------------------------------------------------------------------
-    def _inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
-        """Everything block ``b`` needs that depends on no carried state (:meth:`_kinematics`
-        and :meth:`_drives`). A pure function of (b, k0, m, n) — so it can be computed ahead,
-        in the prefetch threads, without changing a byte."""
-        return {**self._kinematics(b, k0, m, n), **self._drives(b, k0, m, n)}
+    def _inputs(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
+                ) -> dict[str, Any]:
+        """Everything block ``b`` needs that depends on no carried state but the slow noise's
+        (:meth:`_kinematics` and :meth:`_drives`). A pure function of (b, k0, m, n) and the
+        slow-noise state — so it can be computed ahead, in the prefetch threads, without
+        changing a byte."""
+        return {**self._kinematics(b, k0, m, n), **self._drives(b, k0, m, n, slow_from)}
 
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
@@ -378,8 +382,8 @@ class ImuSimulator:
         out: dict[str, Any] = {
             "motion": mb, "dth_t": dth_t, "dv_t": dv_t,
             # steps at rest (one increment for all their samples): evaluated once per step
-            "steps_g": _step_inputs(dth_t, m, idx, held),
-            "steps_a": _step_inputs(dv_t, m, idx, held) if self.r.accels is not None else None,
+            "steps_g": step_inputs(dth_t, m, idx),
+            "steps_a": step_inputs(dv_t, m, idx) if self.r.accels is not None else None,
             "dtheta_step": _step_sums(dth_t, idx, m, held),
             "dv_step": _step_sums(dv_t, idx, m, held),
             "zg": self.white("gyro.white", self.r.gyros.axes, self.gyro_white_sigma, b, n)}
@@ -389,11 +393,20 @@ class ImuSimulator:
             out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
 
-    def _drives(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
-        """The accelerometers' white-noise normals and the slow-noise and UHFO drives (each
+    def _drives(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
+                ) -> dict[str, Any]:
+        """The accelerometers' white-noise normals, the slow-noise and UHFO drives (each
         channel has its own generator, so computing them in another thread than
-        :meth:`_kinematics` does not change a draw)."""
+        :meth:`_kinematics` does not change a draw) and, given the slow-noise state before the
+        block (``slow_from``: the state, or the future of the previous block's drives), the
+        block's slow noise ``slow_block`` = (state before, slow noise (m, C), state after):
+        the slow noise depends on nothing but its own state and draws, so the prefetch
+        threads carry its state from block to block."""
         out: dict[str, Any] = {"slow": self.slow.draws(b, m)}
+        if slow_from is not None:
+            start = (slow_from.result()["slow_block"][2] if isinstance(slow_from, Future)
+                     else slow_from)
+            out["slow_block"] = (start, *self.slow.block(start, b, m, out["slow"]))
         if self.r.accels is not None:
             out["za"] = self.white("accel.white", self.r.accels.axes, self.accel_white_sigma,
                                    b, n)
@@ -407,36 +420,47 @@ class ImuSimulator:
         duration_s = 605)."""
         return int(math.floor(m * self.step_s * self.rate_hz + 1e-9))
 
-    def _get_inputs(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
-        """This block's inputs (prefetched when an earlier block asked for them) and, when
-        prefetching, start those of the next :data:`PREFETCH_BLOCKS` blocks in the worker
-        threads (blocks of ``m`` steps assumed, up to the run's end: inputs of a block of
-        another length are recomputed here)."""
+    def _get_inputs(self, b: int, k0: int, m: int, n: int, slow_state: Any
+                    ) -> dict[str, Any]:
+        """This block's inputs (prefetched when an earlier block asked for them; its slow
+        noise recomputed unless the prefetch threads started from ``slow_state``, the carried
+        state) and, when prefetching, start those of the next :data:`PREFETCH_BLOCKS` blocks in
+        the worker threads (blocks of ``m`` steps assumed, up to the run's end: inputs of a
+        block of another length are recomputed here)."""
         key = (b, k0, m, n)
         if self._ahead and self._ahead[0][0] == key:
             inputs: dict[str, Any] = {}
             for part in self._ahead.popleft()[1]:
                 inputs.update(part.result())
+            if inputs["slow_block"][0] is not slow_state:
+                inputs["slow_block"] = (slow_state,
+                                        *self.slow.block(slow_state, b, m, inputs["slow"]))
         else:
             self._cancel_ahead()
-            inputs = self._inputs(*key)
+            inputs = self._inputs(*key, slow_state)
         if self.n_steps is not None and k0 + m >= self.n_steps:
             self.close()                        # the last block: nothing to prefetch
         elif self.prefetch:
             if self._pool is None:
-                from concurrent.futures import ThreadPoolExecutor
                 # two workers, one for the kinematics and the gyros' normals, one for the
                 # other drives: numpy's generators release the GIL while they fill an array
                 self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="rlgsim-imu")
-            nb, nk0 = self._ahead[-1][0][:2] if self._ahead else key[:2]
+            if self._ahead:
+                (nb, nk0, _, _), parts = self._ahead[-1]
+                slow_from = parts[1]
+            else:
+                nb, nk0, slow_from = b, k0, inputs["slow_block"][2]
             while len(self._ahead) < PREFETCH_BLOCKS:
                 nb, nk0 = nb + 1, nk0 + m
                 nm = m if self.n_steps is None else min(m, self.n_steps - nk0)
                 if nm <= 0:
                     break
                 nxt = (nb, nk0, nm, self._block_size(nm))
-                self._ahead.append((nxt, [self._pool.submit(self._kinematics, *nxt),
-                                          self._pool.submit(self._drives, *nxt)]))
+                # FIFO: a block's drives wait only for the previous block's, queued before
+                parts = [self._pool.submit(self._kinematics, *nxt),
+                         self._pool.submit(self._drives, *nxt, slow_from)]
+                self._ahead.append((nxt, parts))
+                slow_from = parts[1]
         return inputs
 
     def _cancel_ahead(self) -> None:
@@ -463,7 +487,7 @@ class ImuSimulator:
         m = len(trace.t_s)
         k0 = int(round(float(trace.t_s[0]) / dt)) - 1           # first step of the block
         n = self._block_size(m)
-        inputs = self._get_inputs(b, k0, m, n)
+        inputs = self._get_inputs(b, k0, m, n, state.slow)
         motion_block = inputs["motion"]
         idx = sample_step_index(n, m, self.rate_hz, dt)
         nodes, start = np.asarray(trace.nodes_c), np.asarray(trace.start_c)
@@ -483,7 +507,7 @@ class ImuSimulator:
             truth_time["uhfo_true"] = u_true
 
         # slow noise (flicker, random walk) of every channel, part of the true biases
-        slow, slow_state = self.slow.block(state.slow, b, m, inputs["slow"])
+        _, slow, slow_state = inputs["slow_block"]
 
         # gyros
         gp = g.parameters(nodes, start, dt, slow[:, :self.n_gyro], uhfo_dev)
@@ -558,25 +582,6 @@ def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | i
         return None
     runs = [(-(-lo // idx), min(hi // idx, m)) for lo, hi in constant]
     return [(lo, hi) for lo, hi in runs if hi > lo]
-
-
-def _step_inputs(x_t: np.ndarray, m: int, idx: np.ndarray | int,
-                 held: list[tuple[int, int]] | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """:func:`rlgsim.sim.sensor_triad.step_inputs` of ``x_t`` (3, n), its samples compared
-    only in the steps outside the ``held`` runs (:func:`_held_steps`): a held step's samples
-    are one increment, so it is at rest — the same ``(uniform, first)``."""
-    if held is None or x_t.shape[1] != m * idx:
-        return step_inputs(x_t, m, idx)
-    xs = x_t.reshape(3, m, idx)
-    first = np.ascontiguousarray(xs[:, :, 0])
-    uniform = np.zeros(m, dtype=bool)
-    for lo, hi in held:
-        uniform[lo:hi] = True
-    rest = np.flatnonzero(~uniform)
-    if rest.size:
-        uniform[rest] = step_inputs(xs[:, rest].reshape(3, rest.size * idx), rest.size,
-                                    idx)[0]
-    return uniform, first
 
 
 def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int,
