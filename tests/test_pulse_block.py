@@ -120,3 +120,26 @@ def test_compiled_step_scan_equals_the_numpy_one(r):
     if r > 1:
         assert ref_u.tolist() == [True, False, False, False, True, False, False] + [True] * 5
     assert step_inputs(x_t, m, r + 1, compiled=True) is None
+
+
+def test_step_scan_imports_no_compiled_code_by_itself(monkeypatch):
+    """Auto mode: without the compiled counter loaded the NumPy scan runs and the kernel module
+    is not imported (a short run never imports numba for the scan); once it is loaded, the
+    compiled scan runs."""
+    import sys
+
+    import rlgsim.sim._pulse_kernel as kernel
+    x_t = np.zeros((3, 40))
+    calls = []
+    real = kernel.steps_at_rest
+
+    def spy(*args):
+        calls.append(1)
+        real(*args)
+    monkeypatch.setattr(kernel, "steps_at_rest", spy)
+    monkeypatch.delitem(sys.modules, "rlgsim.sim._pulse_kernel")
+    uniform, _ = step_inputs(x_t, 4, 10)
+    assert "rlgsim.sim._pulse_kernel" not in sys.modules and uniform.all() and not calls
+    monkeypatch.setitem(sys.modules, "rlgsim.sim._pulse_kernel", kernel)
+    step_inputs(x_t, 4, 10)
+    assert calls == [1]
