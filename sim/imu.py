@@ -366,23 +366,24 @@ class ImuSimulator:
     def _inputs(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
                 ) -> dict[str, Any]:
         """Everything block ``b`` needs that depends on no carried state but the slow noise's
-        (:meth:`_kinematics_and_drives`, :meth:`_accel_normals`). A pure function of
+        (:meth:`_kinematics_and_drives`, :meth:`_gyro_normals`, :meth:`_accel_normals`). A
+        pure function of
         (b, k0, m, n) and the slow-noise state — so it can be computed ahead, in the prefetch
         threads, without changing a byte."""
         return {**self._kinematics_and_drives(b, k0, m, n, slow_from),
-                **self._accel_normals(b, n)}
+                **self._gyro_normals(b, n), **self._accel_normals(b, n)}
 
     def _kinematics_and_drives(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
                                ) -> dict[str, Any]:
-        """:meth:`_kinematics` and :meth:`_drives`: the interpreter-bound part of the inputs
-        (one prefetch thread for it: two such threads beside the main thread tripled the
-        run's context switches, ~75 000 against ~25 000, and its kernel time)."""
+        """:meth:`_kinematics` and :meth:`_drives`: the interpreter-bound part of the inputs,
+        one task (interpreter-bound tasks in both prefetch threads beside the main thread
+        tripled the run's context switches, ~75 000 against ~25 000, and its kernel time)."""
         return {**self._kinematics(b, k0, m, n), **self._drives(b, m, slow_from)}
 
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
-        the steps at rest of each, their sums per thermal step, the table at each step's end
-        and the gyros' white-noise normals."""
+        the steps at rest of each, their sums per thermal step and the table at each step's
+        end."""
         mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
@@ -393,8 +394,7 @@ class ImuSimulator:
             "steps_g": step_inputs(dth_t, m, idx),
             "steps_a": step_inputs(dv_t, m, idx) if self.r.accels is not None else None,
             "dtheta_step": _step_sums(dth_t, idx, m, held),
-            "dv_step": _step_sums(dv_t, idx, m, held),
-            "zg": self.white("gyro.white", self.r.gyros.axes, self.gyro_white_sigma, b, n)}
+            "dv_step": _step_sums(dv_t, idx, m, held)}
         if n:                               # the table at the ends of each step's last sample
             outer, inner, segment = self.motion.angles(
                 mb.end_times(_last_sample_of_step(idx, m, n)))
@@ -417,9 +417,13 @@ class ImuSimulator:
             out["uhfo"] = self.r.uhfo.draws(self.seed, self.unit, b, m)
         return out
 
+    def _gyro_normals(self, b: int, n: int) -> dict[str, Any]:
+        """The gyros' white-noise normals (numpy's generators release the GIL while they fill
+        an array)."""
+        return {"zg": self.white("gyro.white", self.r.gyros.axes, self.gyro_white_sigma, b, n)}
+
     def _accel_normals(self, b: int, n: int) -> dict[str, Any]:
-        """The accelerometers' white-noise normals (the second prefetch thread: numpy's
-        generators release the GIL while they fill an array)."""
+        """The accelerometers' white-noise normals."""
         if self.r.accels is None:
             return {}
         return {"za": self.white("accel.white", self.r.accels.axes, self.accel_white_sigma,
@@ -453,8 +457,9 @@ class ImuSimulator:
             self.close()                        # the last block: nothing to prefetch
         elif self.prefetch:
             if self._pool is None:
-                # two workers: the interpreter-bound inputs with the gyros' normals, and the
-                # accelerometers' normals
+                # two workers taking three tasks per block in turn: the interpreter-bound
+                # inputs, the gyros' normals, the accelerometers' normals (a third worker
+                # only added switching on two cores: 2.95-3.10 s against 2.66-2.71 s)
                 self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="rlgsim-imu")
             if self._ahead:
                 (nb, nk0, _, _), parts = self._ahead[-1]
@@ -469,6 +474,7 @@ class ImuSimulator:
                 nxt = (nb, nk0, nm, self._block_size(nm))
                 # FIFO: a block's drives wait only for the previous block's, queued before
                 parts = [self._pool.submit(self._kinematics_and_drives, *nxt, slow_from),
+                         self._pool.submit(self._gyro_normals, nb, nxt[3]),
                          self._pool.submit(self._accel_normals, nb, nxt[3])]
                 self._ahead.append((nxt, parts))
                 slow_from = parts[0]
