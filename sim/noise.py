@@ -47,6 +47,7 @@ past as state, which cannot be carried across blocks in bounded memory.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
 
@@ -160,6 +161,23 @@ class RandomWalk:
         w[0] += state
         x = np.cumsum(w, axis=0)
         return x, x[-1].copy()
+
+
+_EMPTY3 = np.zeros((0, 0, 0))
+_EMPTY2 = np.zeros((0, 0))
+
+
+def _compiled_slow_block():
+    """:func:`rlgsim.sim._noise_kernel.slow_block` once numba is loaded in this process (the
+    rule of the compiled pulse counter: a short run never imports numba for this), else
+    None: the NumPy path, the same numbers bit for bit."""
+    if "numba" not in sys.modules:
+        return None
+    try:
+        from rlgsim.sim._noise_kernel import slow_block
+    except ImportError:                     # pragma: no cover - numba present but unusable
+        return None
+    return slow_block
 
 
 # --------------------------------------------------------------------------- preset table
@@ -288,6 +306,15 @@ class SlowNoise:
         (``draws``: :meth:`draws` of this block, drawn now when None)."""
         fs, ws = state
         wf, wr = draws if draws is not None else self.draws(b, m)
+        kernel = _compiled_slow_block() if m > 0 else None
+        if kernel is not None:              # the same operations in one compiled call
+            out = np.empty((m, len(self.axes)))
+            new_fs, new_ws = np.empty_like(fs), np.empty_like(ws)
+            f = self.flicker
+            kernel(wf if wf is not None else _EMPTY3, f.phi, f.q, fs,
+                   wr if wr is not None else _EMPTY2, self.walk.k * math.sqrt(self.walk.dt),
+                   ws, wf is not None, wr is not None, out, new_fs, new_ws)
+            return out, (new_fs if wf is not None else fs, new_ws if wr is not None else ws)
         out = np.zeros((m, len(self.axes)))
         if wf is not None:
             x, fs = self.flicker.block_from(fs, wf)
