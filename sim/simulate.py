@@ -48,8 +48,9 @@ import contextlib
 import gc
 import math
 import pathlib
+import threading
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -261,7 +262,7 @@ class _Appender:
 
     def __init__(self, writers: dict[str, GroupWriter], max_blocks: int) -> None:
         import queue
-        import threading
+
         self._writers = writers
         self._queue: "queue.Queue" = queue.Queue(maxsize=max(1, int(max_blocks)))
         self._error: BaseException | None = None
@@ -310,12 +311,17 @@ class _Appender:
 
 
 @contextlib.contextmanager
-def _no_cyclic_gc():
-    """Python's cyclic garbage collector off for a ``with`` block (back on after, if it was).
+def _no_cyclic_gc() -> Iterator[None]:
+    """Python's cyclic garbage collector off for a ``with`` block run from the main thread (back
+    on after, if it was); a no-op in other threads (a thread pool's worker, whose process may
+    have other cyclic garbage to collect meanwhile).
 
     A run's blocks allocate arrays, tuples and dicts that reference counting frees; the
     collector found nothing to free in a run but scanned the young objects every ~700
     allocations — ~5 % of the run's CPU (perf, paper000 at 100 Hz)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     enabled = gc.isenabled()
     gc.disable()
     try:

@@ -45,7 +45,7 @@ from __future__ import annotations
 import contextlib
 import sys
 import threading
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import scipy.linalg
@@ -59,34 +59,40 @@ _ROW_BLOCK = 200
 _CHUNK = 8000
 
 _controller: Any = None
-#: depth of the one-thread limits entered through :func:`one_blas_thread` (process-wide, like
-#: the BLAS thread count itself): a nested ``with`` is free instead of ~0.1 ms of threadpoolctl
-#: bookkeeping per call — a simulation enters it once and propagates 700 blocks inside
-_depth = 0
-_depth_lock = threading.Lock()
+#: how many ``with`` blocks of :func:`one_blas_thread` are open, in any thread (the BLAS thread
+#: count is process-wide too): the limit is applied when the count goes 0 → 1 and restored when
+#: it goes 1 → 0, whichever thread that is, so a nested or concurrent ``with`` costs a counter
+#: instead of ~0.1 ms of threadpoolctl bookkeeping — a simulation enters it once and
+#: propagates 700 blocks inside, and two simulations in threads of one process (Monte Carlo on
+#: thread workers) keep the limit until the last one leaves
+_users = 0
+_limit: Any = None                          # the open threadpoolctl limit, while _users > 0
+_users_lock = threading.Lock()
 
 
 @contextlib.contextmanager
-def one_blas_thread():
+def one_blas_thread() -> Iterator[None]:
     """Limit BLAS/LAPACK to one thread for the duration of a ``with`` block (a no-op without
-    threadpoolctl, and inside another such block). The controller is built once per process
-    (building it costs ~1 ms)."""
-    global _depth
-    with _depth_lock:
-        outer = _depth == 0
-        _depth += 1
+    threadpoolctl); blocks open at once in any threads share one limit (see ``_users``). The
+    controller is built once per process (building it costs ~1 ms)."""
+    global _users, _limit
+    with _users_lock:
+        if _users == 0:
+            _limit = _blas_limit()
+        _users += 1
     try:
-        if outer:
-            with _blas_limit():
-                yield
-        else:
-            yield
+        yield
     finally:
-        with _depth_lock:
-            _depth -= 1
+        with _users_lock:
+            _users -= 1
+            if _users == 0 and _limit is not None:
+                _limit.restore_original_limits()
+                _limit = None
 
 
-def _blas_limit() -> contextlib.AbstractContextManager:
+def _blas_limit() -> Any:
+    """A threadpoolctl limit of BLAS to one thread, applied now (``restore_original_limits()``
+    undoes it); None without threadpoolctl."""
     global _controller
     if _controller is None:
         try:
@@ -95,7 +101,7 @@ def _blas_limit() -> contextlib.AbstractContextManager:
         except Exception:                       # pragma: no cover - optional speed-up only
             _controller = False
     if _controller is False:
-        return contextlib.nullcontext()
+        return None
     return _controller.limit(limits=1, user_api="blas")
 
 
@@ -321,11 +327,8 @@ class ThermalIntegrator:
         m, n = W.shape
         if out is None:
             out = np.empty((m, n))
-        if _depth:                          # BLAS already limited (a simulation's run)
+        with one_blas_thread():             # a counter inside a simulation's run
             self._node_blocks(W, out)
-        else:
-            with one_blas_thread():
-                self._node_blocks(W, out)
         return out
 
     def _node_blocks(self, W: np.ndarray, out: np.ndarray) -> None:

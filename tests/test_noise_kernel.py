@@ -49,3 +49,29 @@ def test_compiled_slow_noise_is_bit_identical(bi, rrw, monkeypatch):
         assert w0.tobytes() == w1.tobytes()
     if any(bi) or any(rrw):
         assert np.any(ref[0][0] != 0.0)          # the comparison compared noise
+
+
+def test_no_fused_multiply_add_in_the_compiled_slow_noise():
+    """The kernel must round each product before the sum, as numpy and scipy do here."""
+    import re
+
+    from numba import njit
+
+    import rlgsim.sim._noise_kernel as kernel
+    slow = SlowNoise(np.array([1e-7] * 2), np.array([1e-9] * 2), 1.0, NoiseModel(), ("x", "y"),
+                     seed=1, unit=0, purpose="gyro")
+    kernel.slow_block(*_kernel_args(slow, 5))              # compiles / loads the signature
+    fresh = njit(nogil=True)(kernel.slow_block.py_func)     # uncached: inspectable
+    sig = kernel.slow_block.signatures[0]
+    fresh.compile(sig)
+    asm = fresh.inspect_asm(sig).lower()
+    assert not re.search(r"f(n)?m(add|sub)|fml[as]", asm)
+
+
+def _kernel_args(slow: SlowNoise, m: int) -> tuple:
+    fs, ws = slow.initial_state()
+    wf, wr = slow.draws(0, m)
+    c = len(slow.axes)
+    return (wf, slow.flicker.phi, slow.flicker.q, fs, wr,
+            slow.walk.k * np.sqrt(slow.walk.dt), ws, True, True, np.empty((m, c)),
+            np.empty_like(fs), np.empty_like(ws))

@@ -4,6 +4,7 @@ point, saturation at both limits, power switched off and on, split calls."""
 
 from __future__ import annotations
 
+import re
 import numpy as np
 import pytest
 
@@ -59,7 +60,9 @@ def run(integ: ThermalIntegrator, compiled: bool, splits: list[int], setpoint, p
                           (False, True, False, 60.0), (True, True, False, 0.0),
                           (False, False, True, 60.0), (True, False, True, 0.0)])
 def test_compiled_heater_loop_is_bit_identical(two_heaters, track, boundary, air_tau_s):
-    assert kernel_module.kernel() is not None        # numpy's BLAS found and checked
+    if kernel_module._LIB is None:        # numpy's BLAS not the bundled OpenBLAS: the loop stays
+        pytest.skip("the compiled heater loop needs numpy's bundled OpenBLAS")
+    assert kernel_module.kernel() is not None        # found, and its self-check passed
     integ = ThermalIntegrator(network(two_heaters, track, boundary), 5.0, air_tau_s)
     m = 3000
     t = np.arange(m + 1) * 5.0
@@ -102,4 +105,4 @@ def test_the_kernel_has_no_fused_multiply_add():
     sig = kernel_module.heater_loop.signatures[0]
     fresh.compile(sig)
     asm = fresh.inspect_asm(sig).lower()
-    assert "fmadd" not in asm and "fmsub" not in asm and "fnmadd" not in asm
+    assert not re.search(r"f(n)?m(add|sub)|fml[as]", asm)     # x86 vf[n]m…, aarch64 fml[as]
