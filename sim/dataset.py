@@ -19,7 +19,8 @@ how the caller chunks its appends, so the stored arrays do not depend on the chu
 whole chunks of scale-offset variables (the IMU pulses) are packed by
 :mod:`rlgsim.sim._scaleoffset` and written directly when HDF5's chunk cache would have written
 them (:mod:`rlgsim.sim._direct_chunks`): the same bytes as HDF5's filter, in a fraction of its
-CPU time.
+CPU time — once a self-check has shown that with the HDF5 this process loaded
+(:mod:`rlgsim.sim._direct_check`; HDF5's filter otherwise).
 :func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
 
 Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
@@ -34,6 +35,7 @@ import itertools
 import os
 import pathlib
 import sys
+import threading
 from typing import Any, Iterable, Iterator, Mapping
 
 import h5py
@@ -101,8 +103,9 @@ def check_writable(path: str | os.PathLike) -> pathlib.Path:
 class GroupWriter:
     """One group: coordinates (dimension scales) and variables; rows appended along ``time``."""
 
-    def __init__(self, group: h5py.Group) -> None:
+    def __init__(self, group: h5py.Group, *, direct: bool | None = None) -> None:
         self._g = group
+        self._direct = direct       # the direct-chunk path forced on/off (None: _direct_chunks)
         self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
         self._dim_only: set[str] = set()             # growing dims without coordinate values
         self._staged: dict[str, _ChunkStage] = {}    # name -> its chunk-aligned writer
@@ -214,7 +217,7 @@ class GroupWriter:
         for v in names:
             st = self._staged.get(v)
             if st is None:
-                st = self._staged[v] = _ChunkStage(self._g[v], start)
+                st = self._staged[v] = _ChunkStage(self._g[v], start, self._direct)
             st.append(rows[v])
         self._rows[dim] = start + m
 
@@ -251,7 +254,7 @@ class _ChunkStage:
     __slots__ = ("ds", "rows", "tail", "written", "buf", "fill", "dtype", "direct", "flushed",
                  "order")
 
-    def __init__(self, ds: h5py.Dataset, start: int) -> None:
+    def __init__(self, ds: h5py.Dataset, start: int, direct: bool | None = None) -> None:
         self.ds = ds
         self.dtype = ds.dtype
         self.rows = int(ds.chunks[0])
@@ -259,7 +262,7 @@ class _ChunkStage:
         self.written = int(start)            # rows in the file (a chunk boundary once staged)
         self.buf = None
         self.fill = 0                        # rows staged in buf
-        self.direct = _direct_chunks(ds, start)
+        self.direct = _direct_chunks(ds, start, direct)
         self.flushed = False
         self.order = next(_STAGE_ORDER)      # creation order = the dataset's open order
 
@@ -328,22 +331,45 @@ class _ChunkStage:
 #: directly (:mod:`rlgsim.sim._direct_chunks`; the same file bytes as HDF5's filter): None (the
 #: default) when numba is already loaded in the process (the compiled packer; a long run's IMU
 #: stage loads it — importing it only for this would cost a short run more than it saves),
-#: True always, False never (HDF5's filter packs them).
+#: True always, False never (HDF5's filter packs them). Either way only if the process's HDF5
+#: passes the self-check (:func:`_direct_path_ok`).
 DIRECT_CHUNKS: bool | None = None
 
 _STAGE_ORDER = itertools.count()
 
+#: The self-check's result (:func:`_direct_path_ok`): None until it has run.
+_DIRECT_OK: bool | None = None
+_DIRECT_OK_LOCK = threading.Lock()
 
-def _direct_chunks(ds: h5py.Dataset, start: int):
+
+def _direct_path_ok() -> bool:
+    """Whether the direct-chunk path writes HDF5's file with the HDF5 this process loaded:
+    :func:`rlgsim.sim._direct_check.direct_path_agrees` (two small in-memory files, a few ms),
+    run once per process, before the first direct write; False keeps HDF5's filter."""
+    global _DIRECT_OK
+    ok = _DIRECT_OK
+    if ok is None:
+        with _DIRECT_OK_LOCK:
+            ok = _DIRECT_OK
+            if ok is None:
+                from rlgsim.sim._direct_check import direct_path_agrees
+                ok = _DIRECT_OK = direct_path_agrees()
+    return ok
+
+
+def _direct_chunks(ds: h5py.Dataset, start: int, force: bool | None = None):
     """The direct-chunk path of a dataset (:class:`rlgsim.sim._direct_chunks.DirectChunks`)
-    or None (HDF5's own path)."""
-    if DIRECT_CHUNKS is not False and ds.scaleoffset is not None:
-        numba = "numba" in sys.modules
-        if DIRECT_CHUNKS or numba:
-            from rlgsim.sim._direct_chunks import DirectChunks
-            compiled = numba or importlib.util.find_spec("numba") is not None
-            return DirectChunks.of(ds, start, compiled=compiled)
-    return None
+    or None (HDF5's own path). ``force`` True/False: on/off without :data:`DIRECT_CHUNKS` or
+    the self-check (the self-check's own files)."""
+    if force is False or ds.scaleoffset is None:
+        return None
+    numba = "numba" in sys.modules
+    if force is None and not (DIRECT_CHUNKS is not False and (DIRECT_CHUNKS or numba)
+                              and _direct_path_ok()):
+        return None
+    from rlgsim.sim._direct_chunks import DirectChunks
+    compiled = numba or importlib.util.find_spec("numba") is not None
+    return DirectChunks.of(ds, start, compiled=compiled)
 
 
 def _close_stages(groups: Iterable[GroupWriter]) -> None:

@@ -209,3 +209,39 @@ def test_an_added_group_is_the_same_file_either_way(tmp_path, monkeypatch):
             for b in blocks:
                 g.append("sample", {"p": b["q"].astype(np.int32)})
     assert (tmp_path / "True.h5").read_bytes() == (tmp_path / "False.h5").read_bytes()
+
+
+def test_the_self_check_passes_here_and_sees_a_wrong_flush_order(monkeypatch):
+    """The once-per-process check (sim/_direct_check.py) agrees with this HDF5, and it does
+    compare layouts: chunks the mirror flushes at close in the wrong order fail it."""
+    import rlgsim.sim._direct_chunks as direct
+    from rlgsim.sim._direct_check import direct_path_agrees
+    assert direct_path_agrees()
+    close = direct.DirectChunks.close
+
+    def reversed_close(self):
+        self.pending.reverse()
+        close(self)
+    monkeypatch.setattr(direct.DirectChunks, "close", reversed_close)
+    assert not direct_path_agrees()
+
+
+def test_a_failed_self_check_keeps_hdf5s_filter(tmp_path, monkeypatch):
+    """When the self-check fails the direct path stays off for the process (the check runs
+    once) and the writer's file is HDF5's own, byte for byte."""
+    import rlgsim.sim._direct_check as check
+    import rlgsim.sim._direct_chunks as direct
+    blocks = _blocks(np.random.default_rng(5), 10)
+    _write(tmp_path / "hdf5.h5", blocks, False, monkeypatch)
+    checks, mirrors, of = [], [], direct.DirectChunks.of
+    monkeypatch.setattr(dataset, "_DIRECT_OK", None)
+    monkeypatch.setattr(check, "direct_path_agrees", lambda: checks.append(1) or False)
+    monkeypatch.setattr(direct.DirectChunks, "of",
+                        staticmethod(lambda *a, **k: mirrors.append(1) or of(*a, **k)))
+    for run in range(2):
+        _write(tmp_path / f"direct{run}.h5", blocks, True, monkeypatch)
+        assert (tmp_path / f"direct{run}.h5").read_bytes() == (tmp_path / "hdf5.h5").read_bytes()
+    assert checks == [1] and not mirrors and dataset._DIRECT_OK is False
+    monkeypatch.setattr(dataset, "_DIRECT_OK", True)        # the path is taken when it passes
+    _write(tmp_path / "on.h5", blocks, True, monkeypatch)
+    assert mirrors
