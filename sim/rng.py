@@ -26,7 +26,7 @@ import zlib
 from functools import lru_cache
 
 import numpy as np
-from numpy.random.bit_generator import ISeedSequence
+from numpy.random.bit_generator import ISpawnableSeedSequence
 
 # SeedSequence's constants (numpy/random/bit_generator.pyx)
 _POOL = 4
@@ -59,22 +59,55 @@ def generator(seed: int, unit: int = 0, purpose: str = "", channel: str | int = 
     if seed < 0 or not 0 <= unit <= _MASK or not 0 <= block <= _MASK:
         return np.random.Generator(np.random.PCG64(
             seed_sequence(seed, unit, purpose, channel, block)))
-    words = _block_words(seed, unit, _word(purpose), _word(channel), block // _CHUNK)
-    return np.random.Generator(np.random.PCG64(_Seeded(words[block % _CHUNK])))
+    p, c = _word(purpose), _word(channel)
+    words = _block_words(seed, unit, p, c, block // _CHUNK)
+    return np.random.Generator(np.random.PCG64(_Seeded(words[block % _CHUNK],
+                                                       (seed, unit, p, c, block))))
 
 
-class _Seeded(ISeedSequence):
-    """What PCG64 asks of a SeedSequence: ``generate_state(4, np.uint64)``, precomputed."""
+class _Seeded(ISpawnableSeedSequence):
+    """A leaf's SeedSequence as PCG64 uses it: ``generate_state(4, np.uint64)`` precomputed
+    (:func:`_block_words`); anything else — other state sizes, ``spawn``, ``entropy``,
+    ``spawn_key`` — from numpy's own :class:`~numpy.random.SeedSequence` of the same key, built
+    on first use and kept (so successive ``spawn`` calls give new children, as numpy's do)."""
 
-    __slots__ = ("_state",)
+    __slots__ = ("_state", "_key", "_seq")
 
-    def __init__(self, state: np.ndarray) -> None:
+    def __init__(self, state: np.ndarray, key: tuple[int, int, int, int, int]) -> None:
         self._state = state
+        self._key = key                      # (seed, unit, purpose word, channel word, block)
+        self._seq: np.random.SeedSequence | None = None
 
-    def generate_state(self, n_words: int, dtype=np.uint32) -> np.ndarray:
-        if n_words != 4 or np.dtype(dtype) != np.uint64:
-            raise ValueError("only the four 64-bit words PCG64 asks for are precomputed")
-        return self._state.copy()
+    @property
+    def full(self) -> np.random.SeedSequence:
+        """numpy's SeedSequence of this leaf (the same state words)."""
+        if self._seq is None:
+            self._seq = np.random.SeedSequence(entropy=self._key[0], spawn_key=self._key[1:])
+        return self._seq
+
+    def generate_state(self, n_words: int, dtype: type = np.uint32) -> np.ndarray:
+        if n_words == 4 and np.dtype(dtype) == np.uint64:
+            return self._state.copy()
+        return self.full.generate_state(n_words, dtype)
+
+    def spawn(self, n_children: int) -> list[np.random.SeedSequence]:
+        return self.full.spawn(n_children)
+
+    @property
+    def entropy(self) -> int:
+        return self.full.entropy
+
+    @property
+    def spawn_key(self) -> tuple[int, ...]:
+        return self.full.spawn_key
+
+    @property
+    def pool_size(self) -> int:
+        return self.full.pool_size
+
+    @property
+    def n_children_spawned(self) -> int:
+        return self.full.n_children_spawned
 
 
 def _int_words(n: int) -> list[int]:

@@ -50,3 +50,18 @@ def test_numpy_integer_keys_and_pickling():
     assert got.bit_generator.state == numpy_generator(9, 2, "probes", 4, 70).bit_generator.state
     again = pickle.loads(pickle.dumps(got))
     assert again.bit_generator.state == got.bit_generator.state
+
+
+def test_a_leaf_generator_spawns_and_reports_its_key_as_numpy_does():
+    """Everything beyond PCG64's own seeding comes from numpy's SeedSequence of the same key:
+    children (twice: new ones the second time), entropy, spawn key, other state sizes."""
+    from rlgsim.sim.rng import generator, seed_sequence
+    g = generator(7, 1, "gyro.white", "x", 130)
+    r = np.random.Generator(np.random.PCG64(seed_sequence(7, 1, "gyro.white", "x", 130)))
+    for n in (2, 1):
+        for cg, cr in zip(g.spawn(n), r.spawn(n)):
+            assert cg.standard_normal(4).tobytes() == cr.standard_normal(4).tobytes()
+    sg, sr = g.bit_generator.seed_seq, r.bit_generator.seed_seq
+    assert (sg.entropy, sg.spawn_key, sg.pool_size) == (sr.entropy, sr.spawn_key, sr.pool_size)
+    assert sg.generate_state(8).tobytes() == sr.generate_state(8).tobytes()
+    assert g.standard_normal(6).tobytes() == r.standard_normal(6).tobytes()
