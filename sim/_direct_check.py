@@ -23,6 +23,8 @@ value to the full int32 span, a partial last chunk. Cost: ~7 ms after the packer
 
 from __future__ import annotations
 
+from typing import Any, Callable
+
 import numpy as np
 
 #: Chunk-cache size [bytes] of the check's in-memory file (5 chunks of the int32 dataset).
@@ -50,11 +52,15 @@ def _data() -> dict[str, np.ndarray]:
     return {"p": p, "q": q, "v": v}
 
 
-def _image(direct: bool, rows: dict[str, np.ndarray]) -> bytes:
-    """The file image written by the writer's code with the direct path ``direct``."""
+def _image(direct: bool, rows: dict[str, np.ndarray], group_writer: Any,
+           close_stages: Callable[[list], None]) -> bytes:
+    """The file image written by the writer's code (``group_writer``: the
+    :class:`rlgsim.sim.dataset.GroupWriter` class, ``close_stages`` its module's
+    ``_close_stages``; passed in, so this module imports nothing of the writer) with the direct
+    path ``direct``."""
     import h5py
 
-    from rlgsim.sim.dataset import GroupWriter, _close_stages
+    GroupWriter, _close_stages = group_writer, close_stages
     with h5py.File(f"direct-check-{direct}.h5", "w", driver="core", backing_store=False,
                    libver=("earliest", "v110"), track_order=True,
                    rdcc_nbytes=_CACHE_BYTES) as f:
@@ -79,11 +85,13 @@ def _image(direct: bool, rows: dict[str, np.ndarray]) -> bytes:
         return f.id.get_file_image()
 
 
-def direct_path_agrees() -> bool:
+def direct_path_agrees(group_writer: Any, close_stages: Callable[[list], None]) -> bool:
     """True when the direct-chunk path writes the same file as HDF5's filter here (see the
-    module); False when the files differ or the direct path fails."""
+    module; ``group_writer``, ``close_stages`` as :func:`_image` takes them); False when the
+    files differ or the direct path fails."""
     try:
         rows = _data()
-        return _image(True, rows) == _image(False, rows)
+        return (_image(True, rows, group_writer, close_stages)
+                == _image(False, rows, group_writer, close_stages))
     except Exception:                      # noqa: BLE001 — any failure: keep HDF5's path
         return False

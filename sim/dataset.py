@@ -353,7 +353,7 @@ def _direct_path_ok() -> bool:
             ok = _DIRECT_OK
             if ok is None:
                 from rlgsim.sim._direct_check import direct_path_agrees
-                ok = _DIRECT_OK = direct_path_agrees()
+                ok = _DIRECT_OK = direct_path_agrees(GroupWriter, _close_stages)
     return ok
 
 
