@@ -55,6 +55,18 @@ __all__ = ["BODY_AXES", "GyroModel", "GyroParameters", "Gyros", "phase_increment
 LANGMUIR_DEG_PER_H_PER_MA = 0.0066
 LEG_IMBALANCE_MA_PER_K = 0.033
 
+#: pulse weight of a device file without ``scale_factor_pulses_per_arcsec`` [pulses/arcsec]
+DEFAULT_PULSES_PER_ARCSEC = 2.14
+
+
+def pulses_per_arcsec(device: dict) -> float:
+    """The nominal scale factor [pulses/arcsec] of a device file's parsed TOML ``device`` (its
+    ``[gyro]`` table's key, :data:`DEFAULT_PULSES_PER_ARCSEC` without one), for readers of a
+    dataset's ``device_text`` and of device templates."""
+    return float((device.get("gyro") or {}).get("scale_factor_pulses_per_arcsec",
+                                                 DEFAULT_PULSES_PER_ARCSEC))
+
+
 _GYRO_KEYS = ("axes", "blocks", "scale_factor_pulses_per_arcsec", "node", "t_ref_c", "bias",
               "scale_factor", "misalignment")
 
@@ -88,8 +100,8 @@ class GyroModel(SensorTriadModel):
         axes, blocks = parse_sensor_sites(
             table, ctx, "blocks", "block",
             lambda axes: ["g"] if len(axes) == 1 else [f"g{a}" for a in axes])
-        k = get_float(table, "scale_factor_pulses_per_arcsec", ctx, 2.14, min=0.0,
-                      min_exclusive=True)
+        k = get_float(table, "scale_factor_pulses_per_arcsec", ctx, DEFAULT_PULSES_PER_ARCSEC,
+                      min=0.0, min_exclusive=True)
         common = law_context(table, ctx, "A")
         n = len(axes)
         return cls(

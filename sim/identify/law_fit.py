@@ -53,6 +53,7 @@ from rlgsim.estimators.features import window_average
 from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 from rlgsim.estimators.identify.window_noise import covariance_from_fit
+from rlgsim.sim.gyro import pulses_per_arcsec as template_pulses_per_arcsec
 from rlgsim.sim.identify.node_names import node_column
 from rlgsim.sim.identify.recording_data import RecordingData
 
@@ -214,7 +215,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                       "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
     # read-out spikes first: the noise fit takes the rate with them taken out
     from rlgsim.sim.identify.spike_fit import find_spikes
-    pulses_per_arcsec = float(gyro.get("scale_factor_pulses_per_arcsec", 2.14))
+    pulses_per_arcsec = template_pulses_per_arcsec(device)
     per = int(round(rec.sample_rate_hz * rec.step_s))
     n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
     rate_s = rec.rate_deg_per_h[:n_s]

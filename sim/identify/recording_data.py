@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.gyro import pulses_per_arcsec
 from rlgsim.sim.identify.table_motion import motion_from_dataset, motion_from_recording
 
 __all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K",
@@ -181,7 +182,7 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
             pulses = np.asarray(imu["gyro_pulses"][:, gi].values, dtype=np.float64)
             import tomllib
             dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
-            k = float(dev.get("gyro", {}).get("scale_factor_pulses_per_arcsec", 2.14))
+            k = pulses_per_arcsec(dev)
             rate = pulses * f / k                   # arcsec/s, which is °/h
     finally:
         tree.close()

@@ -43,6 +43,7 @@ import numpy as np
 
 from rlgsim.estimators.identify.segment_noise import segment_covariance_from_fit
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
+from rlgsim.sim.gyro import pulses_per_arcsec
 from rlgsim.sim.identify.law_fit import LawFit, _bias_extra, _flicker_band, _per_step
 from rlgsim.sim.identify.node_names import node_column
 from rlgsim.sim.identify.recording_data import RecordingData
@@ -200,7 +201,7 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     # no noise model (its fit failed): the pulse quantisation alone, one pulse of 1/K₀ arcsec
     # uniform over Σω (2Q²/T² with Q² = q²/12)
     if not np.all(np.diag(cov) > 0):
-        q = 1.0 / float(gyro.get("scale_factor_pulses_per_arcsec", 2.14))
+        q = 1.0 / pulses_per_arcsec(device)
         cov[np.diag_indices(n_s)] += (scale * q / lengths) ** 2 / 6.0
     ones = np.ones(n_s)
     try:

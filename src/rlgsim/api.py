@@ -134,8 +134,8 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
             if k is None:
                 import tomllib
                 dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
-                k = float(dev.get("gyro", {}).get("scale_factor_pulses_per_arcsec", 2.14)) \
-                    / _ARCSEC
+                from rlgsim.sim.gyro import pulses_per_arcsec
+                k = pulses_per_arcsec(dev) / _ARCSEC
             pulses = np.asarray(imu["gyro_pulses"][:, i].values, dtype=np.float64)
             m_s = samples_per_window(f, window_s)
             n_win = pulses.size // m_s
