@@ -19,8 +19,8 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
    (float32 standard normals × σ, as :func:`rlgsim.sim.noise.white_increments`) and the phase
    increments of eqs. 17/20;
 4. pulse counting with carried remainders (:mod:`rlgsim.sim.pulses`), with the measurement
-   equation in one compiled pass per channel (:mod:`rlgsim.sim._pulse_kernel`; the NumPy
-   path for short runs in a process without numba — the same pulses bit for bit).
+   equation in one compiled call per sensor triad (:func:`rlgsim.sim._pulse_kernel.count_block`;
+   the NumPy path for short runs in a process without numba — the same pulses bit for bit).
 
 The state-free inputs of the next blocks (increments, their sums per thermal step and the
 table angles, normals, slow-noise and UHFO drives) are computed two blocks ahead in two worker
@@ -79,6 +79,8 @@ _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 #: per process on the shared 2-core development machine, which the kernel repays at ~20-150 ns
 #: of CPU per epoch (six channels: a table at rest / turning; tests/test_pulse_kernel.py's
 #: block timed both ways) — from a few million epochs on (benchmarks/bench_sim.py --counters).
+#: Measured with the earlier kernel of one call per channel; ``count_block`` (one call per
+#: triad) is ~2.5× cheaper, so the threshold is on the safe side and was left as it was.
 COMPILED_MIN_EPOCHS = 5_000_000
 
 #: How many blocks ahead of the running one the prefetch threads compute their inputs (paper000
