@@ -6,7 +6,7 @@ paper000_ramp: the RLG-IMU (three gyros, three accelerometers, UHFO) through a 4
 Prints epochs/s, simulated/wall time, CPU time, peak memory (``resource.getrusage``; the
 process's maximum resident set) and the file size, with the machine line
 (``benchmarks/_machine.py``) and the load average (other processes share the 2 cores: the
-CPU time of the main thread and of the other three — the two IMU prefetch threads and the
+CPU time of the main thread and of the other two — the IMU prefetch thread (normals) and the
 writer thread — are printed too; and the run's minor page faults and kernel time). Targets on the 2-core development machine: ≥ 3 million epochs/s
 end to end and < 500 MB peak memory, independent of the duration (compare ``--hours 12``).
 

@@ -22,14 +22,16 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
    equation in one compiled call per sensor triad (:func:`rlgsim.sim._pulse_kernel.count_block`;
    the NumPy path for short runs in a process without numba — the same pulses bit for bit).
 
-The state-free inputs of the next blocks (increments, their sums per thermal step and the
-table angles, normals, slow-noise and UHFO drives) are computed two blocks ahead in two worker
-threads while the current block runs (:meth:`ImuSimulator._get_inputs`), with the thermal
-steps at rest (every sample the same increment, bit for bit), whose measurement equation
-:func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step. The samples at rest are
-known from the motion (:attr:`rlgsim.sim.motion.MotionBlock.constant`), so their per-step sums
-are taken once per run of them. The slow noise depends on nothing but its own carried state
-and its draws, so the worker threads carry it too, block after block.
+The white-noise normals — about half the run's CPU, drawn by numpy with the GIL released —
+are drawn two blocks ahead in one worker thread, from the stage's construction on, while the
+main thread computes each block's kinematics (increments, their sums per thermal step, the
+table angles, the thermal steps at rest: every sample the same increment, bit for bit, whose
+measurement equation :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step),
+slow noise and UHFO drives itself (:meth:`ImuSimulator._get_inputs`). Interpreter-bound work
+in a worker thread only waited for the GIL: with the kinematics and drives in a second worker
+the run took ~10 % longer (paper000 at 100 Hz, bench_sim pairs). The samples at rest are
+known from the motion (:attr:`rlgsim.sim.motion.MotionBlock.constant`), so their per-step
+sums are taken once per run of them.
 
 Random streams (seed = scenario seed, unit = Monte Carlo unit, b = block index; see
 docs/dataset.md "truth"): ``realisation``/``imu`` (block 0) for the unit; gyro white noise
@@ -54,7 +56,7 @@ import math
 import sys
 import zlib
 from collections import deque
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -68,7 +70,7 @@ from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
 from rlgsim.sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
-from rlgsim.sim.rng import generator
+from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.sensor_triad import count_pulses, step_inputs
 from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
@@ -83,9 +85,9 @@ _NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 #: triad) is ~2.5× cheaper, so the threshold is on the safe side and was left as it was.
 COMPILED_MIN_EPOCHS = 5_000_000
 
-#: How many blocks ahead of the running one the prefetch threads compute their inputs (paper000
-#: at 100 Hz, alternating runs at load ~2: one block ahead 3.05 s median wall, two 2.70 s,
-#: three 2.69 s; each block's inputs hold ~4 MB).
+#: How many blocks ahead of the running one the worker thread draws the normals (paper000 at
+#: 100 Hz, alternating runs at load ~1.5: two, three and four blocks ahead all 2.88-2.93 s
+#: median wall; each block's normals hold 1.4 MB).
 PREFETCH_BLOCKS = 2
 
 
@@ -297,14 +299,16 @@ class ImuSimulator:
     ``realisation`` (bound or not), ``node_names`` of the thermal network, ``seed``/``unit`` of
     the seed tree, ``rate_hz`` the IMU sample rate, ``step_s`` the thermal step, ``motion`` a
     :class:`rlgsim.sim.motion.Motion`, ``truth_samples`` store per-sample true increments too,
-    ``prefetch`` draw the next block's random numbers and increments in a worker thread,
-    ``n_steps`` the run's length in thermal steps (the thread stops after the last block).
+    ``prefetch`` draw the next blocks' white-noise normals in a worker thread, ``n_steps`` the
+    run's length in thermal steps (the thread stops after the last block), ``block_steps`` the
+    thermal steps of the blocks :meth:`block` will be given (when known, the worker starts on
+    the first blocks' normals at once, while the run is still being set up).
     """
 
     def __init__(self, realisation: ImuRealisation, node_names: Sequence[str], *, seed: int,
                  unit: int, rate_hz: float, step_s: float, motion=None,
                  truth_samples: bool = False, source: str = "", prefetch: bool = True,
-                 n_steps: int | None = None) -> None:
+                 n_steps: int | None = None, block_steps: int | None = None) -> None:
         self.r = realisation
         self.node_names = tuple(node_names)
         self.r.bind(self.node_names, source)
@@ -314,8 +318,8 @@ class ImuSimulator:
         self.sample_dt = 1.0 / self.rate_hz
         self.motion = motion
         self.truth_samples = bool(truth_samples)
-        #: compute the next block's state-free inputs in a worker thread (numpy releases the
-        #: GIL), overlapping them with this block's arithmetic on a second core
+        #: draw the next blocks' normals in a worker thread (numpy releases the GIL while it
+        #: fills an array), overlapping them with this block's arithmetic on a second core
         self.prefetch = bool(prefetch)
         self.n_steps = n_steps                  # thermal steps of the run (None: open-ended)
         #: count pulses with the compiled kernel (rlgsim.sim._pulse_kernel; the same pulses as
@@ -326,7 +330,7 @@ class ImuSimulator:
         self.compiled = "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS
         self.anomalies = None                   # rlgsim.sim.anomalies.AnomalyRun (optional)
         self._pool = None
-        #: prefetched blocks in order: ((b, k0, m, n), [futures of the parts of its inputs])
+        #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
         self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
         # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
@@ -340,6 +344,8 @@ class ImuSimulator:
         self.gyro_white_sigma = lv["gyro_arw"] * math.sqrt(self.sample_dt)
         self.accel_white_sigma = (lv["accel_vrw"] * math.sqrt(self.sample_dt)
                                   if a is not None else np.zeros(0))
+        if self.prefetch and block_steps:      # the first blocks' normals, from now on
+            self._queue_after(-1, -int(block_steps), int(block_steps))
 
     # ---- state ----------------------------------------------------------------------------
     def initial_state(self) -> ImuState:
@@ -366,22 +372,6 @@ class ImuSimulator:
         return z
 
     # ---- one block ------------------------------------------------------------------------
-    def _inputs(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
-                ) -> dict[str, Any]:
-        """Everything block ``b`` needs that depends on no carried state but the slow noise's
-        (:meth:`_kinematics_and_drives`, :meth:`_gyro_normals`, :meth:`_accel_normals`). A
-        pure function of (b, k0, m, n) and the slow-noise state ``slow_from`` — so it can be
-        computed ahead, in the prefetch threads, without changing a byte."""
-        return {**self._kinematics_and_drives(b, k0, m, n, slow_from),
-                **self._gyro_normals(b, n), **self._accel_normals(b, n)}
-
-    def _kinematics_and_drives(self, b: int, k0: int, m: int, n: int, slow_from: Any = None
-                               ) -> dict[str, Any]:
-        """:meth:`_kinematics` and :meth:`_drives`: the interpreter-bound part of the inputs,
-        one task (interpreter-bound tasks in both prefetch threads beside the main thread
-        tripled the run's context switches, ~75 000 against ~25 000, and its kernel time)."""
-        return {**self._kinematics(b, k0, m, n), **self._drives(b, m, slow_from)}
-
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
         the steps at rest of each, their sums per thermal step and the table at each step's
@@ -403,18 +393,12 @@ class ImuSimulator:
             out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
 
-    def _drives(self, b: int, m: int, slow_from: Any = None) -> dict[str, Any]:
-        """The slow-noise and UHFO drives (each channel has its own generator, so computing
-        them in another thread does not change a draw) and, given the slow-noise state before
-        the block (``slow_from``: the state, or the future of the previous block's
-        :meth:`_kinematics_and_drives`), the block's slow noise ``slow_block`` = (state
-        before, slow noise (m, C), state after): the slow noise depends on nothing but its own
-        state and draws, so the prefetch thread carries its state from block to block."""
-        out: dict[str, Any] = {"slow": self.slow.draws(b, m)}
-        if slow_from is not None:
-            start = (slow_from.result()["slow_block"][2] if isinstance(slow_from, Future)
-                     else slow_from)
-            out["slow_block"] = (start, *self.slow.block(start, b, m, out["slow"]))
+    def _drives(self, b: int, m: int, slow_state: Any) -> dict[str, Any]:
+        """The block's slow noise ``slow_block`` = (slow noise (m, C), state after) from the
+        carried ``slow_state`` and the block's own draws, and the UHFO drives (each channel has
+        its own generator)."""
+        draws = self.slow.draws(b, m)
+        out: dict[str, Any] = {"slow_block": self.slow.block(slow_state, b, m, draws)}
         if self.r.uhfo is not None:
             out["uhfo"] = self.r.uhfo.draws(self.seed, self.unit, b, m)
         return out
@@ -439,48 +423,48 @@ class ImuSimulator:
 
     def _get_inputs(self, b: int, k0: int, m: int, n: int, slow_state: Any
                     ) -> dict[str, Any]:
-        """This block's inputs (prefetched when an earlier block asked for them; its slow
-        noise recomputed unless the prefetch threads started from ``slow_state``, the carried
-        state) and, when prefetching, start those of the next :data:`PREFETCH_BLOCKS` blocks in
-        the worker threads (blocks of ``m`` steps assumed, up to the run's end: inputs of a
-        block of another length are recomputed here)."""
-        key = (b, k0, m, n)
-        if self._ahead and self._ahead[0][0] == key:
-            inputs: dict[str, Any] = {}
-            for part in self._ahead.popleft()[1]:
-                inputs.update(part.result())
-            if inputs["slow_block"][0] is not slow_state:
-                inputs["slow_block"] = (slow_state,
-                                        *self.slow.block(slow_state, b, m, inputs["slow"]))
-        else:
-            self._cancel_ahead()
-            inputs = self._inputs(*key, slow_state)
+        """Block ``b``'s inputs: its normals (prefetched, or drawn here), then — after queueing
+        the normals of the next :data:`PREFETCH_BLOCKS` blocks, so the worker never waits for
+        this thread — its kinematics and drives, computed here from the carried slow-noise
+        state."""
+        normals = self._take_normals((b, k0, m, n))
         if self.n_steps is not None and k0 + m >= self.n_steps:
             self.close()                        # the last block: nothing to prefetch
         elif self.prefetch:
-            if self._pool is None:
-                # two workers taking three tasks per block in turn: the interpreter-bound
-                # inputs, the gyros' normals, the accelerometers' normals (a third worker
-                # only added switching on two cores: 2.95-3.10 s against 2.66-2.71 s)
-                self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="rlgsim-imu")
-            if self._ahead:
-                (nb, nk0, _, _), parts = self._ahead[-1]
-                slow_from = parts[0]
-            else:
-                nb, nk0, slow_from = b, k0, inputs["slow_block"][2]
-            while len(self._ahead) < PREFETCH_BLOCKS:
-                nb, nk0 = nb + 1, nk0 + m
-                nm = m if self.n_steps is None else min(m, self.n_steps - nk0)
-                if nm <= 0:
-                    break
-                nxt = (nb, nk0, nm, self._block_size(nm))
-                # FIFO: a block's drives wait only for the previous block's, queued before
-                parts = [self._pool.submit(self._kinematics_and_drives, *nxt, slow_from),
-                         self._pool.submit(self._gyro_normals, nb, nxt[3]),
-                         self._pool.submit(self._accel_normals, nb, nxt[3])]
-                self._ahead.append((nxt, parts))
-                slow_from = parts[0]
-        return inputs
+            self._queue_after(b, k0, m)
+        return {**normals, **self._kinematics(b, k0, m, n), **self._drives(b, m, slow_state)}
+
+    def _take_normals(self, key: tuple[int, int, int, int]) -> dict[str, Any]:
+        """The normals of block ``key`` = (b, k0, m, n): the worker's when it queued this
+        block (a part it has not started yet is drawn here: this thread would only wait for
+        it), else drawn here (and the blocks queued for another layout dropped)."""
+        b, n = key[0], key[3]
+        draws = (self._gyro_normals, self._accel_normals)
+        if self._ahead and self._ahead[0][0] == key:
+            out: dict[str, Any] = {}
+            for part, draw in zip(self._ahead.popleft()[1], draws):
+                out.update(draw(b, n) if part.cancel() else part.result())
+            return out
+        self._cancel_ahead()
+        return {k: v for draw in draws for k, v in draw(b, n).items()}
+
+    def _queue_after(self, b: int, k0: int, m: int) -> None:
+        """Queue the normals of the blocks after block ``b`` (first step ``k0``, blocks of ``m``
+        steps assumed, up to the run's end; a block of another length is drawn when asked for)
+        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
+        if self._ahead:
+            b, k0 = self._ahead[-1][0][:2]
+        while len(self._ahead) < PREFETCH_BLOCKS:
+            b, k0 = b + 1, k0 + m
+            nm = m if self.n_steps is None else min(m, self.n_steps - k0)
+            if nm <= 0:
+                break
+            n = self._block_size(nm)
+            self._ahead.append(((b, k0, nm, n),
+                                [self._pool.submit(self._gyro_normals, b, n),
+                                 self._pool.submit(self._accel_normals, b, n)]))
 
     def _cancel_ahead(self) -> None:
         for _, parts in self._ahead:
@@ -489,7 +473,7 @@ class ImuSimulator:
         self._ahead.clear()
 
     def close(self) -> None:
-        """Stop the prefetch threads (blocks asked for and not taken are dropped)."""
+        """Stop the prefetch thread (blocks queued and not taken are dropped)."""
         self._cancel_ahead()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
@@ -526,7 +510,7 @@ class ImuSimulator:
             truth_time["uhfo_true"] = u_true
 
         # slow noise (flicker, random walk) of every channel, part of the true biases
-        _, slow, slow_state = inputs["slow_block"]
+        slow, slow_state = inputs["slow_block"]
 
         # gyros
         gp = g.parameters(nodes, start, dt, slow[:, :self.n_gyro], uhfo_dev)
@@ -667,7 +651,8 @@ class ImuStage:
                                 unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
                                 step_s=timeline.step_s, motion=None,
                                 truth_samples=self.truth_samples,
-                                source=scenario.device.source, n_steps=timeline.n_steps)
+                                source=scenario.device.source, n_steps=timeline.n_steps,
+                                block_steps=int(round(BLOCK_S / timeline.step_s)))
         from rlgsim.sim.anomalies import AnomalyRun
         self.sim.anomalies = AnomalyRun.of(scenario, timeline)   # None unless [anomalies]
 

@@ -30,7 +30,7 @@ from rlgsim.sim.earth import Site
 from rlgsim.sim.gyro import GyroModel
 from rlgsim.sim.imu import Tolerance
 from rlgsim.sim.noise import NoiseModel
-from rlgsim.sim.rng import generator
+from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.thermal import ThermalNetwork
 from rlgsim.sim.thermometers import ProbeSet
 from rlgsim.sim.turntable import TurntableProgram
@@ -38,10 +38,6 @@ from rlgsim.sim.uhfo import UhfoModel
 
 __all__ = ["ThermalPreset", "Device", "load_thermal_preset", "load_device", "Acquisition",
            "PowerSchedule", "Scenario", "parse_scenario", "load_scenario"]
-
-#: Simulated length of one block [s] (see sim/simulate.py: BLOCK_S; repeated here so the
-#: loader can check that steps and samples tile a block without importing the simulator).
-BLOCK_S = 600.0
 
 #: A device-table validator: ``f(table, ctx)`` -> the validated object (UserInputError if bad).
 TableValidator = Callable[[Mapping[str, Any], Ctx], Any]

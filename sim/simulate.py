@@ -59,15 +59,12 @@ from rlgsim.sim._heap import keep_freed_memory
 from rlgsim.sim.dataset import DatasetWriter, GroupWriter, check_writable
 from rlgsim.sim.dataset_schema import (DESCRIPTIONS, declare_probes, declare_thermal,
                                        declare_thermal_parts, write_timeline)
-from rlgsim.sim.rng import generator
+from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.schedule import Timeline, build_timeline
 from rlgsim.sim.thermal_integrator import ThermalIntegrator, one_blas_thread
 
 __all__ = ["BLOCK_S", "STAGES", "ThermalTrace", "Stage", "ThermalPart", "realised_network",
            "thermal_summary", "ProbeStage", "default_output", "simulate"]
-
-#: Simulated length of one block [s]; fixed so that bytes never depend on the chunk size.
-BLOCK_S = 600.0
 
 
 
