@@ -362,13 +362,18 @@ class ImuSimulator:
               ) -> np.ndarray | None:
         """Standard normals (C, n) float32 of ``generator(seed, unit, purpose, axis, b)
         .standard_normal(n, dtype=float32)`` per axis (None when every σ is 0); the white
-        increment of a sample is σ·z in float64."""
+        increment of a sample is σ·z in float64. Drawn by the compiled kernel
+        (:mod:`rlgsim.sim._normal_kernel`: the same numbers) on the compiled paths."""
         if not np.any(sigma > 0):
             return None
         z = np.empty((len(axes), n), dtype=np.float32)
-        for c, ax in enumerate(axes):
-            generator(self.seed, self.unit, purpose, ax, b).standard_normal(
-                n, dtype=np.float32, out=z[c])
+        generators = [generator(self.seed, self.unit, purpose, ax, b) for ax in axes]
+        fill = _compiled_normals() if self.compiled else None
+        if fill is not None:                    # the same draws, compiled (_normal_kernel)
+            fill(generators, z)
+        else:
+            for g, row in zip(generators, z):
+                g.standard_normal(n, dtype=np.float32, out=row)
         return z
 
     # ---- one block ------------------------------------------------------------------------
@@ -573,6 +578,16 @@ class ImuSimulator:
             "time": trace.t_s, "outer_angle": outer, "inner_angle": inner,
             "motion_index": segment}}
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
+
+
+def _compiled_normals():
+    """:func:`rlgsim.sim._normal_kernel.fill` when it gives numpy's draws in this process (its
+    self-check, once), else None (numpy's own draw is used)."""
+    try:
+        from rlgsim.sim._normal_kernel import available, fill
+    except ImportError:                         # pragma: no cover - numba is a dependency
+        return None
+    return fill if available() else None
 
 
 def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | int
