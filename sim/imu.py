@@ -302,13 +302,15 @@ class ImuSimulator:
     ``prefetch`` draw the next blocks' white-noise normals in a worker thread, ``n_steps`` the
     run's length in thermal steps (the thread stops after the last block), ``block_steps`` the
     thermal steps of the blocks :meth:`block` will be given (when known, the worker starts on
-    the first blocks' normals at once, while the run is still being set up).
+    the first blocks' normals at once, while the run is still being set up), ``compiled`` use
+    the compiled kernels (None: when numba is loaded or the run is long; see ``self.compiled``).
     """
 
     def __init__(self, realisation: ImuRealisation, node_names: Sequence[str], *, seed: int,
                  unit: int, rate_hz: float, step_s: float, motion=None,
                  truth_samples: bool = False, source: str = "", prefetch: bool = True,
-                 n_steps: int | None = None, block_steps: int | None = None) -> None:
+                 n_steps: int | None = None, block_steps: int | None = None,
+                 compiled: bool | None = None) -> None:
         self.r = realisation
         self.node_names = tuple(node_names)
         self.r.bind(self.node_names, source)
@@ -322,12 +324,14 @@ class ImuSimulator:
         #: fills an array), overlapping them with this block's arithmetic on a second core
         self.prefetch = bool(prefetch)
         self.n_steps = n_steps                  # thermal steps of the run (None: open-ended)
-        #: count pulses with the compiled kernel (rlgsim.sim._pulse_kernel; the same pulses as
-        #: the NumPy path, bit for bit) when numba is already loaded in this process or the run
-        #: is long enough to repay loading it (:data:`COMPILED_MIN_EPOCHS`)
+        #: count pulses and draw normals with the compiled kernels (rlgsim.sim._pulse_kernel,
+        #: rlgsim.sim._normal_kernel; the NumPy path's numbers, bit for bit) — by default when
+        #: numba is already loaded in this process or the run is long enough to repay loading
+        #: it (:data:`COMPILED_MIN_EPOCHS`)
         epochs = (math.inf if n_steps is None
                   else float(n_steps) * self.step_s * self.rate_hz)
-        self.compiled = "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS
+        self.compiled = (bool(compiled) if compiled is not None
+                         else "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS)
         self.anomalies = None                   # rlgsim.sim.anomalies.AnomalyRun (optional)
         self._pool = None
         #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
