@@ -1,23 +1,27 @@
 """Compiled float32 standard normals (numba, ``nogil``): ``Generator.standard_normal(n,
-dtype=np.float32, out=row)`` for each of a triad's generators in one call — numpy's numbers bit
-for bit, in ~60 % of numpy's time.
+dtype=np.float32, out=row)`` for each of a triad's PCG64 generators in one call — numpy's
+numbers bit for bit, in ~55 % of numpy's time.
 
 Why hand-written: the white-noise normals are the largest single cost of a simulation (six
 float32 normals per epoch: ~2 s of CPU in paper000's 43 million epochs, about half the run).
 NumPy draws each through ``random_standard_normal_f``
 (numpy/random/src/distributions/distributions.c: Marsaglia & Tsang's ziggurat with 256 float
 strips, "The Ziggurat Method for Generating Random Variables", J. Stat. Softw. 5(8), 2000), a
-function the fill loop calls through a pointer for every value and that calls the bit
-generator through another. numba compiles its own ``Generator.standard_normal`` with both
-inlined, but its float32 version evaluates the wedge test's exp(−x²/2) in float32 where NumPy's
-C evaluates it in double, so a draw that lands in a wedge may be accepted by one and rejected
-by the other and the two streams part for good (seen once in ~1.4 million draws). That one
-function is written out here with NumPy's types, on numba's access to the bit generator
-(``numba.np.random.generator_core.next_uint32``: PCG64's own ``next_uint32`` through its ctypes
-interface, so the generator's state advances exactly as numpy's would) and numba's copies of
-NumPy's ziggurat tables (``numba.np.random._constants``).
+function its fill loop calls through a pointer for every value and that calls the bit generator
+through another. numba has its own ``Generator.standard_normal``, but (1) its float32 version
+evaluates the wedge test's exp(−x²/2) in float32 where NumPy's C evaluates it in double, so a
+draw that lands in a wedge may be accepted by one and rejected by the other and the two streams
+part for good (seen once in ~1.4 million draws), and (2) typing its Generator objects costs
+~0.25 s once per process. So both halves are written out here, with NumPy's types:
 
-Per draw, as in NumPy's C (float where it has ``float``, double where it promotes)::
+* the bit generator, PCG64 (M. E. O'Neill, "PCG: A Family of Simple Fast Space-Efficient
+  Statistically Good Algorithms for Random Number Generation", HMC-CS-2014-0905; numpy's
+  pcg64.h): the 128-bit LCG step s ← s·M + inc (mod 2¹²⁸, in 64-bit halves) and the XSL-RR
+  output rotr64(hi ⊕ lo, hi >> 58); ``next_uint32`` hands out the low half of a 64-bit output
+  and keeps the high half for the next call (``has_uint32``/``uinteger``), as numpy's does. The
+  state is read from, and optionally written back to, the generator's ``bit_generator.state``;
+* the normal, per draw as in NumPy's C (float where it has ``float``, double where it
+  promotes)::
 
     r = next_uint32();  i = r & 0xff;  s = (r >> 8) & 1;  a = (r >> 9) & 0x7fffff
     x = float(a) · wi[i];  x = −x if s                                           (float)
@@ -27,14 +31,16 @@ Per draw, as in NumPy's C (float where it has ``float``, double where it promote
     i > 0 (a wedge):   (fi[i−1] − fi[i])·u + fi[i]  (float)  <  exp(−0.5·x·x)  (double)  → x
     otherwise draw again
 
-with ``next_float`` = (next_uint32() >> 8) · 2⁻²⁴. No ``fastmath``: LLVM neither contracts a
-product and a sum into a fused multiply-add nor reassociates (numpy's x86-64 wheels are built
-without FMA, which is why ``available()`` checks the result on the running machine).
+  with ``next_float`` = (next_uint32() >> 8) · 2⁻²⁴ and NumPy's ziggurat tables (numba's copies,
+  ``numba.np.random._constants``).
 
-:func:`available` runs a self-check once per process — 2¹⁸ draws from each of four generators
-both ways, which reach the wedges ~1 800 times and the tail a few times — and the caller keeps
-numpy's draw unless it passes. tests/test_normal_kernel.py compares the two over ~50 million
-draws of the simulator's own streams and counts the branches they took.
+No ``fastmath``: LLVM neither contracts a product and a sum into a fused multiply-add nor
+reassociates (numpy's x86-64 wheels are built without FMA, which is one reason
+:func:`available` checks the result on the running machine). :func:`available` runs a
+self-check once per process — 2¹⁸ draws from each of four generators both ways, which reach the
+wedges ~1 800 times and the tail a few times, and the generators' states after — and the caller
+keeps numpy's draw unless it passes. tests/test_normal_kernel.py compares the two over ~29
+million draws of the simulator's own streams.
 """
 
 from __future__ import annotations
@@ -46,22 +52,68 @@ import numpy as np
 from numba import float32, float64, njit
 from numba.np.random._constants import (fi_float, ki_float, wi_float, ziggurat_nor_inv_r_f,
                                         ziggurat_nor_r_f)
-from numba.np.random.generator_core import next_uint32
 
 #: 2⁻²⁴ as float32: ``next_float`` = (32 random bits >> 8)·2⁻²⁴, in [0, 1)
 _INV_2_24 = np.float32(1.0 / 16777216.0)
+#: PCG64's 128-bit multiplier (numpy's pcg64.h PCG_DEFAULT_MULTIPLIER_HIGH/LOW), in halves
+_M_HI = np.uint64(0x2360ED051FC65DA4)
+_M_LO = np.uint64(0x4385DF649FCCF645)
+_MASK32 = np.uint64(0xFFFFFFFF)
+_U0, _U1, _U32, _U58, _U63, _U64 = (np.uint64(k) for k in (0, 1, 32, 58, 63, 64))
+_MASK64 = (1 << 64) - 1
+
+#: a generator's state as the kernel holds it: one uint64 row of six words per generator
+_STATE_HI, _STATE_LO, _INC_HI, _INC_LO, _HAS_UINT32, _UINTEGER = range(6)
+
+
+@njit(inline="always")
+def _mulhi(a, b):                                             # pragma: no cover (compiled)
+    """The high 64 bits of the 128-bit product of two uint64 (four 32-bit products)."""
+    a0, a1 = a & _MASK32, a >> _U32
+    b0, b1 = b & _MASK32, b >> _U32
+    p00, p01, p10, p11 = a0 * b0, a0 * b1, a1 * b0, a1 * b1
+    mid = (p00 >> _U32) + (p01 & _MASK32) + (p10 & _MASK32)
+    return p11 + (p01 >> _U32) + (p10 >> _U32) + (mid >> _U32)
+
+
+@njit(inline="always")
+def _next64(st):                                              # pragma: no cover (compiled)
+    """PCG64: s ← s·M + inc (mod 2¹²⁸), then rotr64(hi ⊕ lo, hi >> 58) of the new state."""
+    hi, lo = st[_STATE_HI], st[_STATE_LO]
+    lo_m = lo * _M_LO
+    hi_m = _mulhi(lo, _M_LO) + hi * _M_LO + lo * _M_HI
+    lo_n = lo_m + st[_INC_LO]
+    hi_n = hi_m + st[_INC_HI] + (_U1 if lo_n < lo_m else _U0)
+    st[_STATE_HI] = hi_n
+    st[_STATE_LO] = lo_n
+    rot = hi_n >> _U58
+    x = hi_n ^ lo_n
+    return (x >> rot) | (x << ((_U64 - rot) & _U63))
+
+
+@njit(inline="always")
+def _next_uint32(st):                                         # pragma: no cover (compiled)
+    """numpy's pcg64_next32: the kept high half if there is one, else the low half of a new
+    64-bit output (its high half kept)."""
+    if st[_HAS_UINT32] != _U0:
+        st[_HAS_UINT32] = _U0
+        return np.uint32(st[_UINTEGER])
+    nxt = _next64(st)
+    st[_HAS_UINT32] = _U1
+    st[_UINTEGER] = nxt >> _U32
+    return np.uint32(nxt & _MASK32)
+
+
+@njit(inline="always")
+def _next_float(st):                                          # pragma: no cover (compiled)
+    return float32(_next_uint32(st) >> np.uint32(8)) * _INV_2_24
 
 
 @njit(nogil=True, cache=True)
-def _next_float(bitgen):                                      # pragma: no cover (compiled)
-    return float32(next_uint32(bitgen) >> 8) * _INV_2_24
-
-
-@njit(nogil=True, cache=True)
-def _standard_normal_f(bitgen):                               # pragma: no cover (compiled)
+def _standard_normal_f(st):                                   # pragma: no cover (compiled)
     """One float32 standard normal: NumPy's ``random_standard_normal_f`` (module docstring)."""
     while True:
-        r = next_uint32(bitgen)
+        r = _next_uint32(st)
         idx = r & 0xff
         rabs = (r >> 9) & 0x7fffff
         x = float32(float32(rabs) * wi_float[idx])
@@ -71,43 +123,72 @@ def _standard_normal_f(bitgen):                               # pragma: no cover
             return x
         if idx == 0:
             while True:
-                xx = float32(-ziggurat_nor_inv_r_f * float32(np.log1p(-_next_float(bitgen))))
-                yy = float32(-float32(np.log1p(-_next_float(bitgen))))
+                xx = float32(-ziggurat_nor_inv_r_f * float32(np.log1p(-_next_float(st))))
+                yy = float32(-float32(np.log1p(-_next_float(st))))
                 if float32(yy + yy) > float32(xx * xx):
                     if (rabs >> 8) & 0x1:
                         return -float32(ziggurat_nor_r_f + xx)
                     return float32(ziggurat_nor_r_f + xx)
         else:
             left = float32(float32(float32(fi_float[idx - 1] - fi_float[idx])
-                                   * _next_float(bitgen)) + fi_float[idx])
+                                   * _next_float(st)) + fi_float[idx])
             xd = float64(x)
             if float64(left) < math.exp(-0.5 * xd * xd):
                 return x
 
 
 @njit(nogil=True, cache=True)
-def _fill_row(generator, out):                                # pragma: no cover (compiled)
-    bitgen = generator.bit_generator
-    for i in range(out.shape[0]):
-        out[i] = _standard_normal_f(bitgen)
+def _fill(states, out):                                       # pragma: no cover (compiled)
+    """Row ``c`` of ``out`` (C, n) float32 from the generator state ``states[c]`` (advanced)."""
+    for c in range(out.shape[0]):
+        st = states[c]
+        for i in range(out.shape[1]):
+            out[c, i] = _standard_normal_f(st)
 
 
-@njit(nogil=True, cache=True)
-def _fill3(g0, g1, g2, out):                                  # pragma: no cover (compiled)
-    _fill_row(g0, out[0])
-    _fill_row(g1, out[1])
-    _fill_row(g2, out[2])
+def _states(generators: Sequence[np.random.Generator]) -> np.ndarray:
+    """The PCG64 states (C, 6) uint64 of ``generators`` (from ``bit_generator.state``)."""
+    out = np.empty((len(generators), 6), dtype=np.uint64)
+    for c, g in enumerate(generators):
+        st = g.bit_generator.state
+        s, inc = st["state"]["state"], st["state"]["inc"]
+        out[c] = (s >> 64, s & _MASK64, inc >> 64, inc & _MASK64, st["has_uint32"],
+                  st["uinteger"])
+    return out
 
 
-def fill(generators: Sequence[np.random.Generator], out: np.ndarray) -> None:
+def _write_back(generators: Sequence[np.random.Generator], states: np.ndarray) -> None:
+    for g, (s_hi, s_lo, i_hi, i_lo, has, uint) in zip(generators, states.tolist()):
+        g.bit_generator.state = {"bit_generator": "PCG64",
+                                 "state": {"state": (s_hi << 64) | s_lo,
+                                           "inc": (i_hi << 64) | i_lo},
+                                 "has_uint32": has, "uinteger": uint}
+
+
+def fill(generators: Sequence[np.random.Generator], out: np.ndarray, *,
+         advance: bool = True) -> None:
     """``generators[c].standard_normal(n, dtype=np.float32, out=out[c])`` for every ``c``:
-    ``out`` (C, n) C-contiguous float32; a triad in one compiled call (the GIL released),
-    other counts channel by channel. Advances each generator as numpy's call would."""
-    if len(generators) == 3 and out.shape[0] == 3:
-        _fill3(generators[0], generators[1], generators[2], out)
+    ``out`` (C, n) C-contiguous float32, the PCG64 generators' rows in one compiled call (the
+    GIL released), any other bit generator's row by numpy. ``advance``: leave each generator in
+    the state numpy's call would (False: the caller discards them, as the simulator does its
+    per-block generators — saves writing the states back)."""
+    pcg = [type(g.bit_generator) is np.random.PCG64 for g in generators]
+    rows = [c for c, ok in enumerate(pcg) if ok]
+    for c, ok in enumerate(pcg):
+        if not ok:
+            generators[c].standard_normal(out.shape[1], dtype=np.float32, out=out[c])
+    if not rows:
         return
-    for g, row in zip(generators, out):
-        _fill_row(g, row)
+    ours = [generators[c] for c in rows]
+    states = _states(ours)
+    if len(rows) == len(pcg):
+        _fill(states, out)
+    else:
+        part = np.empty((len(rows), out.shape[1]), dtype=np.float32)
+        _fill(states, part)
+        out[rows] = part
+    if advance:
+        _write_back(ours, states)
 
 
 _state: dict[str, bool] = {}

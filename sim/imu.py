@@ -374,7 +374,7 @@ class ImuSimulator:
         generators = [generator(self.seed, self.unit, purpose, ax, b) for ax in axes]
         fill = _compiled_normals() if self.compiled else None
         if fill is not None:                    # the same draws, compiled (_normal_kernel)
-            fill(generators, z)
+            fill(generators, z, advance=False)
         else:
             for g, row in zip(generators, z):
                 g.standard_normal(n, dtype=np.float32, out=row)

@@ -70,3 +70,19 @@ def test_draws_continue_a_used_generator():
     got = np.empty((1, 1001), dtype=np.float32)
     _normal_kernel.fill([ours], got)
     assert got.tobytes() == theirs.standard_normal(1001, dtype=np.float32).tobytes()
+
+
+def test_other_bit_generators_are_drawn_by_numpy_and_advance_false_leaves_the_state():
+    def gens():
+        return [np.random.Generator(np.random.PCG64(1)), np.random.Generator(np.random.Philox(2)),
+                np.random.Generator(np.random.PCG64(3))]
+    ours, theirs = gens(), gens()
+    got = np.empty((3, 5000), dtype=np.float32)
+    _normal_kernel.fill(ours, got)
+    assert got.tobytes() == numpy_normals(theirs, 5000).tobytes()
+    assert all(str(x.bit_generator.state) == str(y.bit_generator.state)
+               for x, y in zip(ours, theirs))
+    kept = np.random.default_rng(4)
+    before = kept.bit_generator.state
+    _normal_kernel.fill([kept], np.empty((1, 100), dtype=np.float32), advance=False)
+    assert kept.bit_generator.state == before
