@@ -74,7 +74,7 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
     and block of ``block_epochs``, as rlgsim.sim.imu does) and writing ``n_bytes`` (the file's
     size) with h5py into growing chunked datasets — the issue-16 "machine limit", with numpy's
     ``standard_normal``. ``compiled_draw``: the same normals drawn by the simulator's own
-    compiled kernel (sim/_normal_kernel.py, ~0.6 of numpy's time), three channels per call —
+    compiled kernel (sim/_normal_kernel.py, ~0.55 of numpy's time), three channels per call —
     the stricter limit once the simulator draws faster than numpy. Returns (wall, CPU)
     seconds."""
     import h5py
@@ -85,6 +85,7 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
     bytes_per_epoch = n_bytes / max(n_epochs, 1)
     if compiled_draw:                           # loaded (and self-checked) before the clock
         from rlgsim.sim._normal_kernel import available, fill
+        from rlgsim.sim.rng import generator
         if not available():
             raise RuntimeError("the compiled normals do not reproduce numpy's here")
     t0, c0 = time.perf_counter(), time.process_time()
@@ -94,10 +95,11 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
         done, written = 0, 0
         while done < n_epochs:
             m = min(block_epochs, n_epochs - done)
-            if compiled_draw:                   # a triad per call, as the simulator
-                for c in range(0, n_channels, 3):
+            if compiled_draw:                   # a triad per call, as the simulator does:
+                for c in range(0, n_channels, 3):   # one new generator per channel and block
                     zc = np.empty((min(3, n_channels - c), m), dtype=np.float32)
-                    fill([rng] * zc.shape[0], zc)
+                    fill([generator(0, 0, "limit", c + k, done // block_epochs)
+                          for k in range(zc.shape[0])], zc, advance=False)
                 z = zc[0]
             else:
                 for _ in range(n_channels):

@@ -1,10 +1,10 @@
 """Freed block buffers stay in the process heap during a run (glibc malloc thresholds).
 
 Every 600 s block allocates and frees a few MB of arrays — increments, normals, pulses, truth
-rows — in four threads (:mod:`rlgsim.sim.simulate`). glibc's malloc (its manual, "Memory
+rows — in three threads (:mod:`rlgsim.sim.simulate`). glibc's malloc (its manual, "Memory
 Allocation Tunables": ``M_MMAP_THRESHOLD``, ``M_TRIM_THRESHOLD``; mallopt(3)) serves a request
 above its mmap threshold with fresh pages from the kernel and gives the top of a heap back to
-the kernel above its trim threshold; its dynamic adjustment of both does not settle with four
+the kernel above its trim threshold; its dynamic adjustment of both does not settle with several
 threads, so each block's arrays were touched afresh: ~130 000 minor page faults and ~0.25 s of
 kernel time per 24 h simulated at 100 Hz on the paper-000 programme, ~18 % of the run's CPU
 (measured with ``resource.getrusage``; benchmarks/bench_sim.py prints the page faults). Fixed

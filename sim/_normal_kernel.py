@@ -35,17 +35,21 @@ part for good (seen once in ~1.4 million draws), and (2) typing its Generator ob
   ``numba.np.random._constants``).
 
 No ``fastmath``: LLVM neither contracts a product and a sum into a fused multiply-add nor
-reassociates (numpy's x86-64 wheels are built without FMA, which is one reason
-:func:`available` checks the result on the running machine). :func:`available` runs a
-self-check once per process — 2¹⁸ draws from each of four generators both ways, which reach the
-wedges ~1 800 times and the tail a few times, and the generators' states after — and the caller
-keeps numpy's draw unless it passes. tests/test_normal_kernel.py compares the two over ~29
-million draws of the simulator's own streams.
+reassociates, and numpy's x86-64 wheels are built without FMA. Elsewhere numpy's C may be
+compiled with contraction (GCC on aarch64, clang by default): a fused
+(fi[i−1] − fi[i])·u + fi[i] would flip a wedge comparison about once in 10⁹ draws, too rarely for
+any check to see, so :func:`available` is False off x86-64 (numpy's draw is used). On x86-64 it
+runs a self-check once per process — 2¹⁸ draws from each of four generators both ways (~7 300
+wedge tests, ~270 tail draws) and the generators' states after — and the caller keeps numpy's
+draw unless it passes (a guard against other tables, another libm, another numba).
+tests/test_normal_kernel.py compares the two over ~29 million draws of the simulator's own
+streams.
 """
 
 from __future__ import annotations
 
 import math
+import platform
 from typing import Sequence
 
 import numpy as np
@@ -172,6 +176,13 @@ def fill(generators: Sequence[np.random.Generator], out: np.ndarray, *,
     GIL released), any other bit generator's row by numpy. ``advance``: leave each generator in
     the state numpy's call would (False: the caller discards them, as the simulator does its
     per-block generators — saves writing the states back)."""
+    if (out.ndim != 2 or out.dtype != np.float32 or not out.flags.c_contiguous
+            or out.shape[0] != len(generators)):
+        raise ValueError(f"out must be a C-contiguous float32 array of {len(generators)} rows, "
+                         f"got {out.dtype} {out.shape}")
+    if len({id(g) for g in generators}) != len(generators):
+        raise ValueError("each row needs its own generator (numpy would draw the rows of a "
+                         "repeated generator one after another)")
     pcg = [type(g.bit_generator) is np.random.PCG64 for g in generators]
     rows = [c for c, ok in enumerate(pcg) if ok]
     for c, ok in enumerate(pcg):
@@ -215,8 +226,12 @@ def _self_check() -> bool:
 
 
 def available() -> bool:
-    """Whether :func:`fill` gives numpy's draws in this process (checked once)."""
+    """Whether :func:`fill` gives numpy's draws in this process: on x86-64 only (module
+    docstring), and after its self-check (once per process)."""
     if "ok" not in _state:
+        if platform.machine().lower() not in ("x86_64", "amd64"):
+            _state["ok"] = False
+            return False
         try:
             _state["ok"] = _self_check()
         except Exception:                       # pragma: no cover - optional speed-up only

@@ -432,10 +432,10 @@ class ImuSimulator:
 
     def _get_inputs(self, b: int, k0: int, m: int, n: int, slow_state: Any
                     ) -> dict[str, Any]:
-        """Block ``b``'s inputs: its normals (prefetched, or drawn here), then — after queueing
-        the normals of the next :data:`PREFETCH_BLOCKS` blocks, so the worker never waits for
-        this thread — its kinematics and drives, computed here from the carried slow-noise
-        state."""
+        """Block ``b``'s inputs: its normals (the worker's; a part it has not started, or a
+        block it was not given, drawn here), then — once the normals of the next
+        :data:`PREFETCH_BLOCKS` blocks are queued, so the worker does not wait for this
+        thread — its kinematics and drives, computed here from the carried slow-noise state."""
         normals = self._take_normals((b, k0, m, n))
         if self.n_steps is not None and k0 + m >= self.n_steps:
             self.close()                        # the last block: nothing to prefetch
@@ -700,6 +700,10 @@ class ImuStage:
     # ---- running --------------------------------------------------------------------------
     def initial_state(self) -> ImuState:
         return self.sim.initial_state()
+
+    def close(self) -> None:
+        """Stop the simulator's worker thread (:meth:`ImuSimulator.close`)."""
+        self.sim.close()
 
     def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
         """Rows ``{group: {dim: {variable: array}}}`` of block ``b``; ``motion`` the run's

@@ -121,3 +121,18 @@ def test_prefetched_blocks_are_the_blocks_computed_in_place(rate_hz, copied, blo
     assert compared > 40
     # the chain's slow noise is nothing but the drives of each block from the state before
     assert any(np.any(r["truth"]["time"]["gyro_bias_random"] != 0) for r in out[0])
+
+
+def test_a_stopped_run_stops_the_prefetch_thread(tmp_path):
+    """The worker starts when the stage is built; a run that ends early (here: stopped before
+    its first block) stops it too."""
+    import threading
+
+    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.simulate import simulate
+
+    with pytest.raises(KeyboardInterrupt):
+        simulate(load_scenario("quickstart"), tmp_path / "x.h5", progress=False,
+                 should_stop=lambda: True)
+    assert not [t for t in threading.enumerate() if t.name.startswith("rlgsim-imu")]
+    assert not (tmp_path / "x.h5").exists()

@@ -86,3 +86,13 @@ def test_other_bit_generators_are_drawn_by_numpy_and_advance_false_leaves_the_st
     before = kept.bit_generator.state
     _normal_kernel.fill([kept], np.empty((1, 100), dtype=np.float32), advance=False)
     assert kept.bit_generator.state == before
+
+
+def test_rows_and_generators_must_match_one_to_one():
+    g = np.random.default_rng(5)
+    with pytest.raises(ValueError, match="its own generator"):
+        _normal_kernel.fill([g, g], np.empty((2, 10), dtype=np.float32))
+    with pytest.raises(ValueError, match="C-contiguous float32 array of 2 rows"):
+        _normal_kernel.fill([g, np.random.default_rng(6)], np.empty((3, 10), dtype=np.float32))
+    with pytest.raises(ValueError, match="C-contiguous float32"):
+        _normal_kernel.fill([g], np.empty((1, 10)))
