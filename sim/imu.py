@@ -23,7 +23,7 @@ The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.s
    the NumPy path for short runs in a process without numba — the same pulses bit for bit).
 
 The white-noise normals — about half the run's CPU, drawn by numpy with the GIL released —
-are drawn two blocks ahead in one worker thread, from the stage's construction on, while the
+are drawn two blocks ahead in one worker thread, from the first block on, while the
 main thread computes each block's kinematics (increments, their sums per thermal step, the
 table angles, the thermal steps at rest: every sample the same increment, bit for bit, whose
 measurement equation :func:`rlgsim.sim.sensor_triad.count_pulses` evaluates once per step),
@@ -70,7 +70,7 @@ from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
 from rlgsim.sim.noise import NOISE_LEVELS, NoiseModel, SlowNoise
-from rlgsim.sim.rng import BLOCK_S, generator
+from rlgsim.sim.rng import generator
 from rlgsim.sim.sensor_triad import count_pulses, step_inputs
 from rlgsim.sim.uhfo import Uhfo, UhfoModel
 
@@ -300,17 +300,15 @@ class ImuSimulator:
     the seed tree, ``rate_hz`` the IMU sample rate, ``step_s`` the thermal step, ``motion`` a
     :class:`rlgsim.sim.motion.Motion`, ``truth_samples`` store per-sample true increments too,
     ``prefetch`` draw the next blocks' white-noise normals in a worker thread, ``n_steps`` the
-    run's length in thermal steps (the thread stops after the last block), ``block_steps`` the
-    thermal steps of the blocks :meth:`block` will be given (when known, the worker starts on
-    the first blocks' normals at once, while the run is still being set up), ``compiled`` use
-    the compiled kernels (None: when numba is loaded or the run is long; see ``self.compiled``).
+    run's length in thermal steps (the thread stops after the last block; :meth:`close` stops
+    it earlier), ``compiled`` use the compiled kernels (None: when numba is loaded or the run
+    is long; see ``self.compiled``).
     """
 
     def __init__(self, realisation: ImuRealisation, node_names: Sequence[str], *, seed: int,
                  unit: int, rate_hz: float, step_s: float, motion=None,
                  truth_samples: bool = False, source: str = "", prefetch: bool = True,
-                 n_steps: int | None = None, block_steps: int | None = None,
-                 compiled: bool | None = None) -> None:
+                 n_steps: int | None = None, compiled: bool | None = None) -> None:
         self.r = realisation
         self.node_names = tuple(node_names)
         self.r.bind(self.node_names, source)
@@ -348,8 +346,6 @@ class ImuSimulator:
         self.gyro_white_sigma = lv["gyro_arw"] * math.sqrt(self.sample_dt)
         self.accel_white_sigma = (lv["accel_vrw"] * math.sqrt(self.sample_dt)
                                   if a is not None else np.zeros(0))
-        if self.prefetch and block_steps:      # the first blocks' normals, from now on
-            self._queue_after(-1, -int(block_steps), int(block_steps))
 
     # ---- state ----------------------------------------------------------------------------
     def initial_state(self) -> ImuState:
@@ -670,8 +666,7 @@ class ImuStage:
                                 unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
                                 step_s=timeline.step_s, motion=None,
                                 truth_samples=self.truth_samples,
-                                source=scenario.device.source, n_steps=timeline.n_steps,
-                                block_steps=int(round(BLOCK_S / timeline.step_s)))
+                                source=scenario.device.source, n_steps=timeline.n_steps)
         from rlgsim.sim.anomalies import AnomalyRun
         self.sim.anomalies = AnomalyRun.of(scenario, timeline)   # None unless [anomalies]
 

@@ -356,87 +356,79 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     blocks_per_write = max(1, int(round(chunk / BLOCK_S)))
 
     thermal = ThermalPart(scenario, timeline)
-    stages: list[Stage] = []
-    try:
-        for make in STAGES:
-            stage = make(scenario, timeline)
-            if stage is not None:
-                stages.append(stage)
-        motion = None
-        if any(getattr(s, "needs_motion", False) for s in stages):
-            from rlgsim.sim.motion import Motion
-            motion = Motion(timeline.segments, scenario.site)      # exact turntable kinematics
+    stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
+    motion = None
+    if any(getattr(s, "needs_motion", False) for s in stages):
+        from rlgsim.sim.motion import Motion
+        motion = Motion(timeline.segments, scenario.site)      # exact turntable kinematics
 
-        attrs = {
-            "title": f"rlgsim run of scenario {scenario.name}",
-            "scenario_name": scenario.name,
-            "scenario_description": scenario.description,
-            "scenario_source": scenario.source,
-            "scenario_text": scenario.text,
-            "device": scenario.device.name,
-            "device_text": scenario.device.text,
-            "thermal_preset_text": scenario.device.thermal.text,
-            "seed": np.int64(scenario.seed),
-            "unit": np.int64(scenario.unit),
-            "device_seed": np.int64(scenario.realisation_seed),
-            "duration_s": float(timeline.duration_s),
-            "thermal_step_s": float(step),
-            "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
-            "block_s": BLOCK_S,
-            "latitude_deg": scenario.site.latitude_deg,
-            "height_m": scenario.site.height_m,
-        }
-        from tqdm import tqdm
-        with DatasetWriter(out, attrs) as w:
-            write_timeline(w, timeline)
-            writers = {}
-            writers[thermal.group] = w.group(thermal.group, thermal.description)
-            thermal.declare(writers[thermal.group])
-            for s in stages:
-                if hasattr(s, "groups"):                 # a stage writing several groups
-                    for gname, gdesc in s.groups.items():
-                        writers[gname] = w.group(gname, gdesc)
-                    s.declare({gname: writers[gname] for gname in s.groups})
-                else:
-                    writers[s.group] = w.group(s.group, s.description)
-                    s.declare(writers[s.group])
-            check_budget(w._file, scenario, out, n_steps=n_steps, steps_per_block=per_block,
-                         buffered_blocks=blocks_per_write + 1, block_s=BLOCK_S,
-                         progress=progress)    # refuse what cannot fit (run_budget)
-            t_state = thermal.initial_state()
-            s_states = [s.initial_state() for s in stages]
-            bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
-                       delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
-            # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
-            # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
-            # Each block's buffers reuse the previous block's pages (no page faults; sim/_heap.py).
-            keep_freed_memory()
-            appender = _Appender(writers, blocks_per_write)
-            try:
-                with one_blas_thread(), _no_cyclic_gc():
-                    for b in range(n_blocks):
-                        if should_stop is not None and should_stop():
-                            raise KeyboardInterrupt("stop requested")
-                        k0 = b * per_block
-                        m = min(per_block, n_steps - k0)
-                        trace, t_state = thermal.block(t_state, b, k0, m)
-                        rows = [(thermal.group, thermal.rows(trace))]
-                        for i, s in enumerate(stages):
-                            srows, s_states[i] = s.block(s_states[i], b, trace, motion)
-                            if hasattr(s, "groups"):
-                                rows.extend(srows.items())
-                            else:
-                                rows.append((s.group, srows))
-                        appender.put(rows)          # written in the writer thread, in block order
-                        bar.update(round(m * step))
-                appender.close()
-            finally:
-                appender.cancel()                   # an error or a stop: discard what is queued
-                bar.close()
-        return out
-    finally:
-        # a stage's worker threads end with the run, whatever ended it (the last block, an
-        # error, a stop, a refused budget); draws queued and not taken are dropped
-        for stage in stages:
-            if hasattr(stage, "close"):
-                stage.close()
+    attrs = {
+        "title": f"rlgsim run of scenario {scenario.name}",
+        "scenario_name": scenario.name,
+        "scenario_description": scenario.description,
+        "scenario_source": scenario.source,
+        "scenario_text": scenario.text,
+        "device": scenario.device.name,
+        "device_text": scenario.device.text,
+        "thermal_preset_text": scenario.device.thermal.text,
+        "seed": np.int64(scenario.seed),
+        "unit": np.int64(scenario.unit),
+        "device_seed": np.int64(scenario.realisation_seed),
+        "duration_s": float(timeline.duration_s),
+        "thermal_step_s": float(step),
+        "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
+        "block_s": BLOCK_S,
+        "latitude_deg": scenario.site.latitude_deg,
+        "height_m": scenario.site.height_m,
+    }
+    from tqdm import tqdm
+    with DatasetWriter(out, attrs) as w:
+        write_timeline(w, timeline)
+        writers = {}
+        writers[thermal.group] = w.group(thermal.group, thermal.description)
+        thermal.declare(writers[thermal.group])
+        for s in stages:
+            if hasattr(s, "groups"):                 # a stage writing several groups
+                for gname, gdesc in s.groups.items():
+                    writers[gname] = w.group(gname, gdesc)
+                s.declare({gname: writers[gname] for gname in s.groups})
+            else:
+                writers[s.group] = w.group(s.group, s.description)
+                s.declare(writers[s.group])
+        check_budget(w._file, scenario, out, n_steps=n_steps, steps_per_block=per_block,
+                     buffered_blocks=blocks_per_write + 1, block_s=BLOCK_S,
+                     progress=progress)    # refuse what cannot fit (run_budget)
+        t_state = thermal.initial_state()
+        s_states = [s.initial_state() for s in stages]
+        bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
+                   delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
+        # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
+        # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
+        # Each block's buffers reuse the previous block's pages (no page faults; sim/_heap.py).
+        keep_freed_memory()
+        appender = _Appender(writers, blocks_per_write)
+        try:
+            with one_blas_thread(), _no_cyclic_gc():
+                for b in range(n_blocks):
+                    if should_stop is not None and should_stop():
+                        raise KeyboardInterrupt("stop requested")
+                    k0 = b * per_block
+                    m = min(per_block, n_steps - k0)
+                    trace, t_state = thermal.block(t_state, b, k0, m)
+                    rows = [(thermal.group, thermal.rows(trace))]
+                    for i, s in enumerate(stages):
+                        srows, s_states[i] = s.block(s_states[i], b, trace, motion)
+                        if hasattr(s, "groups"):
+                            rows.extend(srows.items())
+                        else:
+                            rows.append((s.group, srows))
+                    appender.put(rows)          # written in the writer thread, in block order
+                    bar.update(round(m * step))
+            appender.close()
+        finally:
+            appender.cancel()                   # an error or a stop: discard what is queued
+            bar.close()
+            for s in stages:                    # stop a stage's worker threads (their queued
+                if hasattr(s, "close"):         # draws are dropped)
+                    s.close()
+    return out

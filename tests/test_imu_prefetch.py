@@ -1,8 +1,8 @@
 """The IMU stage's inputs: the per-step sums taken from the motion's runs of one increment
 (against their plain definition, bit for bit), and blocks computed with their normals drawn
-ahead in the worker thread — queued block by block, or from construction on — against blocks
-computed in place (every array identical, a shorter last block included, with a copy of the
-carried state, and with blocks asked for in another layout than the one queued)."""
+ahead in the worker thread against blocks computed in place (every array identical, a shorter
+last block included, and with a copy of the carried state); a run that ends early stops the
+thread."""
 
 from __future__ import annotations
 
@@ -72,8 +72,7 @@ def test_uneven_steps_keep_the_plain_sums():
     assert same_bits(_step_sums(x, idx, 5, None), plain_sums(x, idx, 5))
 
 
-def _simulator(prefetch: bool, n_steps: int, rate_hz: float,
-               block_steps: int | None = None) -> ImuSimulator:
+def _simulator(prefetch: bool, n_steps: int, rate_hz: float) -> ImuSimulator:
     dev = load_device("rlg_imu_000")
     real = ImuModel.from_device(dev).realise(generator(3, 0, "realisation", "imu", 0))
     prog = TurntableProgram([Hold(150.3), Rotate("outer", 90.0, 20.0), Hold(90.0),
@@ -81,24 +80,18 @@ def _simulator(prefetch: bool, n_steps: int, rate_hz: float,
                             start_outer_deg=0.0, start_inner_deg=30.0)
     motion = Motion(segments_from_program(prog, n_steps + 600.0), SITE)
     return ImuSimulator(real, dev.thermal.network.node_names, seed=7, unit=0, rate_hz=rate_hz,
-                        step_s=1.0, motion=motion, prefetch=prefetch, n_steps=n_steps,
-                        block_steps=block_steps)
+                        step_s=1.0, motion=motion, prefetch=prefetch, n_steps=n_steps)
 
 
-@pytest.mark.parametrize("rate_hz, copied, block_steps", [
-    (100.0, False, None), (7.3, False, None), (100.0, True, None), (100.0, False, 300),
-    (7.3, False, 300), (100.0, False, 200)])
-def test_prefetched_blocks_are_the_blocks_computed_in_place(rate_hz, copied, block_steps):
+@pytest.mark.parametrize("rate_hz, copied", [(100.0, False), (7.3, False), (100.0, True)])
+def test_prefetched_blocks_are_the_blocks_computed_in_place(rate_hz, copied):
     """``copied``: each block gets a copy of the carried state, not the object the previous
-    block returned. ``block_steps``: the worker starts at construction, on blocks of that
-    many steps (200: not the blocks asked for, whose normals are then drawn in place)."""
+    block returned."""
     n_steps, m = 1000, 300                      # three full blocks and a short last one
     names = load_device("rlg_imu_000").thermal.network.node_names
     out = []
     for prefetch in (True, False):
-        sim = _simulator(prefetch, n_steps, rate_hz, block_steps if prefetch else None)
-        if prefetch and block_steps:
-            assert len(sim._ahead) > 0                  # drawing before the first block
+        sim = _simulator(prefetch, n_steps, rate_hz)
         state, rows = sim.initial_state(), []
         for b, k0 in enumerate(range(0, n_steps, m)):
             if copied and prefetch:
@@ -124,15 +117,18 @@ def test_prefetched_blocks_are_the_blocks_computed_in_place(rate_hz, copied, blo
 
 
 def test_a_stopped_run_stops_the_prefetch_thread(tmp_path):
-    """The worker starts when the stage is built; a run that ends early (here: stopped before
-    its first block) stops it too."""
+    """A run stopped after its first block (the worker started, blocks queued) stops the
+    worker too."""
+    import itertools
     import threading
 
     from rlgsim.sim.scenario import load_scenario
     from rlgsim.sim.simulate import simulate
 
+    asked = itertools.count()
     with pytest.raises(KeyboardInterrupt):
         simulate(load_scenario("quickstart"), tmp_path / "x.h5", progress=False,
-                 should_stop=lambda: True)
+                 should_stop=lambda: next(asked) >= 1)
+    assert next(asked) == 2                     # one block ran
     assert not [t for t in threading.enumerate() if t.name.startswith("rlgsim-imu")]
     assert not (tmp_path / "x.h5").exists()

@@ -130,15 +130,9 @@ def test_the_counter_is_chosen_by_run_length_when_numba_is_not_loaded(monkeypatc
     sc = load_scenario("quickstart")                      # 2 h at 100 Hz: 720 000 epochs
     tl = build_timeline(sc)
     monkeypatch.delitem(sys.modules, "numba", raising=False)
-    monkeypatch.setattr(imu, "PREFETCH_BLOCKS", 0)   # no draws (nor imports) in a worker
-    model = imu.ImuModel.from_device(sc.device)
-    stage = imu.ImuStage(sc, tl, model)
-    stage.close()
-    assert stage.sim.compiled is False
+    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is False
     monkeypatch.setattr(imu, "COMPILED_MIN_EPOCHS", 700_000)
-    stage = imu.ImuStage(sc, tl, model)
-    stage.close()
-    assert stage.sim.compiled is True
+    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is True
 
 
 def test_the_kernel_has_no_fused_multiply_add():
