@@ -74,8 +74,8 @@ OLD_GRADIENTS = """gradients = [
 
 
 def run_variant(name: str, tmp: pathlib.Path, rate_hz: float, pso: tuple[int, int] | None):
-    from rlgsim.sim.studies import gradient_selection as GS
-    from rlgsim.sim.study import parse_study
+    from rlgsim.lab.studies import gradient_selection as GS
+    from rlgsim.lab.study import parse_study
 
     d = tmp / name
     d.mkdir()

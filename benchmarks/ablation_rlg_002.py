@@ -95,8 +95,8 @@ def _scenario(env: str, parts: set[str], rate_hz: float) -> str:
 
 
 def run_variant(name: str, tmp: pathlib.Path, rate_hz: float) -> dict:
-    from rlgsim.sim.studies import environments as ENV
-    from rlgsim.sim.study import parse_study
+    from rlgsim.lab.studies import environments as ENV
+    from rlgsim.lab.study import parse_study
 
     parts = _parts(name)
     d = tmp / name

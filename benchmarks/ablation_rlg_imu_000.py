@@ -53,7 +53,7 @@ def _no_heater(text: str) -> str:
 
 def run_variant(name: str, tmp: pathlib.Path, hho: tuple[int, int], rate_hz: float,
                 scenario: str = "paper000_campaign") -> dict:
-    from rlgsim.sim.study import parse_study, recipe_module
+    from rlgsim.lab.study import parse_study, recipe_module
 
     d = tmp / name
     d.mkdir()

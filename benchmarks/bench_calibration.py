@@ -7,7 +7,7 @@
    (default min(2, CPUs) processes), seconds in total and per window.
 
 The campaign dataset is synthesised here in the rlgsim layout (docs/dataset.md) from the exact
-turntable kinematics (sim/motion.py) through the paper-000 pulse equations with the rlg_imu_000
+turntable kinematics (sim/motion/kinematics.py) through the paper-000 pulse equations with the rlg_imu_000
 preset's noise (white, flicker bias instability, random walk — so the filter runs its 51-state
 form) and integer pulses (tests/_turntable_pulses.py), streamed window by window; pass
 ``--dataset run.h5`` to time a dataset made by ``rlgsim run paper000_campaign`` instead.
@@ -37,8 +37,8 @@ from _turntable_pulses import (SITE, UG, nominal, random_truth, window,  # noqa:
 from rlgsim.estimators import kalman_calibration as cf  # noqa: E402
 from rlgsim.estimators.calibration import CampaignSettings, run_campaign  # noqa: E402
 from rlgsim.estimators.strapdown import navigate, normal_gravity, earth_rate_enu  # noqa: E402
-from rlgsim.sim.motion import Motion, segments_from_program  # noqa: E402
-from rlgsim.sim.turntable import TurntableProgram  # noqa: E402
+from rlgsim.sim.motion.kinematics import Motion, segments_from_program  # noqa: E402
+from rlgsim.sim.motion.turntable import TurntableProgram  # noqa: E402
 
 #: The rlg_imu_000 preset's noise (scenarios/devices/rlg_imu_000.toml [noise]).
 NOISE = dict(arw_deg_sqrt_h=0.0015, vrw_ug_sqrt_hz=10.0, gyro_bi_deg_h=0.003,

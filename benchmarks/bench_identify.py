@@ -77,9 +77,9 @@ def coverage_unit(task: tuple[int, dict, str]) -> dict:
     """Simulate, identify and score one coverage unit ``(u, drawn multipliers, folder)``."""
     from threadpoolctl import threadpool_limits
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.law_fit import bias_features, fit_laws
-    from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.thermal_fit import build, fit_thermal, twin_response
+    from rlgsim.lab.identify.law_fit import bias_features, fit_laws
+    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.thermal_fit import build, fit_thermal, twin_response
     import rlgsim
     u, mult, path = task
     folder = pathlib.Path(path)
@@ -243,7 +243,7 @@ def sf_coverage(n_units: int, work: pathlib.Path, preset: str = "rlg8_003") -> N
     """Part C: scale-factor coverage over ``n_units`` drawn units of ``preset``."""
     import h5py
     import rlgsim
-    from rlgsim.sim.identify.preset_text import dumps
+    from rlgsim.lab.identify.preset_text import dumps
     z, z_avg, rows, secs = [], [], [], []
     for u in range(1, n_units + 1):
         folder = work / f"sf{u}"
@@ -328,9 +328,9 @@ LAW_GROUPS = ("intercept and T polynomial", "knee/step", "rate", "gradients", "u
 def law_terms(path) -> dict[str, np.ndarray]:
     """The true bias law of a dataset split into :data:`LAW_GROUPS`, each on the 100 s windows
     of :func:`window_bias` [°/h]: every term evaluated as the simulator's law evaluates it
-    (sim/temperature_laws.py ``Law.evaluate``) from the truth record's drawn coefficients, true
+    (sim/sensors/temperature_laws.py ``Law.evaluate``) from the truth record's drawn coefficients, true
     node temperatures and true UHFO; the UHFO term split into the UHFO law's part (its own law
-    on the discharge node, sim/uhfo.py) and the discharge wander's (the true UHFO less its law:
+    on the discharge node, sim/sensors/uhfo.py) and the discharge wander's (the true UHFO less its law:
     a Gauss–Markov process each run draws anew); "hops and the rest" is the window law less
     the terms (the mode hops' offsets, which are not a coefficient)."""
     import re
@@ -454,9 +454,9 @@ def closed_loop(preset: str, units: int, work: pathlib.Path, times: list[float],
                 cpus: list[float]) -> None:
     import rlgsim
     from scipy.stats import spearmanr
-    from rlgsim.sim.identify import identify
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.lab.identify import identify
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     from rlgsim.sim import presets
     thermal_name = presets.load_device_file(preset).data["device"]["thermal_preset"]
     print(f"\nB. closed loop, {preset} (thermal template {thermal_name}), {units} drawn unit(s)")
@@ -469,7 +469,7 @@ def closed_loop(preset: str, units: int, work: pathlib.Path, times: list[float],
                                                        "thermal_step_s": 1.0},
                   "power": {"on_at_s": 0.0}, "chamber": {"start_c": 25.0 if name == "ident"
                                                          else 20.0, "segments": prog}}
-            from rlgsim.sim.identify.preset_text import dumps
+            from rlgsim.lab.identify.preset_text import dumps
             (folder / f"{name}.toml").write_text(dumps(sc))
             s = dataclasses.replace(load_scenario(str(folder / f"{name}.toml")), unit=unit)
             simulate(s, str(folder / f"orig_{name}.h5"), progress=False)
@@ -561,10 +561,10 @@ def hop_lines(folder: pathlib.Path, r, law_o, raw_o, law_rms: float, ratio: floa
     the identification with the hop handling switched off (as it was before it: no hop search,
     the template's ``[anomalies]`` kept) beside those with it."""
     import rlgsim
-    from rlgsim.sim.identify import hop_fit as H
-    from rlgsim.sim.identify import identify
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.lab.identify import hop_fit as H
+    from rlgsim.lab.identify import identify
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     with rlgsim.open_tree(str(folder / "orig_ident.h5"), load=True) as tr:
         a = tr["anomalies"] if "anomalies" in tr.children else None
         ev = ([] if a is None else list(zip(np.asarray(a["time"].values).tolist(),
@@ -616,9 +616,9 @@ def hop_false_alarms(seeds: int, work: pathlib.Path) -> None:
     and trplg_001's own law (knee, rate, UHFO)."""
     import tomllib
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.law_fit import fit_laws
-    from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.thermal_fit import build, twin_response
+    from rlgsim.lab.identify.law_fit import fit_laws
+    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.thermal_fit import build, twin_response
     dev_t = presets.load_device_file("trplg_001").data
     print(f"\nC. false mode hops on hop-free recordings, {seeds} seeds per law (family level "
           f"≤ 1 % per recording)")
@@ -646,10 +646,10 @@ def hop_false_alarms(seeds: int, work: pathlib.Path) -> None:
 def timing_10hz(work: pathlib.Path) -> tuple[float, float]:
     """One identification of trplg_001 unit 1 through the 20 h programme with the gyro at its
     papers' 10 Hz (720,000 samples; probes at 1 Hz): wall and CPU seconds (all processes)."""
-    from rlgsim.sim.identify import identify
-    from rlgsim.sim.identify.preset_text import dumps
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.lab.identify import identify
+    from rlgsim.lab.identify.preset_text import dumps
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     folder = work / "timing10"
     folder.mkdir()
     sc = {"name": "ident10", "description": "bench", "device": "trplg_001", "seed": 41,

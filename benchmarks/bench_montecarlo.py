@@ -1,4 +1,4 @@
-"""Benchmark of ``rlgsim montecarlo`` (sim/cli/montecarlo.py on the engine sim/montecarlo.py).
+"""Benchmark of ``rlgsim montecarlo`` (src/rlgsim/lab/cli/montecarlo.py on the engine src/rlgsim/lab/montecarlo.py).
 
 Runs N units of a small study (default: the shipped demo study, paper 001's method on an 8 h
 cycle twice, four compensators) three ways — a local pool of 1 worker, of 2 workers, and a
@@ -38,9 +38,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT)]
 
 from _machine import machine  # noqa: E402
-from rlgsim.sim.cli.montecarlo import identity, montecarlo_unit, study_payload  # noqa: E402
-from rlgsim.sim.montecarlo import local_executor, results_csv, run_campaign  # noqa: E402
-from rlgsim.sim.study import load_study  # noqa: E402
+from rlgsim.lab.cli.montecarlo import identity, montecarlo_unit, study_payload  # noqa: E402
+from rlgsim.lab.montecarlo import local_executor, results_csv, run_campaign  # noqa: E402
+from rlgsim.lab.study import load_study  # noqa: E402
 
 
 def _warm(delay_s: float = 0.0) -> int:
@@ -51,8 +51,8 @@ def _warm(delay_s: float = 0.0) -> int:
     import sklearn.linear_model  # noqa: F401
 
     import rlgsim.estimators.lssvm  # noqa: F401
-    import rlgsim.sim.simulate  # noqa: F401
-    import rlgsim.sim.studies.bias_compensation  # noqa: F401
+    import rlgsim.sim.run.simulate  # noqa: F401
+    import rlgsim.lab.studies.bias_compensation  # noqa: F401
     time.sleep(delay_s)
     return os.getpid()
 

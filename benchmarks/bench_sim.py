@@ -15,7 +15,7 @@ white-noise normals it must draw and an h5py write of as many bytes as its file)
 the same run right after the simulation. Both are wall-clock figures and the machine is shared:
 the CPU seconds of both are printed too (the limit is one thread; the simulator runs three), and
 the load average before and after. A stricter limit is printed beside it: the same normals drawn
-by the simulator's own compiled kernel (sim/_normal_kernel.py, ~0.55 of numpy's time). ``--repeat N`` (default 3) measures N (simulation, limit)
+by the simulator's own compiled kernel (sim/sensors/_normal_kernel.py, ~0.55 of numpy's time). ``--repeat N`` (default 3) measures N (simulation, limit)
 pairs alternately and prints the median ratio beside each pair's.
 
 ``--compare REV`` then times this tree against revision ``REV`` (``before-issue-12``: the
@@ -48,8 +48,8 @@ sys.path.insert(0, str(HERE.parent))
 
 from _machine import machine  # noqa: E402
 from rlgsim.sim import presets  # noqa: E402
-from rlgsim.sim.scenario import parse_scenario  # noqa: E402
-from rlgsim.sim.simulate import simulate  # noqa: E402
+from rlgsim.sim.run.scenario import parse_scenario  # noqa: E402
+from rlgsim.sim.run.simulate import simulate  # noqa: E402
 
 
 #: White-noise channels the IMU stage draws per epoch for rlg_imu_000 (3 gyros, 3 accelerometers).
@@ -71,10 +71,10 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
                   ) -> tuple[float, float]:
     """Seconds this machine needs for the simulator's unavoidable work: the white-noise normals
     it draws (``n_channels`` float32 standard normals per epoch, one generator call per channel
-    and block of ``block_epochs``, as rlgsim.sim.imu does) and writing ``n_bytes`` (the file's
+    and block of ``block_epochs``, as rlgsim.sim.sensors.imu does) and writing ``n_bytes`` (the file's
     size) with h5py into growing chunked datasets — the issue-16 "machine limit", with numpy's
     ``standard_normal``. ``compiled_draw``: the same normals drawn by the simulator's own
-    compiled kernel (sim/_normal_kernel.py, ~0.55 of numpy's time), three channels per call —
+    compiled kernel (sim/sensors/_normal_kernel.py, ~0.55 of numpy's time), three channels per call —
     the stricter limit once the simulator draws faster than numpy. Returns (wall, CPU)
     seconds."""
     import h5py
@@ -84,7 +84,7 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
     path = os.path.join(tmp, "limit.h5")
     bytes_per_epoch = n_bytes / max(n_epochs, 1)
     if compiled_draw:                           # loaded (and self-checked) before the clock
-        from rlgsim.sim._normal_kernel import available, fill
+        from rlgsim.sim.sensors._normal_kernel import available, fill
         from rlgsim.sim.rng import generator
         if not available():
             raise RuntimeError("the compiled normals do not reproduce numpy's here")
@@ -122,7 +122,7 @@ def machine_limit(n_epochs: int, n_channels: int, n_bytes: int,
 KERNEL_PROBE = r"""
 import json, time
 import numpy as np
-from rlgsim.sim.sensor_triad import count_pulses      # imports the kernel (numba) on first use
+from rlgsim.sim.sensors.sensor_triad import count_pulses      # imports the kernel (numba) on first use
 t0 = time.perf_counter()
 n, m = 600, 6
 count_pulses(np.zeros(3, np.int64), np.ones((m, 3)), np.zeros((m, 3)), np.zeros((m, 3, 3)),
@@ -133,7 +133,7 @@ print(json.dumps({"seconds": time.perf_counter() - t0}))
 
 def kernel_cost() -> tuple[float, float]:
     """Seconds a fresh process needs to import numba and get the compiled pulse counter
-    (rlgsim.sim._pulse_kernel) ready: (cold — an empty numba cache, so it compiles; cached —
+    (rlgsim.sim.sensors._pulse_kernel) ready: (cold — an empty numba cache, so it compiles; cached —
     the second process, which loads the compiled kernel from that cache)."""
     import json
     import shutil
@@ -154,7 +154,7 @@ def kernel_cost() -> tuple[float, float]:
 def counter_run(sc, out: pathlib.Path, chunk_s: float | None, compiled: bool) -> float:
     """Wall seconds of the same run with the compiled or the NumPy reference pulse counter
     (the same bytes either way)."""
-    import rlgsim.sim.imu as imu
+    import rlgsim.sim.sensors.imu as imu
     orig = imu.ImuSimulator.__init__
 
     def init(self, *a, **k):
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> None:
     epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
     tmpdir = tempfile.mkdtemp(prefix="rlgsim-bench-")
     out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
-    import rlgsim.sim.imu as imu
+    import rlgsim.sim.sensors.imu as imu
     compiled = "numba" in sys.modules or epochs >= imu.COMPILED_MIN_EPOCHS
     ru0 = resource.getrusage(resource.RUSAGE_SELF)
     wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
@@ -211,14 +211,14 @@ def main(argv: list[str] | None = None) -> None:
     print(f"wall time: {wall:.2f} s  (CPU {cpu:.2f} s: main thread {main_cpu:.2f} s, IMU "
           f"prefetch and writer threads {cpu - main_cpu:.2f} s — on an otherwise idle 2-core "
           f"machine the wall time approaches the larger of the two)")
-    counter = ("compiled kernel (sim/_pulse_kernel.py; numba's import and cached-kernel load "
+    counter = ("compiled kernel (sim/sensors/_pulse_kernel.py; numba's import and cached-kernel load "
                "are inside the wall time)" if compiled
                else f"NumPy (a run under {imu.COMPILED_MIN_EPOCHS:,} epochs)")
     print(f"epochs/s: {epochs / wall / 1e6:.2f} million  (pulse counter: {counter})")
     print(f"simulated/wall: {sc.duration_s / wall:,.0f}×")
     print(f"peak memory (max RSS): {peak_mb:.0f} MB; minor page faults in the run "
           f"{ru1.ru_minflt - ru0.ru_minflt:,}, kernel time {ru1.ru_stime - ru0.ru_stime:.2f} s "
-          f"(sim/_heap.py keeps freed block buffers for reuse)")
+          f"(sim/run/_heap.py keeps freed block buffers for reuse)")
     print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
     # the machine limit, measured in the same run right after: normal draws + h5py writes of
     # the same number of bytes as the file (target: the simulator at >= 0.8 of it)
@@ -231,9 +231,9 @@ def main(argv: list[str] | None = None) -> None:
     strict, strict_cpu = (machine_limit(epochs, N_WHITE_CHANNELS, out.stat().st_size,
                                         compiled_draw=True) if compiled else (limit, limit_cpu))
     print(f"stricter limit, the same normals drawn by the simulator's compiled kernel "
-          f"(sim/_normal_kernel.py): {strict:.2f} s (CPU {strict_cpu:.2f} s)" if compiled else
+          f"(sim/sensors/_normal_kernel.py): {strict:.2f} s (CPU {strict_cpu:.2f} s)" if compiled else
           "stricter limit: the same as the limit (a run this short draws with numpy: "
-          "sim/imu.py COMPILED_MIN_EPOCHS)")
+          "sim/sensors/imu.py COMPILED_MIN_EPOCHS)")
     ratios, stricts = [limit / wall], [strict / wall]
     for _ in range(max(1, args.repeat) - 1):   # more pairs, alternating: load drifts hit both
         t0 = time.perf_counter()

@@ -31,8 +31,8 @@ sys.path.insert(0, str(HERE))
 
 from _machine import machine  # noqa: E402
 from rlgsim.sim import presets  # noqa: E402
-from rlgsim.sim.scenario import parse_scenario  # noqa: E402
-from rlgsim.sim.simulate import simulate  # noqa: E402
+from rlgsim.sim.run.scenario import parse_scenario  # noqa: E402
+from rlgsim.sim.run.simulate import simulate  # noqa: E402
 
 TARGET_RATIO = 0.8
 #: the paper-000 scenarios' thermal step before the heater (now 5 s: docs/thermal.md §4.3)

@@ -1,4 +1,4 @@
-"""Wall time of the shipped studies (``rlgsim.sim.study.list_studies()``), run as ``rlgsim study``
+"""Wall time of the shipped studies (``rlgsim.lab.study.list_studies()``), run as ``rlgsim study``
 does, each beside issue 16's target (cold ≤ 60 s on 2 cores), with the machine and load.
 
 Each study runs in a fresh temporary folder: "cold" simulates its datasets, "warm" (unless
@@ -29,7 +29,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from _machine import machine  # noqa: E402
-from rlgsim.sim.study import list_studies, load_study, run_study  # noqa: E402
+from rlgsim.lab.study import list_studies, load_study, run_study  # noqa: E402
 
 #: Issue 16: every shipped study cold in at most a minute on 2 cores.
 TARGET_S = 60.0

@@ -30,12 +30,12 @@ def main(argv: list[str]) -> None:
     args = p.parse_args(argv)
 
     import h5py
-    import rlgsim.sim.simulate
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import ProbeStage, simulate
+    import rlgsim.sim.run.simulate
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import ProbeStage, simulate
 
     if not args.all_stages:            # the thermal benchmark: chamber, network, probes
-        rlgsim.sim.simulate.STAGES = [ProbeStage.create]
+        rlgsim.sim.run.simulate.STAGES = [ProbeStage.create]
 
     print(f"machine: {machine()}")
     t0 = time.perf_counter()

@@ -5,7 +5,7 @@ Paper 000: the RLG-IMU soaks at −5 °C for 4 h, then the chamber ramps to 65 �
 Printed: wall time and speed (simulated time / wall time) of
 
 * one :meth:`ThermalIntegrator.propagate` call over the whole programme,
-* the same in 600 s blocks with the state carried (what ``rlgsim.sim.simulate`` does),
+* the same in 600 s blocks with the state carried (what ``rlgsim.sim.run.simulate`` does),
 * the probes (``ProbeSet.read``) over the whole programme,
 
 with the machine line from ``benchmarks/_machine.py``. Run: ``python benchmarks/bench_thermal_core.py``.
@@ -26,11 +26,11 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _machine import machine  # noqa: E402
 
-from rlgsim.sim.chamber import ChamberProgram  # noqa: E402
+from rlgsim.sim.thermal.chamber import ChamberProgram  # noqa: E402
 from rlgsim.sim.config import Ctx  # noqa: E402
-from rlgsim.sim.thermal import ThermalNetwork  # noqa: E402
-from rlgsim.sim.thermal_integrator import ThermalIntegrator  # noqa: E402
-from rlgsim.sim.thermometers import ProbeSet  # noqa: E402
+from rlgsim.sim.thermal.network import ThermalNetwork  # noqa: E402
+from rlgsim.sim.thermal.integrator import ThermalIntegrator  # noqa: E402
+from rlgsim.sim.thermal.thermometers import ProbeSet  # noqa: E402
 
 BLOCK_S = 600
 REPEATS = 3

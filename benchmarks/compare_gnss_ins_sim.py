@@ -139,8 +139,8 @@ def find_gnss_ins_sim(given: str | None) -> tuple[dict, str]:
 
 
 def time_rlgsim(hours: float) -> dict:
-    from rlgsim.sim.scenario import parse_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.run.scenario import parse_scenario
+    from rlgsim.sim.run.simulate import simulate
     tmp = tempfile.mkdtemp(prefix="rlgsim-gis-")
     out = pathlib.Path(tmp) / "static.h5"
     t0, c0 = time.perf_counter(), time.process_time()

@@ -7,7 +7,7 @@ old, new, …) so that a change of load hits both, and prints the median epochs/
 their ratio beside the target, with the machine and the load average.
 
 The earlier revision (default: the parent of the first commit that added
-``sim/chamber_controller.py`` or ``sim/anomalies.py`` — the start of the issue-12 work) is
+``sim/thermal/chamber_controller.py`` or ``sim/sensors/anomalies.py`` — the start of the issue-12 work) is
 unpacked with ``git archive`` into a temporary folder (the repository is not touched) and run
 in a subprocess whose import path points there: the ``rlgsim`` namespace layout (``src/rlgsim``
 with ``sim/``, ``estimators/``, ``scenarios/`` mapped to ``rlgsim.sim``, …) is assembled from
@@ -48,8 +48,8 @@ DRIVER = r"""
 import json, os, sys, tempfile, time
 hours = float(sys.argv[1]); root = sys.argv[2]
 try:
-    from rlgsim.sim.scenario import parse_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.run.scenario import parse_scenario
+    from rlgsim.sim.run.simulate import simulate
 except ImportError:                         # before the rlgsim namespace: top-level packages
     from sim.scenario import parse_scenario
     from sim.simulate import simulate
@@ -76,10 +76,10 @@ def git(*args: str) -> str:
 
 def default_revision() -> str:
     """The parent of the first commit touching the issue-12 modules."""
-    first = git("log", "--format=%H", "--reverse", "--", "sim/chamber_controller.py",
-                "sim/anomalies.py").splitlines()
+    first = git("log", "--format=%H", "--reverse", "--", "sim/thermal/chamber_controller.py",
+                "sim/sensors/anomalies.py").splitlines()
     if not first:
-        raise SystemExit("no commit touches sim/chamber_controller.py or sim/anomalies.py; "
+        raise SystemExit("no commit touches sim/thermal/chamber_controller.py or sim/sensors/anomalies.py; "
                          "give --rev")
     return git("rev-parse", f"{first[0]}^")
 

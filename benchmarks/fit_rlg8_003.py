@@ -102,8 +102,8 @@ def simulate(params: dict[str, float], tmp: pathlib.Path, scenario: pathlib.Path
     probe 100 s means, probe names, scenario)."""
     import h5py
 
-    import rlgsim.sim.simulate as S
-    from rlgsim.sim.scenario import load_scenario
+    import rlgsim.sim.run.simulate as S
+    from rlgsim.sim.run.scenario import load_scenario
 
     thermal = THERMAL.read_text()
     for name, value in params.items():

@@ -40,8 +40,8 @@ HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from _machine import machine  # noqa: E402
-from rlgsim.sim.simulate import simulate  # noqa: E402
-from rlgsim.sim.study import load_study, scenario_for  # noqa: E402
+from rlgsim.sim.run.simulate import simulate  # noqa: E402
+from rlgsim.lab.study import load_study, scenario_for  # noqa: E402
 
 DEG_PER_H = 180.0 / math.pi * 3600.0
 WINDOW_S = 100.0

@@ -71,7 +71,7 @@ def _sub(text: str, key: str, value: float) -> str:
 
 
 def _network(text: str, tmp: pathlib.Path):
-    from rlgsim.sim.scenario import load_thermal_preset
+    from rlgsim.sim.run.scenario import load_thermal_preset
     path = tmp / "thermal.toml"
     path.write_text(text)
     return load_thermal_preset(str(path)).network
@@ -134,8 +134,8 @@ def heater_design(thermal: pathlib.Path, half_width_k: float) -> dict[str, float
 def simulate(tmp: pathlib.Path, thermal_text: str, device_text: str, *,
              scenario: pathlib.Path = SCENARIO, rate_hz: float = RATE_HZ):
     """The run of ``scenario`` with the given preset texts at ``rate_hz``; returns the path."""
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate as run
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate as run
 
     (tmp / "thermal.toml").write_text(thermal_text)
     dev = re.sub(r'^thermal_preset = "[^"]*"', f'thermal_preset = "{tmp / "thermal.toml"}"',
@@ -154,8 +154,8 @@ def simulate(tmp: pathlib.Path, thermal_text: str, device_text: str, *,
 
 def windows(path: pathlib.Path):
     """The study's window series (100 s, T from probe g.A, UHFO) of one run."""
-    from rlgsim.sim.studies.runs import read_run
-    from rlgsim.sim.studies.study_tables import FeatureSpec
+    from rlgsim.lab.studies.runs import read_run
+    from rlgsim.lab.studies.study_tables import FeatureSpec
     from rlgsim.sim.config import Ctx
     spec = FeatureSpec(window_s=100.0, gyro="z", temperature="g.A", uhfo=True, probes=(),
                        gradients=())

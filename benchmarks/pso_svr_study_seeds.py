@@ -4,7 +4,7 @@ compensators of ``rlgsim study paper003`` give, per search definition, over seve
 figures' distribution rather than on one seed (the choice inside a validation valley that is
 flat in C is noisy).
 
-It reuses the study's own code (``rlgsim.sim.studies.gradient_selection``: configuration, data,
+It reuses the study's own code (``rlgsim.lab.studies.gradient_selection``: configuration, data,
 input selection, fitting, scoring) and its datasets: the work folder is the study's report
 folder (``./paper003-study`` by default, as ``rlgsim study paper003`` writes it), whose
 ``data/`` is simulated on first use and reused after. Per variant (the named PSOSVR keyword
@@ -38,12 +38,12 @@ import numpy as np  # noqa: E402
 
 from _machine import machine  # noqa: E402
 from pso_svr_search_cap import VARIANTS  # noqa: E402
-from rlgsim.sim.study import load_study, recipe_module  # noqa: E402
-from rlgsim.sim.studies.fitting import fit_all  # noqa: E402
-from rlgsim.sim.studies.gradient_selection import (improvement_over_traditional,  # noqa: E402
+from rlgsim.lab.study import load_study, recipe_module  # noqa: E402
+from rlgsim.lab.studies.fitting import fit_all  # noqa: E402
+from rlgsim.lab.studies.gradient_selection import (improvement_over_traditional,  # noqa: E402
                                                    select_inputs)
-from rlgsim.sim.studies.runs import load_experiment  # noqa: E402
-from rlgsim.sim.studies.scoring import score_run  # noqa: E402
+from rlgsim.lab.studies.runs import load_experiment  # noqa: E402
+from rlgsim.lab.studies.scoring import score_run  # noqa: E402
 
 
 def study_figures(config, ex, fitted) -> dict[str, float]:

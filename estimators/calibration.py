@@ -284,7 +284,7 @@ class DatasetReader:
         return SensorModel.nominal(kg / ARCSEC, ka / G0)
 
     def noise(self) -> dict[str, float]:
-        """Nominal noise levels from the device preset's ``[noise]`` table (sim/noise.py keys:
+        """Nominal noise levels from the device preset's ``[noise]`` table (sim/sensors/noise.py keys:
         ``gyro_arw_deg_per_sqrt_h``, ``accel_vrw_ug_per_sqrt_hz``,
         ``gyro_bias_instability_deg_per_h``, ``gyro_rrw_deg_per_h_per_sqrt_h``,
         ``accel_bias_instability_ug``, ``accel_rrw_ug_per_sqrt_s``); absent keys are left out."""

@@ -221,7 +221,7 @@ class FilterSettings:
         the slow one) in SI² and SI²/s.
 
         Flicker of bias instability B is a continuum of Gauss–Markov processes with variance
-        B²·ln10/π per decade of correlation time (Keshner 1982; sim/noise.py builds it the same
+        B²·ln10/π per decade of correlation time (Keshner 1982; sim/sensors/noise.py builds it the same
         way). The fast process (τ_f = 20 s) stands for the two decades 2–200 s
         (σ_f² = 2·B²·ln10/π), the slow one (τ_s = 2000 s) for the two decades 200 s–20 000 s,
         which inside a window grow from their start value (part of the bias b) like a random

@@ -35,7 +35,7 @@ _INIT_B, _MULT_B = 0x8B51F9DD, 0x58F38DED
 _MIX_L, _MIX_R = 0xCA01F9DD, 0x4973F715
 _MASK = 0xFFFFFFFF
 #: Simulated length of one block [s]: the unit of time of the tree's leaves. A run advances
-#: block by block (:mod:`rlgsim.sim.simulate`); fixed, so that no byte depends on the chunk
+#: block by block (:mod:`rlgsim.sim.run.simulate`); fixed, so that no byte depends on the chunk
 #: size. The scenario loader checks that thermal steps and samples tile it.
 BLOCK_S = 600.0
 

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlgsim.sim.earth import Site
-from rlgsim.sim.imu import ImuModel, ImuSimulator
-from rlgsim.sim.motion import Motion, segments_from_program
+from rlgsim.sim.motion.site import Site
+from rlgsim.sim.sensors.imu import ImuModel, ImuSimulator
+from rlgsim.sim.motion.kinematics import Motion, segments_from_program
 from rlgsim.sim.rng import generator
 
 #: Node names of a three-gyro IMU (the thermal preset's naming) and of a single gyro block.
@@ -22,7 +22,7 @@ SITE = Site(34.0, 0.0)
 
 @dataclass
 class Trace:
-    """Stand-in for rlgsim.sim.simulate.ThermalTrace (the fields the sensor stage reads)."""
+    """Stand-in for rlgsim.sim.run.simulate.ThermalTrace (the fields the sensor stage reads)."""
 
     t_s: np.ndarray
     step_s: float

@@ -1,10 +1,10 @@
 """Test helper: turntable pulses through the paper-000 measurement equations.
 
-Exact kinematics from :mod:`rlgsim.sim.motion`, then per sample
+Exact kinematics from :mod:`rlgsim.sim.motion.kinematics`, then per sample
 N_g = K_g (D_g Δt + E_g Δθ + n_g), N_a = K_a^± (D_a Δt + E_a Δv + n_a) with white angle /
 velocity random walk n and, optionally, integer pulses counted with the remainder carried
 (no pulse lost). The estimators' tests use it so that they do not depend on the sensor
-engineer's full IMU model (sim/imu.py), whose temperature laws they do not need.
+engineer's full IMU model (sim/sensors/imu.py), whose temperature laws they do not need.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import numpy as np
 
 from rlgsim.estimators.kalman_calibration import CommandedMotion
 from rlgsim.estimators.strapdown import ARCSEC, SensorModel
-from rlgsim.sim.earth import Site
-from rlgsim.sim.motion import Motion, segments_from_program
-from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.sim.motion.site import Site
+from rlgsim.sim.motion.kinematics import Motion, segments_from_program
+from rlgsim.sim.motion.turntable import TurntableProgram
 
 KG = 2.14 / ARCSEC                  # pulses/rad (paper 000: 2.14 pulses/arcsec)
 KA = 5000.0 / 9.80665               # pulses/(m/s): 5000 pulses/s at 1 g
@@ -80,10 +80,10 @@ def window_slow_noise(truth: SensorModel, program: TurntableProgram, *, rate_hz=
                       gyro_rrw_deg_h_sqrt_h=0.0, accel_bi_ug=0.0, accel_rrw_ug_sqrt_s=0.0,
                       seed=0, step_s=1.0):
     """As :func:`window` with integer pulses, plus bias instability (flicker, the simulator's
-    :class:`rlgsim.sim.noise.FlickerBank`) and rate random walk on every bias, held per ``step_s``
+    :class:`rlgsim.sim.sensors.noise.FlickerBank`) and rate random walk on every bias, held per ``step_s``
     like the simulator's thermal step. Returns pulses, motions and the model whose biases are
     the true window means."""
-    from rlgsim.sim.noise import FlickerBank, RandomWalk
+    from rlgsim.sim.sensors.noise import FlickerBank, RandomWalk
     segs = segments_from_program(program, program.duration_s)
     n = int(round(program.duration_s * rate_hz))
     blk = Motion(segs, SITE).increments(0.0, n, rate_hz)

@@ -8,8 +8,8 @@ import copy
 import pathlib
 
 from rlgsim.sim import presets
-from rlgsim.sim.identify.preset_text import dumps
-from rlgsim.sim.identify.thermal_fit import apply_multipliers, thermal_parameters
+from rlgsim.lab.identify.preset_text import dumps
+from rlgsim.lab.identify.thermal_fit import apply_multipliers, thermal_parameters
 
 #: multipliers a 3-5 h programme identifies on rlg_single (the screen keeps them all)
 IDENTIFIABLE = ("rlg_block.power", "rlg_block.internal_conductance", "rlg_block.air_conductance",
@@ -82,6 +82,6 @@ def scenario(folder: pathlib.Path, device: pathlib.Path, *, programme=PROGRAMME_
 
 
 def simulate(scenario_path: pathlib.Path, out: pathlib.Path) -> pathlib.Path:
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate as _sim
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate as _sim
     return _sim(load_scenario(str(scenario_path)), str(out), progress=False)

@@ -1,5 +1,5 @@
 """Independent re-reading of a single-gyro dataset for the study tests: h5py and numpy only,
-none of the code under test (rlgsim.sim.studies.runs.read_run, rlgsim.estimators.features).
+none of the code under test (rlgsim.lab.studies.runs.read_run, rlgsim.estimators.features).
 
 Window means over ``window_s`` (100 s, as papers 001-003) of the measured bias y — pulses over
 the nominal scale factor minus the table's known input rate (Earth rate on the gyro axis), °/h

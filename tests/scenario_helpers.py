@@ -7,7 +7,7 @@ import copy
 import pathlib
 import tomllib
 
-from rlgsim.sim.scenario import Scenario, parse_scenario
+from rlgsim.sim.run.scenario import Scenario, parse_scenario
 from rlgsim.ground.toml_text import dumps, value_text
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

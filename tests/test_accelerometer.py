@@ -1,4 +1,4 @@
-"""Accelerometer model (sim/accelerometer.py): gravity to pulse resolution, K+/K− chosen by
+"""Accelerometer model (sim/sensors/accelerometer.py): gravity to pulse resolution, K+/K− chosen by
 the sign of the input, temperature laws, velocity random walk through the pulse chain."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ import pytest
 
 from _imu_helpers import SITE, cat, make_sim, run
 from rlgsim.ground import units
-from rlgsim.sim import pulses
-from rlgsim.sim.accelerometer import AccelerometerModel
+from rlgsim.sim.sensors import pulses
+from rlgsim.sim.sensors.accelerometer import AccelerometerModel
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.motion import body_to_enu
-from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.sim.motion.kinematics import body_to_enu
+from rlgsim.sim.motion.turntable import TurntableProgram
 
 KA = 5000.0 / units.G0                          # pulses/(m/s): 5000 pulses/s at 1 g0
 

@@ -1,4 +1,4 @@
-"""Sensor anomalies with a labelled event record (rlgsim.sim.anomalies).
+"""Sensor anomalies with a labelled event record (rlgsim.sim.sensors.anomalies).
 
 References: the closed-form hop temperatures of eq. (A1) on a slow up/down ramp; exact
 bookkeeping of every pulse and reading; Poisson statistics over many blocks."""
@@ -10,7 +10,7 @@ import pytest
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
-from rlgsim.sim.anomalies import AnomalyModel, Anomalies, Events
+from rlgsim.sim.sensors.anomalies import AnomalyModel, Anomalies, Events
 from rlgsim.sim.config import Ctx
 
 CTX = Ctx("dev.toml", "anomalies")

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PULSES = """

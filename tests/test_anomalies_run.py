@@ -10,8 +10,8 @@ import h5py
 import numpy as np
 import pytest
 
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 ANOMALIES = """

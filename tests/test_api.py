@@ -115,7 +115,7 @@ def test_compensator_on_dataframe_prints_column_names():
 
 
 def test_scheduler_without_the_cluster_extra(monkeypatch, capsys):
-    from rlgsim.sim.cli.montecarlo import connect
+    from rlgsim.lab.cli.montecarlo import connect
     monkeypatch.setitem(sys.modules, "distributed", None)        # as if not installed
     with pytest.raises(UserInputError, match=r"pip install 'rlgsim\[cluster\]'"):
         connect("tcp://127.0.0.1:8786")
@@ -124,9 +124,9 @@ def test_scheduler_without_the_cluster_extra(monkeypatch, capsys):
 def test_public_modules_declare_all():
     import importlib
     for mod in ("rlgsim.api", "rlgsim.ground.recording", "rlgsim.ground.recording_export",
-                "rlgsim.ground.programme", "rlgsim.ground.datatree", "rlgsim.sim.recordings",
-                "rlgsim.sim.scenario_changes", "rlgsim.estimators.recording_calibration",
-                "rlgsim.sim.scenario", "rlgsim.sim.simulate", "rlgsim.sim.study",
+                "rlgsim.ground.programme", "rlgsim.ground.datatree", "rlgsim.lab.recordings",
+                "rlgsim.sim.run.scenario_changes", "rlgsim.estimators.recording_calibration",
+                "rlgsim.sim.run.scenario", "rlgsim.sim.run.simulate", "rlgsim.lab.study",
                 "rlgsim.ground.dataset_format", "rlgsim.ground.errors",
                 "rlgsim.estimators.polynomial", "rlgsim.estimators.stepwise",
                 "rlgsim.estimators.mlr", "rlgsim.estimators.lssvm",
@@ -171,8 +171,8 @@ def test_calibrate_api_uses_the_cli_filter_settings(tmp_path):
     from _turntable_pulses import random_truth, write_dataset
     from rlgsim.estimators.calibration import (CampaignSettings, DatasetReader, _filter_settings,
                                                filter_settings)
-    from rlgsim.sim.cli.main import main
-    from rlgsim.sim.turntable import TurntableProgram
+    from rlgsim.lab.cli.main import main
+    from rlgsim.sim.motion.turntable import TurntableProgram
     prog = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
     h5 = tmp_path / "run.h5"
     write_dataset(h5, random_truth(np.random.default_rng(5)), prog, prog.duration_s,

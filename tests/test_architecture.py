@@ -1,10 +1,11 @@
 """The house rules of the import graph, read from the source with ``ast`` (nothing is imported):
 
 * no import circles among the modules of ``sim/``, ``estimators/`` and ``src/rlgsim/``;
-* ``estimators/`` and the ground package ``src/rlgsim/ground/`` never import ``rlgsim.sim``
-  (they work on real recordings too);
-* the study runner ``sim/study.py`` never imports the recipes or building blocks in
-  ``sim/studies/`` (it finds a recipe by name), and every recipe module there is registered.
+* the wings: ``rlgsim.sim`` (the simulator) and ``rlgsim.estimators`` never import each other;
+  ``rlgsim.lab`` may import both; the ground package ``rlgsim.ground`` imports none of the three;
+  nothing inside the package imports the public facade (``rlgsim.api``, the root ``rlgsim``);
+* the study runner ``src/rlgsim/lab/study.py`` never imports the recipes or building blocks in
+  ``src/rlgsim/lab/studies/`` (it finds a recipe by name), and every recipe module there is registered.
 
 Every ``import`` and ``from ... import`` counts, wherever it stands (module level, inside a
 function, under ``if TYPE_CHECKING``), relative imports included: a function-level import that
@@ -123,16 +124,16 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_graph_is_read():
     # the parser sees the modules and their edges, relative and function-level imports included
-    assert "rlgsim.sim.study" in MODULES and "rlgsim.estimators.metrics" in MODULES
-    assert "rlgsim.ground.errors" in GRAPH["rlgsim.sim.study"]
-    known = {"rlgsim", "rlgsim.ground", "rlgsim.ground.errors", "rlgsim.sim", "rlgsim.sim.study",
-             "rlgsim.sim.studies", "rlgsim.sim.studies.runs", "rlgsim.sim.studies.fitting"}
+    assert "rlgsim.lab.study" in MODULES and "rlgsim.estimators.metrics" in MODULES
+    assert "rlgsim.ground.errors" in GRAPH["rlgsim.lab.study"]
+    known = {"rlgsim", "rlgsim.ground", "rlgsim.ground.errors", "rlgsim.sim", "rlgsim.lab.study",
+             "rlgsim.lab.studies", "rlgsim.lab.studies.runs", "rlgsim.lab.studies.fitting"}
     text = ("from . import runs\nfrom ..study import Study\nimport numpy\n"
             "def f():\n    from rlgsim.ground.errors import UserInputError\n")
-    assert edges(text, "rlgsim.sim.studies.fitting", False, known) == {
-        "rlgsim.sim.studies.runs", "rlgsim.sim.study", "rlgsim.ground.errors"}
-    assert edges("from .studies import runs\n", "rlgsim.sim", True, known) == {
-        "rlgsim.sim.studies.runs"}
+    assert edges(text, "rlgsim.lab.studies.fitting", False, known) == {
+        "rlgsim.lab.studies.runs", "rlgsim.lab.study", "rlgsim.ground.errors"}
+    assert edges("from .studies import runs\n", "rlgsim.lab", True, known | {"rlgsim.lab"}) == {
+        "rlgsim.lab.studies.runs"}
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
@@ -150,31 +151,66 @@ def test_no_import_circles():
     assert [c for c in KNOWN_CIRCLES if c not in cycles] == [], "remove it from KNOWN_CIRCLES"
 
 
-@pytest.mark.parametrize("prefix", ["rlgsim.estimators", "rlgsim.ground"])
-def test_estimators_and_ground_never_import_sim(prefix):
-    bad = {m: sorted(t for t in GRAPH[m] if t == "rlgsim.sim" or t.startswith("rlgsim.sim."))
-           for m in MODULES if m == prefix or m.startswith(prefix + ".")}
+def _inside(module: str, wing: str) -> bool:
+    return module == wing or module.startswith(wing + ".")
+
+
+#: wing -> the wings it must never import
+FORBIDDEN = {
+    "rlgsim.sim": ("rlgsim.estimators", "rlgsim.lab"),
+    "rlgsim.estimators": ("rlgsim.sim", "rlgsim.lab"),
+    "rlgsim.ground": ("rlgsim.sim", "rlgsim.estimators", "rlgsim.lab"),
+}
+
+
+@pytest.mark.parametrize("wing", sorted(FORBIDDEN))
+def test_the_wings_import_only_downwards(wing):
+    bad = {m: sorted(t for t in GRAPH[m] if any(_inside(t, w) for w in FORBIDDEN[wing]))
+           for m in MODULES if _inside(m, wing)}
     assert {m: t for m, t in bad.items() if t} == {}
 
 
+def test_sim_and_estimators_share_no_arrow_either_way():
+    sim_est = sum(1 for m in MODULES if _inside(m, "rlgsim.sim")
+                  for t in GRAPH[m] if _inside(t, "rlgsim.estimators"))
+    est_sim = sum(1 for m in MODULES if _inside(m, "rlgsim.estimators")
+                  for t in GRAPH[m] if _inside(t, "rlgsim.sim"))
+    assert (sim_est, est_sim) == (0, 0)
+
+
+def test_nothing_inside_imports_the_public_facade():
+    # the facade (rlgsim.api, the lazy public names of the root) is for users; inside, a module
+    # imports the room that holds the name (the root's __version__ is no facade)
+    bad = sorted(m for m in MODULES if m != "rlgsim.api" and "rlgsim.api" in GRAPH[m])
+    for m, (path, _) in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module == "rlgsim" and not node.level:
+                bad += [f"{m}: {a.name}" for a in node.names if a.name != "__version__"]
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                    and node.value.id == "rlgsim" and not node.attr.startswith("_") \
+                    and node.attr not in ("sim", "estimators", "lab", "ground", "scenarios"):
+                bad.append(f"{m}: rlgsim.{node.attr}")
+    assert bad == []
+
+
 def test_the_study_runner_does_not_import_its_recipes():
-    assert sorted(t for t in GRAPH["rlgsim.sim.study"]
-                  if t.startswith("rlgsim.sim.studies")) == []
+    assert sorted(t for t in GRAPH["rlgsim.lab.study"]
+                  if t.startswith("rlgsim.lab.studies")) == []
 
 
 def test_every_recipe_module_is_registered_and_has_the_recipe_shape():
     import importlib
 
-    from rlgsim.sim.study import RECIPES
+    from rlgsim.lab.study import RECIPES
     found = []
     for m in MODULES:
-        if m.startswith("rlgsim.sim.studies."):
+        if m.startswith("rlgsim.lab.studies."):
             tree = ast.parse(MODULES[m][0].read_text(encoding="utf-8"))
             defs = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
             if {"check", "run"} <= defs:
                 found.append(m.rpartition(".")[2])
     assert sorted(found) == sorted(RECIPES)
     for name in RECIPES:
-        module = importlib.import_module(f"rlgsim.sim.studies.{name}")
+        module = importlib.import_module(f"rlgsim.lab.studies.{name}")
         assert callable(module.check) and callable(module.run)
         assert callable(getattr(module, "report", print))       # the optional hook

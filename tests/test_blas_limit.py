@@ -8,8 +8,8 @@ import threading
 
 import pytest
 
-import rlgsim.sim.thermal_integrator as ti
-from rlgsim.sim.thermal_integrator import one_blas_thread
+import rlgsim.sim.thermal.integrator as ti
+from rlgsim.sim.thermal.integrator import one_blas_thread
 
 
 class _Recorder:

@@ -7,7 +7,7 @@ import copy
 import numpy as np
 import pytest
 
-from rlgsim.sim.chamber import (ChamberProgram, Hold, PiecewiseLinear, RandomProfile, Ramp, Repeat,
+from rlgsim.sim.thermal.chamber import (ChamberProgram, Hold, PiecewiseLinear, RandomProfile, Ramp, Repeat,
                          Step, rate_limit)
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError

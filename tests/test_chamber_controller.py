@@ -1,4 +1,4 @@
-"""The chamber's own air loop (rlgsim.sim.chamber_controller) against independent references.
+"""The chamber's own air loop (rlgsim.sim.thermal.chamber_controller) against independent references.
 
 Reference: the same sampled-data loop written out here independently and integrated between
 controller samples by scipy.integrate.solve_ivp (DOP853, rtol = atol = 1e-11) with the
@@ -14,11 +14,11 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.chamber import ChamberProgram
-from rlgsim.sim.chamber_controller import ChamberController, ChamberLoop
+from rlgsim.sim.thermal.chamber import ChamberProgram
+from rlgsim.sim.thermal.chamber_controller import ChamberController, ChamberLoop
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.thermal import ThermalNetwork
-from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
 
 def reference_loop(c: ChamberController, loop: ChamberLoop, x0, setpoint, t_end: float,

@@ -10,14 +10,14 @@ import pathlib
 import h5py
 import pytest
 
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "rlgsim.sim.cli", *args], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "rlgsim.lab.cli", *args], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=120)
 
 
@@ -76,7 +76,7 @@ def test_a_sigterm_landing_in_a_finaliser_prints_no_traceback(capsys):
     any other unraisable exception is still reported."""
     import importlib
     import sys
-    cli_main = importlib.import_module("rlgsim.sim.cli.main")
+    cli_main = importlib.import_module("rlgsim.lab.cli.main")
 
     class Finaliser:
         def __del__(self):

@@ -1,4 +1,4 @@
-"""``rlgsim calibrate`` (sim/cli/calibrate.py): table, dataset group, figures, user errors."""
+"""``rlgsim calibrate`` (src/rlgsim/lab/cli/calibrate.py): table, dataset group, figures, user errors."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from _turntable_pulses import random_truth, write_dataset
-from rlgsim.sim.cli.main import main
-from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.lab.cli.main import main
+from rlgsim.sim.motion.turntable import TurntableProgram
 
 PROG = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
 

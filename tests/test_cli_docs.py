@@ -9,7 +9,7 @@ import re
 import pytest
 
 from rlgsim import __version__
-from rlgsim.sim.cli.main import _parser, main
+from rlgsim.lab.cli.main import _parser, main
 
 README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
 

@@ -18,10 +18,10 @@ import xarray as xr
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import FORMAT, open_dataset
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim import dataset
-from rlgsim.sim.scenario import load_scenario, parse_scenario
-import rlgsim.sim.simulate as simulate_module
-from rlgsim.sim.simulate import BLOCK_S, simulate
+from rlgsim.sim.writer import dataset
+from rlgsim.sim.run.scenario import load_scenario, parse_scenario
+import rlgsim.sim.run.simulate as simulate_module
+from rlgsim.sim.run.simulate import BLOCK_S, simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 QUICKSTART = ROOT / "scenarios" / "quickstart.toml"
@@ -181,7 +181,7 @@ def _start_long_run(tmp_path):
     out = tmp_path / "long.h5"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     err = open(tmp_path / "stderr.txt", "w+")       # a file: a full pipe would block the run
-    proc = subprocess.Popen([sys.executable, "-m", "rlgsim.sim.cli", "run", str(scenario), "-o",
+    proc = subprocess.Popen([sys.executable, "-m", "rlgsim.lab.cli", "run", str(scenario), "-o",
                              str(out), "--quiet"], env=env, cwd=tmp_path, stderr=err)
     proc.err_text = lambda: (err.seek(0), err.read())[1]
     deadline = time.monotonic() + 120

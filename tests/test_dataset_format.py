@@ -1,6 +1,6 @@
 """The dataset format and its one reader (src/rlgsim/ground/dataset_format.py).
 
-References: the arrays written with the writer of sim/dataset.py and read back with h5py
+References: the arrays written with the writer of sim/writer/dataset.py and read back with h5py
 directly; files that are not rlgsim datasets (or of another version) must give one line.
 """
 
@@ -16,7 +16,7 @@ import rlgsim
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import MissingVariableError, open_dataset
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.dataset import DatasetWriter, add_group
+from rlgsim.sim.writer.dataset import DatasetWriter, add_group
 
 
 @pytest.fixture()

@@ -14,9 +14,9 @@ import pytest
 
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import open_dataset
-from rlgsim.sim.dataset_schema import DESCRIPTIONS
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.writer.schema import DESCRIPTIONS
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -24,9 +24,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.cli.main import main
-from rlgsim.sim.scenario import parse_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.lab.cli.main import main
+from rlgsim.sim.run.scenario import parse_scenario
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 QUICK = (ROOT / "scenarios" / "quickstart.toml").read_text()
@@ -102,7 +102,7 @@ def test_format_marker_is_written_last_and_stale_temporaries_are_removed(tmp_pat
     live = tmp_path / f"t.h5.tmp-{os.getppid()}"             # a live process: kept
     live.write_bytes(b"running")
     seen = {}
-    from rlgsim.sim import dataset
+    from rlgsim.sim.writer import dataset
 
     real_commit = dataset.DatasetWriter.commit
 

@@ -9,7 +9,7 @@ import pathlib
 
 import pytest
 
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMO = (ROOT / "scenarios" / "studies" / "demo.toml").read_text()

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 from scenario_helpers import CAL_SCENARIO
 
 

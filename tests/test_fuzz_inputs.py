@@ -16,7 +16,7 @@ from hypothesis import example, given, HealthCheck, settings
 from hypothesis import strategies as st
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 QUICK = (ROOT / "scenarios" / "quickstart.toml").read_text()
@@ -96,7 +96,7 @@ def test_deep_toml_is_one_line(here, capsys, text):
 
 def test_utf8_bom_is_accepted():
     from rlgsim.sim import presets
-    from rlgsim.sim.scenario import parse_scenario
+    from rlgsim.sim.run.scenario import parse_scenario
     assert presets.parse_toml("\ufeffa = 1", "bom.toml") == {"a": 1}
     sc = parse_scenario("\ufeff" + short(), "bom.toml")
     assert sc.name == "quickstart" and sc.duration_s == 600
@@ -123,7 +123,7 @@ def test_absurd_preset_coefficient_is_refused_by_the_pulse_counter(here, capsys,
 def test_pulse_counter_bounds():
     import numpy as np
 
-    from rlgsim.sim import pulses
+    from rlgsim.sim.sensors import pulses
     ok = np.full(10, 1e3)
     pulses.check_range(ok)
     for bad in (np.array([np.nan]), np.array([np.inf]), np.array([3e9]),
@@ -177,7 +177,7 @@ def test_subnormal_thermal_step_is_one_line(here, capsys):
 def test_output_larger_than_the_free_disk_is_refused_under_quiet(here, capsys, monkeypatch):
     import collections
 
-    from rlgsim.sim import run_budget
+    from rlgsim.sim.run import run_budget
     usage = collections.namedtuple("usage", "total used free")
     monkeypatch.setattr(run_budget.shutil, "disk_usage", lambda p: usage(10**7, 0, 10**5))
     (here / "q.toml").write_text(short())
@@ -187,7 +187,7 @@ def test_output_larger_than_the_free_disk_is_refused_under_quiet(here, capsys, m
 
 
 def test_long_runs_print_their_estimate(here, capsys, monkeypatch):
-    from rlgsim.sim import run_budget
+    from rlgsim.sim.run import run_budget
     monkeypatch.setattr(run_budget, "LONG_RUN_S", 0.0)
     (here / "q.toml").write_text(short())
     assert main(["run", "q.toml", "-o", "q.h5"]) == 0
@@ -200,8 +200,8 @@ def test_long_runs_print_their_estimate(here, capsys, monkeypatch):
 def test_estimate_is_close_to_the_real_size(here, capsys):
     import h5py
 
-    from rlgsim.sim.run_budget import estimate
-    from rlgsim.sim.scenario import parse_scenario
+    from rlgsim.sim.run.run_budget import estimate
+    from rlgsim.sim.run.scenario import parse_scenario
     (here / "q.toml").write_text(short(duration="duration_h = 1"))
     assert main(["run", "q.toml", "-o", "q.h5", "-q"]) == 0
     sc = parse_scenario((here / "q.toml").read_text(), "q.toml")
@@ -295,7 +295,7 @@ VALUES = st.one_of(
 @given(key=st.sampled_from(KEYS), value=VALUES, which=st.integers(0, 3))
 @example(key="duration_h", value="1e308", which=0)     # overflowed in SI (OverflowError)
 def test_fuzzed_scenario_values_are_user_errors_or_valid(key, value, which):
-    from rlgsim.sim.scenario import parse_scenario
+    from rlgsim.sim.run.scenario import parse_scenario
     lines = QUICK.splitlines()
     hits = [i for i, line in enumerate(lines) if line.split("=")[0].strip() == key]
     if hits:

@@ -19,7 +19,7 @@ import psutil
 import pytest
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.montecarlo import (finished_units, results_csv, run_campaign, scan_units,
+from rlgsim.lab.montecarlo import (finished_units, results_csv, run_campaign, scan_units,
                                    unit_path)
 
 from mc_toy_units import toy_unit
@@ -36,7 +36,7 @@ def test_sigkill_of_the_coordinator_leaves_no_process(tmp_path):
         import sys
         sys.path.insert(0, {str(TESTS)!r})
         from mc_toy_units import toy_unit
-        from rlgsim.sim.montecarlo import run_campaign
+        from rlgsim.lab.montecarlo import run_campaign
         if __name__ == "__main__":
             run_campaign(toy_unit, {{"seed": 1, "sleep_s": 0.3}}, 40, sys.argv[1], workers=2,
                          progress=False)

@@ -1,4 +1,4 @@
-"""Gyro model (sim/gyro.py, sim/pulses.py, sim/temperature_laws.py): Earth rate, a 360° turn, pulse
+"""Gyro model (sim/sensors/gyro.py, sim/sensors/pulses.py, sim/sensors/temperature_laws.py): Earth rate, a 360° turn, pulse
 conservation, temperature laws, white-noise ADEV through the whole pulse chain."""
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ import pytest
 
 from _imu_helpers import SITE, cat, make_sim, run
 from rlgsim.ground import units
-from rlgsim.sim import pulses
+from rlgsim.sim.sensors import pulses
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.gyro import GyroModel
-from rlgsim.sim.sensor_triad import installation_rows, sample_step_index
-from rlgsim.sim.motion import Motion, body_to_enu, segments_from_program
-from rlgsim.sim.turntable import Hold, Rotate, TurntableProgram
+from rlgsim.sim.sensors.gyro import GyroModel
+from rlgsim.sim.sensors.sensor_triad import installation_rows, sample_step_index
+from rlgsim.sim.motion.kinematics import Motion, body_to_enu, segments_from_program
+from rlgsim.sim.motion.turntable import Hold, Rotate, TurntableProgram
 
 K_ARCSEC = 2.14
 K = K_ARCSEC / units.ARCSEC                                  # pulses/rad

@@ -10,12 +10,12 @@ import pandas as pd
 import pytest
 
 import identify_truth as IT
-from rlgsim.sim.cli.main import main
-from rlgsim.sim.identify import identify
-from rlgsim.sim.identify.law_fit import fit_laws
-from rlgsim.sim.identify.recording_data import read_recording
+from rlgsim.lab.cli.main import main
+from rlgsim.lab.identify import identify
+from rlgsim.lab.identify.law_fit import fit_laws
+from rlgsim.lab.identify.recording_data import read_recording
 from rlgsim.sim import presets
-from rlgsim.sim.identify.thermal_fit import fit_thermal
+from rlgsim.lab.identify.thermal_fit import fit_thermal
 
 TRUE_MULT = {"rlg_block.power": 1.08, "rlg_block.internal_conductance": 0.9,
              "rlg_block.air_conductance": 1.12, "rlg_block.mount_conductance": 0.85,
@@ -59,9 +59,9 @@ def test_noise_free_recording_is_recovered_to_tight_tolerances(tmp_path):
     assert "standard error" in line
     ttext = r.thermal_path.read_text()
     assert sum("standard error" in x for x in ttext.splitlines() if "=" in x) >= 6
-    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.run.scenario import load_scenario
     sc = load_scenario(str(r.scenario_path))
-    from rlgsim.sim.identify.thermal_fit import build
+    from rlgsim.lab.identify.thermal_fit import build
     nodes = build(presets.load_thermal_file("rlg_single").data)[0].node_names
     assert sc.device.thermal.network.node_names == nodes          # the template's topology
     assert sc.duration_s == pytest.approx(r.data.duration_s)
@@ -168,7 +168,7 @@ def test_a_bad_device_template_is_refused_with_one_line(tmp_path):
     (a mode-hop table with a misspelt key was a KeyError deep in the hop search)."""
     from rlgsim.ground.errors import UserInputError
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.twin import load_templates
+    from rlgsim.lab.identify.twin import load_templates
     text = presets.load_device_file("trplg_001").text
     bad = tmp_path / "bad_device.toml"
     bad.write_text(text.replace("bias_step_deg_per_h", "bias_stepp_deg_per_h", 1))
@@ -180,7 +180,7 @@ def test_a_bad_device_template_is_refused_with_one_line(tmp_path):
 
 def test_short_gaps_of_the_chamber_air_are_bridged_and_long_ones_refused():
     from rlgsim.ground.errors import UserInputError
-    from rlgsim.sim.identify.recording_data import _bridge
+    from rlgsim.lab.identify.recording_data import _bridge
     air = np.linspace(20.0, 30.0, 2000)
     gappy = air.copy()
     gappy[100:130] = np.nan
@@ -194,7 +194,7 @@ def test_probe_glitches_are_found_without_the_truth_record():
     """A thermometer's power-on-reset value (85 °C) in single readings, also beside a gap and
     at the end, is set missing; a fast but real ramp (5 K/min at 1 Hz) and probe noise are
     not touched."""
-    from rlgsim.sim.identify.recording_data import screen_probe_glitches
+    from rlgsim.lab.identify.recording_data import screen_probe_glitches
     rng = np.random.default_rng(9)
     t = np.arange(4000.0)
     temps = np.column_stack([20.0 + 5.0 / 60.0 * np.minimum(t, 500.0), 25.0 + 0.0 * t])
@@ -215,7 +215,7 @@ def test_recording_with_dropout_rows_is_identified(tmp_path):
     """Dropout rows (gyro, probe and chamber air missing): the window table leaves out the
     windows that hold one and keeps every other window as it was; identify accepts it."""
     import rlgsim
-    from rlgsim.api import _nan_windows
+    from rlgsim.lab.api import _nan_windows
     from rlgsim.estimators.features import temperature_rate, window_average
     from rlgsim.ground.recording_export import export
     # the window mean and slope of a channel with missing readings use its valid samples

@@ -113,9 +113,9 @@ def test_simulated_trplg_001_recording_gives_its_arw(tmp_path):
     0.002 °/h; no anomalies) through the law fit on the true network's temperatures: the ARW's
     95 % interval holds 0.0008 °/√h and Q is the counter's."""
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.law_fit import fit_laws
-    from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.thermal_fit import build, twin_response
+    from rlgsim.lab.identify.law_fit import fit_laws
+    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.thermal_fit import build, twin_response
     th = IT.thermal_truth(tmp_path, {})
     d = IT.device_truth(tmp_path, th)
     rec = read_recording(IT.simulate(IT.scenario(tmp_path, d, seed=7), tmp_path / "r.h5"))
@@ -138,10 +138,10 @@ def test_bad_quantum_is_refused():
 
 def test_bias_instability_of_the_simulators_flicker_through_the_counter():
     """Flicker of bias instability B = 0.002 °/h from the simulator's own generator
-    (rlgsim.sim.noise.FlickerBank: Gauss–Markov processes over 2 s–10⁵ s, Keshner/Kasdin), white
+    (rlgsim.sim.sensors.noise.FlickerBank: Gauss–Markov processes over 2 s–10⁵ s, Keshner/Kasdin), white
     noise at trplg_001's ARW, counted at 2.14 pulses/arcsec, 20 h at 1 Hz, 20 channels: B and
     the ARW inside their 95 % intervals in most channels, the median B within 15 %."""
-    from rlgsim.sim.noise import FlickerBank
+    from rlgsim.sim.sensors.noise import FlickerBank
     n, channels, b_true = 72000, 20, 0.002
     rng = np.random.default_rng(5)
     bank = FlickerBank(np.full(channels, b_true), 1.0, 2.0, 1e5, 2)

@@ -1,4 +1,4 @@
-"""Mode hops and read-out spikes in identification (sim/identify/hop_fit.py, spike_fit.py,
+"""Mode hops and read-out spikes in identification (src/rlgsim/lab/identify/hop_fit.py, spike_fit.py,
 estimators/identify/step_detection.py; docs/identify.md "Mode hops").
 
 The step scan's false-alarm level against many noise-only series drawn from the window-mean
@@ -82,7 +82,7 @@ def _recording(folder: pathlib.Path, seed: int, hop: dict | None) -> pathlib.Pat
     """A 4.9 h rlg_single recording (IT.PROGRAMME_A) with trplg_001's noise, a c1 law and
     optionally a mode-hop model (the block's A, B, C nodes)."""
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.preset_text import dumps
+    from rlgsim.lab.identify.preset_text import dumps
     folder.mkdir(parents=True, exist_ok=True)
     th = IT.thermal_truth(folder, {})
     dev_t = presets.load_device_file("trplg_001").data
@@ -108,9 +108,9 @@ def _true_hops(path) -> list[tuple[float, float]]:
 
 
 def test_identify_recovers_injected_hops_and_the_twin_simulates(tmp_path):
-    from rlgsim.sim.identify import identify
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.lab.identify import identify
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     rec = _recording(tmp_path / "hop", 3, HOP)
     truth = _true_hops(rec)
     assert len(truth) == 2                       # up on the 45 °C ramp, back down on cooling
@@ -153,9 +153,9 @@ def test_noise_only_recordings_give_no_hop(tmp_path, seed):
     """Noise only (white + flicker, trplg_001's levels) and a c1 law, no anomalies: no hop,
     and no mode-hop table in the twin (fit_laws on the true network's node temperatures)."""
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.law_fit import fit_laws
-    from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.thermal_fit import build, twin_response
+    from rlgsim.lab.identify.law_fit import fit_laws
+    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.thermal_fit import build, twin_response
     rec_path = _recording(tmp_path / f"n{seed}", seed, None)
     rec = read_recording(rec_path)
     net, probes = build(presets.load_thermal_file(str(tmp_path / f"n{seed}" /
@@ -171,7 +171,7 @@ def test_spikes_counted_and_rate_estimated():
     """Injected read-out spikes of 3-8 pulses in a quantised 1 Hz pulse stream are all found
     (sizes to a pulse); the rate is count / hours scaled for the invisible sizes, inside its
     interval."""
-    from rlgsim.sim.identify.spike_fit import find_spikes
+    from rlgsim.lab.identify.spike_fit import find_spikes
     rng = np.random.default_rng(3)
     k, f, n = 2.14, 1.0, 36000
     phase = np.cumsum(np.full(n, 11.0 * k / f) + 0.1 * rng.standard_normal(n))

@@ -162,10 +162,10 @@ def test_unseparable_terms_are_named_and_averaged_with_selection_uncertainty():
 def test_window_mean_covariance_matches_the_simulators_noise_generators():
     """The covariance of 100 s window means of flicker, rate random walk, white and quantisation
     noise (rlgsim.estimators.identify.window_noise) against the empirical covariance over 3000
-    realisations of the simulator's own generators (rlgsim.sim.noise: Gauss–Markov bank,
+    realisations of the simulator's own generators (rlgsim.sim.sensors.noise: Gauss–Markov bank,
     cumulative-sum walk), within 4.5 standard errors of each empirical element."""
     from rlgsim.estimators.identify.window_noise import window_mean_covariance
-    from rlgsim.sim.noise import FlickerBank, RandomWalk
+    from rlgsim.sim.sensors.noise import FlickerBank, RandomWalk
     rng = np.random.default_rng(11)
     C, T, m = 3000, 100, 6
     starts = np.arange(m) * float(T)
@@ -198,7 +198,7 @@ def test_window_mean_covariance_matches_the_simulators_noise_generators():
 def _flicker_law(seeds: int, m: int = 160, T: int = 100):
     """A bias law (intercept 0.01 °/h, c1 3e-4 °/h/K over a ramp and soak) plus flicker and
     white noise from the simulator's generators, one realisation per seed."""
-    from rlgsim.sim.noise import FlickerBank
+    from rlgsim.sim.sensors.noise import FlickerBank
     rng = np.random.default_rng(21)
     bank = FlickerBank(np.full(seeds, 0.002), 1.0, 2.0, 1e5, 2)
     noise, _ = bank.block(bank.initial_state(rng), rng, m * T)
@@ -269,8 +269,8 @@ def test_batched_heater_network_equals_the_integrator():
     """The thermal fit's batched Jacobian integration (a PI-controlled heater, several parameter
     sets at once) gives the integrator's readings for every set."""
     from rlgsim.sim import presets
-    from rlgsim.sim.identify.batch_twin import batchable, twin_readings_batch
-    from rlgsim.sim.identify.thermal_fit import (apply_multipliers, build, thermal_parameters,
+    from rlgsim.lab.identify.batch_twin import batchable, twin_readings_batch
+    from rlgsim.lab.identify.thermal_fit import (apply_multipliers, build, thermal_parameters,
                                                  twin_response)
     tmpl = presets.load_thermal_file("trplg_001_cabinet").data
     params = thermal_parameters(tmpl)

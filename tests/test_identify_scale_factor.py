@@ -14,8 +14,8 @@ import identify_truth as IT
 from rlgsim.estimators.identify.segment_noise import (gauss_markov_segment_covariance,
                                                        segment_mean_covariance)
 from rlgsim.estimators.identify.window_noise import window_mean_covariance
-from rlgsim.sim.identify import identify
-from rlgsim.sim.identify.preset_text import dumps
+from rlgsim.lab.identify import identify
+from rlgsim.lab.identify.preset_text import dumps
 
 BIAS = {"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01, "c1_deg_per_h_per_k": 3e-4,
         "langmuir_deg_per_h_per_ma": 0.0}
@@ -74,11 +74,11 @@ def _truth(path: pathlib.Path) -> dict[str, float]:
 
 def _fit_only(rec: pathlib.Path):
     """The identification's fits (thermal, laws, scale factor) without writing the twin."""
-    from rlgsim.sim.identify.law_fit import fit_laws
-    from rlgsim.sim.identify.recording_data import read_recording
-    from rlgsim.sim.identify.scale_factor_fit import fit_scale_factor
-    from rlgsim.sim.identify.thermal_fit import fit_thermal
-    from rlgsim.sim.identify.twin import load_templates
+    from rlgsim.lab.identify.law_fit import fit_laws
+    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.scale_factor_fit import fit_scale_factor
+    from rlgsim.lab.identify.thermal_fit import fit_thermal
+    from rlgsim.lab.identify.twin import load_templates
     from threadpoolctl import threadpool_limits
     _, dev, _, th = load_templates(str(rec), None, None)
     d = read_recording(rec)
@@ -121,7 +121,7 @@ def test_noise_free_scale_factor_law_is_recovered(noise_free):
     line = next(x for x in text.splitlines() if x.startswith("c2_ppm_per_k2"))
     assert "standard error" in line
     assert "# scale factor: identified from" in text
-    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.run.scenario import load_scenario
     sc = load_scenario(str(r.scenario_path))
     assert sc.device.parts["gyro"].scale_factor.nominal["c1"][0] == pytest.approx(v["c1_ppm_per_k"])
     assert "## Scale factor" in (folder / "twin" / "report.md").read_text()
@@ -249,7 +249,7 @@ def test_a_recording_at_rest_away_from_zero_gets_the_earth_rate_of_its_attitude(
     alone assumes the table at zero: 20.9 °/h off at 34° latitude)."""
     from rlgsim.api import window_table
     from rlgsim.ground.recording_export import export
-    from rlgsim.sim.identify.recording_data import read_recording
+    from rlgsim.lab.identify.recording_data import read_recording
     rec = _unit(tmp_path, noise=QUIET, turntable={"program": "static", "outer_deg": 90.0},
                 name="r90")
     d0 = read_recording(rec)
@@ -283,7 +283,7 @@ def test_logged_angles_with_jitter_keep_their_constant_rate_segments():
     """Angles logged at 1 Hz with 1e-4° resolution and time-stamp jitter: each ±10 °/s rotation
     and each rest is one segment (exact rates, as a simulated dataset gives, must not be needed)
     and the segment's rate is the table's mean rate over it."""
-    from rlgsim.sim.identify.table_motion import _from_knots
+    from rlgsim.lab.identify.table_motion import _from_knots
     rng = np.random.default_rng(5)
     t_k = np.arange(0.0, 400.0 + 1.0, 1.0)
     rate = np.where(t_k < 100, 0.0, np.where(t_k < 200, 10.0, np.where(t_k < 300, 0.0, -10.0)))

@@ -1,4 +1,4 @@
-"""The IMU stage end to end (sim/imu.py): model vs realisation, dataset groups, chunk
+"""The IMU stage end to end (sim/sensors/imu.py): model vs realisation, dataset groups, chunk
 independence, truth that reproduces the pulses, and physical plausibility of every preset."""
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground import units
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.sim import presets
-from rlgsim.sim.imu import ImuModel, true_increments
+from rlgsim.sim.sensors.imu import ImuModel, true_increments
 from rlgsim.sim.rng import generator
-from rlgsim.sim.dataset_schema import DESCRIPTIONS
-from rlgsim.sim.scenario import load_device, parse_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.writer.schema import DESCRIPTIONS
+from rlgsim.sim.run.scenario import load_device, parse_scenario
+from rlgsim.sim.run.simulate import simulate
 
 SHORT = """
 name = "imu_short"
@@ -155,7 +155,7 @@ def _blocks(n: int) -> list[slice]:
 
 
 def _count(inc: np.ndarray) -> np.ndarray:
-    """Independent re-implementation of the documented counter (rlgsim.sim.pulses): int64 fixed point
+    """Independent re-implementation of the documented counter (rlgsim.sim.sensors.pulses): int64 fixed point
     with 30 fractional bits, remainder carried from block to block."""
     out = np.empty(inc.shape, dtype=np.int64)
     rem = np.zeros(inc.shape[1], dtype=np.int64)

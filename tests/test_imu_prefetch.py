@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from _imu_helpers import SITE, Trace, temperatures
-from rlgsim.sim.imu import ImuModel, ImuSimulator, _held_steps, _step_sums
-from rlgsim.sim.motion import Motion, segments_from_program
+from rlgsim.sim.sensors.imu import ImuModel, ImuSimulator, _held_steps, _step_sums
+from rlgsim.sim.motion.kinematics import Motion, segments_from_program
 from rlgsim.sim.rng import generator
-from rlgsim.sim.scenario import load_device
-from rlgsim.sim.sensor_triad import step_inputs
-from rlgsim.sim.turntable import Hold, Rotate, TurntableProgram
+from rlgsim.sim.run.scenario import load_device
+from rlgsim.sim.sensors.sensor_triad import step_inputs
+from rlgsim.sim.motion.turntable import Hold, Rotate, TurntableProgram
 
 
 def plain_sums(x_t: np.ndarray, idx, m: int) -> np.ndarray:
@@ -122,8 +122,8 @@ def test_a_stopped_run_stops_the_prefetch_thread(tmp_path):
     import itertools
     import threading
 
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
 
     asked = itertools.count()
     with pytest.raises(KeyboardInterrupt):

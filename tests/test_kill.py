@@ -141,7 +141,7 @@ def test_kill_study(tmp_path):
 
 
 def test_kill_montecarlo(tmp_path):
-    from rlgsim.sim.montecarlo import finished_units
+    from rlgsim.lab.montecarlo import finished_units
     study = tmp_path / "study"
     study.mkdir()
     (study / "tiny_cycle.toml").write_text(tiny_cycle(40))

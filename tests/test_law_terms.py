@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.temperature_laws import LawSpec
+from rlgsim.sim.sensors.temperature_laws import LawSpec
 
 NODES = ("g.A", "g.G", "g.D", "g.E", "g.discharge", "base", "h.A", "h.G", "h.D", "h.E")
 

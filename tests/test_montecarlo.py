@@ -19,8 +19,8 @@ import h5py
 import numpy as np
 import pytest
 
-from rlgsim.sim.cli.main import main
-from rlgsim.sim.montecarlo import finished_units
+from rlgsim.lab.cli.main import main
+from rlgsim.lab.montecarlo import finished_units
 from scenario_helpers import TINY_SCENARIO, TINY_STUDY
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -38,7 +38,7 @@ def _tiny_study(folder: pathlib.Path) -> pathlib.Path:
 
 
 def _cli_cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "rlgsim.sim.cli", "montecarlo", *args]
+    return [sys.executable, "-m", "rlgsim.lab.cli", "montecarlo", *args]
 
 
 def _env() -> dict[str, str]:
@@ -124,7 +124,7 @@ def test_killed_campaign_resumes_without_recomputing(tmp_path):
 
 def test_a_failing_unit_is_recorded_and_the_others_finish(tmp_path):
     from mc_toy_units import toy_unit
-    from rlgsim.sim.cli.montecarlo import run
+    from rlgsim.lab.cli.montecarlo import run
 
     path = run({"seed": 3, "fail_units": [2]}, 5, tmp_path, workers=2, quiet=True,
                unit_fn=toy_unit, title="toy")
@@ -139,8 +139,8 @@ def test_a_failing_unit_is_recorded_and_the_others_finish(tmp_path):
 
 
 def test_thermal_realisation_keyed_by_device_seed_and_unit(tmp_path):
-    from rlgsim.sim.scenario import parse_scenario
-    from rlgsim.sim.simulate import realised_network, simulate
+    from rlgsim.sim.run.scenario import parse_scenario
+    from rlgsim.sim.run.simulate import realised_network, simulate
 
     sc = parse_scenario(TINY_SCENARIO, "tiny_cycle.toml")
     nominal = sc.device.thermal.network
@@ -198,10 +198,10 @@ def test_unknown_study_and_unreachable_scheduler_exit_2(tmp_path, capsys):
 
 
 def test_chamber_variation_per_unit(tmp_path):
-    from rlgsim.sim.chamber import Ramp
-    from rlgsim.sim.cli.montecarlo import montecarlo_unit, study_payload
-    from rlgsim.sim.study import load_study, scenario_for
-    from rlgsim.sim.unit_variations import ChamberVariation, draw, varied
+    from rlgsim.sim.thermal.chamber import Ramp
+    from rlgsim.lab.cli.montecarlo import montecarlo_unit, study_payload
+    from rlgsim.lab.study import load_study, scenario_for
+    from rlgsim.sim.run.unit_variations import ChamberVariation, draw, varied
 
     study = load_study(str(_tiny_study(tmp_path)))
     plain = scenario_for(study, "tiny_cycle.toml", unit=3)

@@ -6,9 +6,9 @@ import pathlib
 
 import pytest
 
-from rlgsim.sim.montecarlo import (finished_units, results_csv, run_campaign, params_csv,
+from rlgsim.lab.montecarlo import (finished_units, results_csv, run_campaign, params_csv,
                             load_records)
-from rlgsim.sim.montecarlo_summary import summarise, worst_units
+from rlgsim.lab.montecarlo_summary import summarise, worst_units
 from rlgsim.ground.errors import UserInputError
 
 from mc_toy_units import toy_unit

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlgsim.sim.cli.montecarlo import summary_report
-from rlgsim.sim.montecarlo import UnitRecord
-from rlgsim.sim.montecarlo_summary import clean_tiny, metric_unit, summarise
+from rlgsim.lab.cli.montecarlo import summary_report
+from rlgsim.lab.montecarlo import UnitRecord
+from rlgsim.lab.montecarlo_summary import clean_tiny, metric_unit, summarise
 
 
 def _records(n: int = 8) -> list[UnitRecord]:

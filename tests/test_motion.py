@@ -1,4 +1,4 @@
-"""Site, turntable programmes and exact kinematics (sim/earth.py, sim/turntable.py, sim/motion.py).
+"""Site, turntable programmes and exact kinematics (sim/motion/site.py, sim/motion/turntable.py, sim/motion/kinematics.py).
 
 References: numerical quadrature (scipy.integrate.quad) of the rate and specific force written
 directly from the gimbal angles (not from the Rodrigues closed form under test), the GRS-80
@@ -18,9 +18,9 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.frames import body_to_enu
 from rlgsim.ground.units import DEG, EARTH_RATE
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.earth import Site
-from rlgsim.sim.motion import Motion, TurntableSegment, segments_from_program
-from rlgsim.sim.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
+from rlgsim.sim.motion.site import Site
+from rlgsim.sim.motion.kinematics import Motion, TurntableSegment, segments_from_program
+from rlgsim.sim.motion.turntable import TableMotion, TurntableProgram, Rotate, Hold, Spin
 
 SITE = Site()
 

@@ -11,11 +11,11 @@ import zlib
 import numpy as np
 import pytest
 
-from rlgsim.sim.earth import Site
-from rlgsim.sim.motion import Motion, TurntableSegment, segments_from_program
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.schedule import build_timeline
-from rlgsim.sim.turntable import Hold, Rotate, TurntableProgram
+from rlgsim.sim.motion.site import Site
+from rlgsim.sim.motion.kinematics import Motion, TurntableSegment, segments_from_program
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.schedule import build_timeline
+from rlgsim.sim.motion.turntable import Hold, Rotate, TurntableProgram
 
 SITE = Site(latitude_deg=39.9, height_m=50.0)
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlgsim.sim.motion import Motion
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.schedule import build_timeline
+from rlgsim.sim.motion.kinematics import Motion
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.schedule import build_timeline
 
 
 @pytest.fixture(scope="module")

@@ -28,7 +28,7 @@ def test_no_generic_top_level_package_is_installed(tmp_path):
 def test_a_user_file_named_sim_does_not_break_the_api(tmp_path):
     (tmp_path / "sim.py").write_text("raise SystemExit('the user sim.py was imported')\n")
     (tmp_path / "estimators.py").write_text("raise SystemExit('the user estimators.py')\n")
-    code = ("from rlgsim.sim.scenario import load_scenario; "
+    code = ("from rlgsim.sim.run.scenario import load_scenario; "
             "from rlgsim.estimators.metrics import bias_stability; "
             "print(load_scenario('quickstart').name)")
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,

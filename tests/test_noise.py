@@ -1,4 +1,4 @@
-"""Noise generators (sim/noise.py): Allan-deviation recovery of each term alone, carried state.
+"""Noise generators (sim/sensors/noise.py): Allan-deviation recovery of each term alone, carried state.
 
 Conventions (IEEE Std 952-1997 Annex C), stated once for all tests here:
 * ARW N: the Allan deviation of the rate follows N/√τ; N is read at τ = 1 s.
@@ -20,7 +20,7 @@ import pytest
 from rlgsim.ground import units
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.noise import (FLICKER_FLOOR, FlickerBank, NoiseModel, RandomWalk, SlowNoise,
+from rlgsim.sim.sensors.noise import (FLICKER_FLOOR, FlickerBank, NoiseModel, RandomWalk, SlowNoise,
                        white_increments)
 
 

@@ -1,4 +1,4 @@
-"""The compiled slow noise (sim/_noise_kernel.py) equals the NumPy path (scipy's lfilter per
+"""The compiled slow noise (sim/sensors/_noise_kernel.py) equals the NumPy path (scipy's lfilter per
 flicker process, numpy's cumsum for the walk) bit for bit: flicker and walk together and each
 alone, channels without either term, blocks carried one after another, one-step blocks."""
 
@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rlgsim.sim.noise as noise
-from rlgsim.sim.noise import NoiseModel, SlowNoise
+import rlgsim.sim.sensors.noise as noise
+from rlgsim.sim.sensors.noise import NoiseModel, SlowNoise
 
-pytest.importorskip("rlgsim.sim._noise_kernel")
+pytest.importorskip("rlgsim.sim.sensors._noise_kernel")
 
 
 def run(slow: SlowNoise, lengths: list[int], compiled: bool, monkeypatch) -> list:
@@ -18,7 +18,7 @@ def run(slow: SlowNoise, lengths: list[int], compiled: bool, monkeypatch) -> lis
         monkeypatch.setattr(noise, "_compiled_slow_block", lambda: None)
     else:
         monkeypatch.setattr(noise, "_compiled_slow_block",
-                            lambda: __import__("rlgsim.sim._noise_kernel",
+                            lambda: __import__("rlgsim.sim.sensors._noise_kernel",
                                                fromlist=["slow_block"]).slow_block)
     state = slow.initial_state()
     out = []
@@ -57,7 +57,7 @@ def test_no_fused_multiply_add_in_the_compiled_slow_noise():
 
     from numba import njit
 
-    import rlgsim.sim._noise_kernel as kernel
+    import rlgsim.sim.sensors._noise_kernel as kernel
     slow = SlowNoise(np.array([1e-7] * 2), np.array([1e-9] * 2), 1.0, NoiseModel(), ("x", "y"),
                      seed=1, unit=0, purpose="gyro")
     kernel.slow_block(*_kernel_args(slow, 5))              # compiles / loads the signature

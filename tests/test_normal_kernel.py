@@ -1,4 +1,4 @@
-"""The compiled float32 normals (sim/_normal_kernel.py) are numpy's
+"""The compiled float32 normals (sim/sensors/_normal_kernel.py) are numpy's
 ``Generator.standard_normal(n, dtype=np.float32)``, bit for bit: on the simulator's own
 streams (the seed tree's white-noise leaves), for any channel count and length, leaving each
 generator in numpy's state, with the ziggurat's rare branches reached — the tail (|z| beyond
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rlgsim.sim import _normal_kernel
+from rlgsim.sim.sensors import _normal_kernel
 from rlgsim.sim.rng import generator
 
 #: NumPy's ziggurat_nor_r_f: where the ziggurat's base strip hands over to the tail

@@ -26,10 +26,10 @@ import pytest
 
 from rlgsim.sim import presets
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.scenario import parse_scenario
-from rlgsim.sim.simulate import simulate
-from rlgsim.sim.thermal import ThermalNetwork
-from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.run.scenario import parse_scenario
+from rlgsim.sim.run.simulate import simulate
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PRESETS = ROOT / "scenarios" / "thermal"

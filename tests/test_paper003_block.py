@@ -17,8 +17,8 @@ import pytest
 
 from rlgsim.ground import units
 from rlgsim.sim import presets
-from rlgsim.sim.scenario import load_thermal_preset, parse_scenario
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.run.scenario import load_thermal_preset, parse_scenario
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PRESET = ROOT / "scenarios" / "thermal" / "rlg8_003_block.toml"

@@ -1,4 +1,4 @@
-"""The compiled probe readings (sim/_probe_kernel.py) equal the NumPy path's bit for bit:
+"""The compiled probe readings (sim/thermal/_probe_kernel.py) equal the NumPy path's bit for bit:
 several lag groups and probes without lag, with and without quantisation (all, some, none),
 noise-free probes, temperatures through zero, blocks carried one after another, and the
 strided node-temperature view the simulator passes."""
@@ -9,9 +9,9 @@ import re
 import numpy as np
 import pytest
 
-from rlgsim.sim.thermometers import ProbeSet
+from rlgsim.sim.thermal.thermometers import ProbeSet
 
-pytest.importorskip("rlgsim.sim._probe_kernel")
+pytest.importorskip("rlgsim.sim.thermal._probe_kernel")
 
 
 def probes(resolution: list[float]) -> ProbeSet:
@@ -62,7 +62,7 @@ def test_compiled_readings_with_a_contiguous_trace():
 def test_the_probe_kernel_has_no_fused_multiply_add():
     from numba import njit
 
-    import rlgsim.sim._probe_kernel as kernel
+    import rlgsim.sim.thermal._probe_kernel as kernel
     p = probes([0.0625] * 8)
     T = np.ones((10, 5))
     p.read(p.initial_state(T[0]), T, 5.0, np.random.default_rng(1), compiled=True)

@@ -1,4 +1,4 @@
-"""The one-call compiled counter (sim/_pulse_kernel.py ``count_block``) against the NumPy
+"""The one-call compiled counter (sim/sensors/_pulse_kernel.py ``count_block``) against the NumPy
 reference path where its own structure could go wrong: steps longer than a chunk (a step's
 samples split over several chunks, a partial last chunk), a step index per sample over many
 chunks, every combination of white noise / K⁺K⁻ / power, one to three channels, and one channel
@@ -11,9 +11,9 @@ import itertools
 import numpy as np
 import pytest
 
-from rlgsim.sim import pulses
-from rlgsim.sim._pulse_kernel import CHUNK
-from rlgsim.sim.sensor_triad import (count_pulses, installation_rows, sample_step_index,
+from rlgsim.sim.sensors import pulses
+from rlgsim.sim.sensors._pulse_kernel import CHUNK
+from rlgsim.sim.sensors.sensor_triad import (count_pulses, installation_rows, sample_step_index,
                                      step_inputs)
 
 
@@ -128,7 +128,7 @@ def test_step_scan_imports_no_compiled_code_by_itself(monkeypatch):
     compiled scan runs."""
     import sys
 
-    import rlgsim.sim._pulse_kernel as kernel
+    import rlgsim.sim.sensors._pulse_kernel as kernel
     x_t = np.zeros((3, 40))
     calls = []
     real = kernel.steps_at_rest
@@ -137,9 +137,9 @@ def test_step_scan_imports_no_compiled_code_by_itself(monkeypatch):
         calls.append(1)
         real(*args)
     monkeypatch.setattr(kernel, "steps_at_rest", spy)
-    monkeypatch.delitem(sys.modules, "rlgsim.sim._pulse_kernel")
+    monkeypatch.delitem(sys.modules, "rlgsim.sim.sensors._pulse_kernel")
     uniform, _ = step_inputs(x_t, 4, 10)
-    assert "rlgsim.sim._pulse_kernel" not in sys.modules and uniform.all() and not calls
-    monkeypatch.setitem(sys.modules, "rlgsim.sim._pulse_kernel", kernel)
+    assert "rlgsim.sim.sensors._pulse_kernel" not in sys.modules and uniform.all() and not calls
+    monkeypatch.setitem(sys.modules, "rlgsim.sim.sensors._pulse_kernel", kernel)
     step_inputs(x_t, 4, 10)
     assert calls == [1]

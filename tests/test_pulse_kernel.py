@@ -1,4 +1,4 @@
-"""The compiled pulse counter (sim/_pulse_kernel.py) gives the NumPy reference path's pulses
+"""The compiled pulse counter (sim/sensors/_pulse_kernel.py) gives the NumPy reference path's pulses
 and remainders bit for bit: both step layouts (r samples per step, or an index per sample),
 steps at rest, white noise on/off, one scale factor or K⁺/K⁻, unpowered samples, carried
 remainders; and a channel out of the counter's range raises the same one-line error."""
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim import pulses
-from rlgsim.sim.sensor_triad import (count_pulses, installation_rows, sample_step_index,
+from rlgsim.sim.sensors import pulses
+from rlgsim.sim.sensors.sensor_triad import (count_pulses, installation_rows, sample_step_index,
                                      step_inputs)
 
 
@@ -104,9 +104,9 @@ def test_a_run_stores_the_same_bytes_with_either_counter(tmp_path, monkeypatch, 
     """End to end: the whole dataset (every array and attribute; the file byte for byte) of a
     run on the compiled paths (pulse counter, normals) equals the NumPy path's — whatever this
     process has loaded."""
-    import rlgsim.sim.imu as imu
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    import rlgsim.sim.sensors.imu as imu
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
 
     orig = imu.ImuSimulator.__init__
     paths = {}
@@ -123,9 +123,9 @@ def test_a_run_stores_the_same_bytes_with_either_counter(tmp_path, monkeypatch, 
 def test_the_counter_is_chosen_by_run_length_when_numba_is_not_loaded(monkeypatch):
     import sys
 
-    import rlgsim.sim.imu as imu
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.schedule import build_timeline
+    import rlgsim.sim.sensors.imu as imu
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.schedule import build_timeline
 
     sc = load_scenario("quickstart")                      # 2 h at 100 Hz: 720 000 epochs
     tl = build_timeline(sc)
@@ -140,7 +140,7 @@ def test_the_kernel_has_no_fused_multiply_add():
     rounding than numpy's separate multiply and add), and rint stays round-half-to-even."""
     from numba import njit
 
-    import rlgsim.sim._pulse_kernel as kernel
+    import rlgsim.sim.sensors._pulse_kernel as kernel
     fresh = njit(nogil=True)(kernel.count_block.py_func)       # uncached: its code inspectable
     kw = block(0, 4, 100.0, 1.0, rest=True, noise=True, neg=True, power_off=True)
     n, c = kw["x_t"].shape[1], 3
@@ -155,15 +155,15 @@ def test_the_kernel_has_no_fused_multiply_add():
 
 
 def test_heap_thresholds_are_set_once_and_change_no_value(tmp_path):
-    """sim/_heap.py: on Linux with glibc the thresholds are set (True), elsewhere nothing is
+    """sim/run/_heap.py: on Linux with glibc the thresholds are set (True), elsewhere nothing is
     done (False); a run with them stores the same bytes as a run in a fresh process without
     them (the quickstart)."""
     import subprocess
     import sys
 
-    from rlgsim.sim._heap import keep_freed_memory
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.run._heap import keep_freed_memory
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     first = keep_freed_memory()
     assert keep_freed_memory() is first
     if sys.platform.startswith("linux"):
@@ -174,9 +174,9 @@ def test_heap_thresholds_are_set_once_and_change_no_value(tmp_path):
         except AttributeError:
             assert first is False
     a = simulate(load_scenario("quickstart"), tmp_path / "a.h5", progress=False)
-    code = ("import rlgsim.sim._heap as h; h._applied = False; "
-            "from rlgsim.sim.scenario import load_scenario; "
-            "from rlgsim.sim.simulate import simulate; "
+    code = ("import rlgsim.sim.run._heap as h; h._applied = False; "
+            "from rlgsim.sim.run.scenario import load_scenario; "
+            "from rlgsim.sim.run.simulate import simulate; "
             f"simulate(load_scenario('quickstart'), {str(tmp_path / 'b.h5')!r}, progress=False)")
     subprocess.run([sys.executable, "-c", code], check=True)
     assert a.read_bytes() == (tmp_path / "b.h5").read_bytes()

@@ -15,8 +15,8 @@ import pytest
 
 from _turntable_pulses import random_truth, write_dataset
 from rlgsim.ground.recording import load_recording
-from rlgsim.sim.cli.main import main
-from rlgsim.sim.turntable import TurntableProgram
+from rlgsim.lab.cli.main import main
+from rlgsim.sim.motion.turntable import TurntableProgram
 
 PROG = TurntableProgram.calibration19(dwell_s=20.0, first_dwell_s=30.0)
 RATE = 100.0
@@ -367,7 +367,7 @@ def test_export_import_study_gives_the_datasets_paper_scores(tmp_path):
                  str(tmp_path / "train.csv"), "-q"]) == 0
     assert main(["export", str(data / "demo_cycle-seed7002.h5"), "--format", "parquet", "-o",
                  str(tmp_path / "test.parquet"), "-q"]) == 0
-    from rlgsim.sim.study import load_study
+    from rlgsim.lab.study import load_study
     text = load_study("demo").text
     text = text.replace('train = [{ scenario = "demo_cycle", seed = 7001 }]',
                         'train = ["train.csv"]')
@@ -396,7 +396,7 @@ def test_programme_from_the_scenario_equals_the_datasets(tmp_path):
     (and so does the exported programme CSV); calibrating with either gives the same table."""
     from rlgsim.ground.dataset_format import open_dataset
     from rlgsim.ground.programme import read_programme
-    from rlgsim.sim.recordings import programme_segments
+    from rlgsim.lab.recordings import programme_segments
     scen = tmp_path / "tt.toml"
     scen.write_text('name = "tt"\ndevice = "rlg_imu_000"\nseed = 3\nduration_min = 42\n'
                     '[acquisition]\nsample_rate_hz = 10\n[chamber]\nstart_c = 20.0\n'

@@ -1,4 +1,4 @@
-"""rlgsim.sim.report: file names, cell formatting, and a report folder written whole (Markdown, HTML with
+"""rlgsim.lab.report: file names, cell formatting, and a report folder written whole (Markdown, HTML with
 the figures embedded, a CSV per table and attachment)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pytest  # noqa: E402
 
-from rlgsim.sim.report import Report, Table, format_value, slug  # noqa: E402
+from rlgsim.lab.report import Report, Table, format_value, slug  # noqa: E402
 
 
 @pytest.mark.parametrize("text, expected", [
@@ -83,7 +83,7 @@ def test_report_folder(tmp_path):
 
 def test_an_output_folder_that_cannot_be_created_is_a_user_error(tmp_path):
     from rlgsim.ground.errors import UserInputError
-    from rlgsim.sim.report import output_folder
+    from rlgsim.lab.report import output_folder
     blocker = tmp_path / "file"
     blocker.write_text("x")
     assert output_folder(tmp_path / "a" / "b") == tmp_path / "a" / "b"

@@ -8,7 +8,7 @@ import re
 import pytest
 
 from html_render import CHROMIUM, SKIP_REASON, _chromium
-from rlgsim.sim.report import Report, Table
+from rlgsim.lab.report import Report, Table
 
 _WIDTH_PROBE = ("<script>window.addEventListener('load', function () {"
                 "var d = document.createElement('div'); d.id = 'rlgsim-width';"

@@ -1,6 +1,6 @@
-"""Scale-offset chunks packed here (sim/_scaleoffset.py, sim/_scaleoffset_kernel.py) are the
+"""Scale-offset chunks packed here (sim/writer/_scaleoffset.py, sim/writer/_scaleoffset_kernel.py) are the
 bytes HDF5's own filter stores, with and without numba, and the direct-chunk path
-(sim/_direct_chunks.py, dataset._ChunkStage) writes the same file as HDF5's path, byte for byte
+(sim/writer/_direct_chunks.py, dataset._ChunkStage) writes the same file as HDF5's path, byte for byte
 — chunks leave the mirrored chunk cache when HDF5's would."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import h5py
 import numpy as np
 import pytest
 
-from rlgsim.sim import dataset
-from rlgsim.sim._scaleoffset import Codec, codec_of, encode
+from rlgsim.sim.writer import dataset
+from rlgsim.sim.writer._scaleoffset import Codec, codec_of, encode
 
 
 def _chunks(dtype: np.dtype, shape: tuple[int, ...], rng: np.random.Generator):
@@ -158,7 +158,7 @@ def test_without_numba_the_numpy_packer_writes_the_same_file(tmp_path, monkeypat
     import importlib.util
     import sys
 
-    import rlgsim.sim._direct_chunks as direct
+    import rlgsim.sim.writer._direct_chunks as direct
     blocks = _blocks(np.random.default_rng(3), 12)
     _write(tmp_path / "hdf5.h5", blocks, False, monkeypatch)
     find_spec = importlib.util.find_spec
@@ -186,8 +186,8 @@ def test_rows_appended_after_a_flush_are_all_stored(tmp_path, monkeypatch):
 
 
 def test_a_simulated_dataset_is_the_same_file_either_way(tmp_path, monkeypatch):
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.simulate import simulate
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.simulate import simulate
     paths = {}
     for direct in (False, True):
         monkeypatch.setattr(dataset, "DIRECT_CHUNKS", direct)
@@ -212,10 +212,10 @@ def test_an_added_group_is_the_same_file_either_way(tmp_path, monkeypatch):
 
 
 def test_the_self_check_passes_here_and_sees_a_wrong_flush_order(monkeypatch):
-    """The once-per-process check (sim/_direct_check.py) agrees with this HDF5, and it does
+    """The once-per-process check (sim/writer/_direct_check.py) agrees with this HDF5, and it does
     compare layouts: chunks the mirror flushes at close in the wrong order fail it."""
-    import rlgsim.sim._direct_chunks as direct
-    from rlgsim.sim._direct_check import direct_path_agrees
+    import rlgsim.sim.writer._direct_chunks as direct
+    from rlgsim.sim.writer._direct_check import direct_path_agrees
     writer = (dataset.GroupWriter, dataset._close_stages)
     assert direct_path_agrees(*writer)
     close = direct.DirectChunks.close
@@ -230,8 +230,8 @@ def test_the_self_check_passes_here_and_sees_a_wrong_flush_order(monkeypatch):
 def test_a_failed_self_check_keeps_hdf5s_filter(tmp_path, monkeypatch):
     """When the self-check fails the direct path stays off for the process (the check runs
     once) and the writer's file is HDF5's own, byte for byte."""
-    import rlgsim.sim._direct_check as check
-    import rlgsim.sim._direct_chunks as direct
+    import rlgsim.sim.writer._direct_check as check
+    import rlgsim.sim.writer._direct_chunks as direct
     blocks = _blocks(np.random.default_rng(5), 10)
     _write(tmp_path / "hdf5.h5", blocks, False, monkeypatch)
     checks, mirrors, of = [], [], direct.DirectChunks.of

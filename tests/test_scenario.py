@@ -16,9 +16,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from rlgsim.sim import presets
-from rlgsim.sim.cli.main import format_error, main
+from rlgsim.lab.cli.main import format_error, main
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.scenario import Scenario, load_scenario, parse_scenario
+from rlgsim.sim.run.scenario import Scenario, load_scenario, parse_scenario
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 QUICKSTART = ROOT / "scenarios" / "quickstart.toml"

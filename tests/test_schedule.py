@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import simpy
 
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.schedule import PiecewiseConstant, TRACKS, build_timeline
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.schedule import PiecewiseConstant, TRACKS, build_timeline
 
 from scenario_helpers import quickstart, scenario
 

@@ -19,12 +19,12 @@ import h5py
 import numpy as np
 import pytest
 
-from rlgsim.sim import dataset
-from rlgsim.sim import pulses
-from rlgsim.sim.scenario import parse_scenario
-from rlgsim.sim.sensor_triad import (count_pulses, installation_rows, phase_increments,
+from rlgsim.sim.writer import dataset
+from rlgsim.sim.sensors import pulses
+from rlgsim.sim.run.scenario import parse_scenario
+from rlgsim.sim.sensors.sensor_triad import (count_pulses, installation_rows, phase_increments,
                                      sample_step_index, step_inputs)
-from rlgsim.sim.simulate import simulate
+from rlgsim.sim.run.simulate import simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -1,6 +1,6 @@
 """Strapdown navigation from pulses (estimators/strapdown.py).
 
-References: the exact turntable kinematics of sim/motion.py (closed-form integrals, checked
+References: the exact turntable kinematics of sim/motion/kinematics.py (closed-form integrals, checked
 against quadrature in test_motion.py). The rotation helpers are tested in test_frames.py.
 """
 
@@ -18,9 +18,9 @@ from rlgsim.ground import earth, frames
 from rlgsim.ground.frames import body_to_enu as table_attitude
 from rlgsim.ground.frames import rotation_matrix
 from rlgsim.ground.units import ARCSEC
-from rlgsim.sim import motion
-from rlgsim.sim.earth import Site
-from rlgsim.sim.turntable import Hold, Rotate, Spin, TurntableProgram
+from rlgsim.sim.motion import kinematics as motion
+from rlgsim.sim.motion.site import Site
+from rlgsim.sim.motion.turntable import Hold, Rotate, Spin, TurntableProgram
 
 
 def test_site_model_and_table_convention_are_the_simulators():

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.study import list_studies, load_study, parse_study, run_study
+from rlgsim.lab.study import list_studies, load_study, parse_study, run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEG_PER_H = 180.0 / math.pi * 3600.0
@@ -173,7 +173,7 @@ def test_shipped_bias_compensation_studies_validate(name):
 
 
 def test_study_unit_draws_another_device_without_a_report():
-    from rlgsim.sim.study import study_unit
+    from rlgsim.lab.study import study_unit
     study = load_study("demo")
     payload = {"text": study.text, "source": study.source, "name": study.name,
                "base_dir": str(study.base_dir) if study.base_dir else None}
@@ -212,7 +212,7 @@ def test_a_window_that_does_not_fit_the_data_is_a_user_error_before_simulating(t
 
 
 def test_report_holds_the_exact_scenario_and_preset_texts(demo):
-    from rlgsim.sim.scenario import load_scenario
+    from rlgsim.sim.run.scenario import load_scenario
     md = (demo / "report.md").read_text()
     sc = load_scenario("demo_cycle")
     for kind, text in (("scenario demo_cycle", sc.text),
@@ -240,8 +240,8 @@ def test_several_test_runs_get_their_own_scores_and_figures(tmp_path):
 def test_an_edited_device_or_thermal_preset_is_simulated_again(tmp_path):
     """The one dataset fingerprint (every recipe, paper 000's included): a dataset is reused
     only while the scenario, device preset and thermal preset texts are those it was made from."""
-    from rlgsim.sim.scenario import load_scenario
-    from rlgsim.sim.studies.runs import simulated_dataset
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.lab.studies.runs import simulated_dataset
 
     shipped = ROOT / "scenarios"
     device = (shipped / "devices" / "trplg_001.toml").read_text()
@@ -271,8 +271,8 @@ def test_an_edited_device_or_thermal_preset_is_simulated_again(tmp_path):
 def test_a_recipe_without_a_report_hook_gets_its_score_rows(tmp_path, monkeypatch):
     import types
 
-    from rlgsim.sim import study as runner
-    from rlgsim.sim.study import Study, StudyResult
+    from rlgsim.lab import study as runner
+    from rlgsim.lab.study import Study, StudyResult
 
     def run(study, config, workdir, *, unit, progress):
         return StudyResult(rows=[("model", "rmse_true", 0.25)])

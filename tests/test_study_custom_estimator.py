@@ -9,7 +9,7 @@ import pathlib
 import pytest
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.study import load_study, run_study
+from rlgsim.lab.study import load_study, run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMO = (ROOT / "scenarios" / "studies" / "demo.toml").read_text()

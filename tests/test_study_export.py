@@ -12,9 +12,9 @@ import pytest
 
 from rlgsim.estimators.model_export import OutOfTrainingRangeWarning, load_json
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.cli.main import main
+from rlgsim.lab.cli.main import main
 from rlgsim.sim.presets import load
-from rlgsim.sim.study import parse_study
+from rlgsim.lab.study import parse_study
 
 
 @pytest.fixture(scope="module")
@@ -89,8 +89,8 @@ def _fitted(name: str, kind: str, inputs, seed: int = 0):
 def test_recipe_hooks_hand_over_every_fitted_model(tmp_path):
     from types import SimpleNamespace
 
-    from rlgsim.sim.studies import environments, gradient_selection, paper000_system
-    from rlgsim.sim.study_models import write_models
+    from rlgsim.lab.studies import environments, gradient_selection, paper000_system
+    from rlgsim.lab.study_models import write_models
     f = [_fitted("LS (T)", "polynomial", ["T"]), _fitted("grad", "polynomial", ["A-B", "C"])]
     got = gradient_selection.fitted_models(None, SimpleNamespace(details=SimpleNamespace(
         fitted=f)))
@@ -141,7 +141,7 @@ def test_allan_figure_starts_at_the_sample_rate(demo_export):
     import pathlib
 
     from rlgsim.estimators.metrics import allan_deviation
-    from rlgsim.sim.studies.sample_rate import sample_rate_series
+    from rlgsim.lab.studies.sample_rate import sample_rate_series
     md = (demo_export / "report.md").read_text()
     assert "from the sample rate (10 Hz" in md                 # demo_cycle: 10 Hz IMU
     rs = type("RS", (), {})()                                  # a RunSeries-like stand-in

@@ -7,8 +7,8 @@ import pytest
 
 from rlgsim.estimators.columns import Columns
 from rlgsim.estimators.model_export import load_json
-from rlgsim.sim.report import Report
-from rlgsim.sim.study_models import FittedModel, input_unit, report_models, write_models
+from rlgsim.lab.report import Report
+from rlgsim.lab.study_models import FittedModel, input_unit, report_models, write_models
 
 
 def test_input_units_of_the_study_inputs():

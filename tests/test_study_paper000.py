@@ -1,4 +1,4 @@
-"""The paper-000 study recipe (sim/studies/paper000_system.py) on a shortened campaign.
+"""The paper-000 study recipe (src/rlgsim/lab/studies/paper000_system.py) on a shortened campaign.
 
 One module-scoped run of the recipe on ``scenarios/paper000_short.toml`` (8 calibration windows
 over −5 → 65 °C) with a tiny HHO budget; the tests check its report, recompute its truth-based
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.study import parse_study, recipe_module
+from rlgsim.lab.study import parse_study, recipe_module
 
 PARAMS = [f"gyro_bias_{a}" for a in "xyz"] + [f"gyro_sf_{a}" for a in "xyz"] + \
          [f"accel_bias_{a}" for a in "xyz"] + [f"accel_sf_pos_{a}" for a in "xyz"] + \
@@ -171,8 +171,8 @@ def test_compensated_gyro_pulses_follow_eq_26_with_cumulative_rounding(run):
 def test_existing_dataset_is_reused_and_a_changed_one_is_not(run):
     import dataclasses
 
-    from rlgsim.sim.studies.runs import dataset_matches
-    from rlgsim.sim.study import scenario_for
+    from rlgsim.lab.studies.runs import dataset_matches
+    from rlgsim.lab.study import scenario_for
     out, _, _, study, _ = run
     path = out / "data" / "paper000_short_u0.h5"
     scenario = scenario_for(study, "paper000_short")
@@ -223,7 +223,7 @@ def test_defaults_are_the_papers():
 
 
 def test_shipped_study_parses():
-    from rlgsim.sim.study import load_study
+    from rlgsim.lab.study import load_study
     study = load_study("paper000")
     cfg = recipe_module(study).check(study)
     assert cfg.scenario == "paper000_campaign" and cfg.hawks == 30

@@ -1,4 +1,4 @@
-"""The ``environments`` recipe (sim/studies/environments.py) and the shipped paper002 study.
+"""The ``environments`` recipe (src/rlgsim/lab/studies/environments.py) and the shipped paper002 study.
 
 A short two-environment study (constant 20 °C and a 5 °C/min cycle, 2.5 h at 10 Hz each, train
 and test seeds, the rlg_002 device) runs once per module; the tests check its report and
@@ -20,7 +20,7 @@ import pytest
 from independent_windows import read_windows
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
+from rlgsim.lab.study import list_studies, load_study, parse_study, recipe_module, run_study, study_unit
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEG_PER_H = 180.0 / math.pi * 3600.0
@@ -391,7 +391,7 @@ def test_study_on_exported_recordings_gives_the_datasets_paper_tables(tmp_path):
     simulated datasets, and on the same runs exported as recordings (CSV and Parquet): Table 1
     (but the wall times), the before check, the ranking by σ and the fitted models agree; the
     truth (the oracle row, std(ŷ − b)) is absent from the recordings' and the report says why."""
-    from rlgsim.sim.cli import main
+    from rlgsim.lab.cli import main
     text = STUDY[:STUDY.index('[[compensator]]\nname = "Modified RBFNN"')] + \
         STUDY[STUDY.index("[[environment]]"):]
     text = text.replace('"Modified RBFNN" = 6.922e-4', '').replace(

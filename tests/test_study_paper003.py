@@ -16,8 +16,8 @@ import pytest
 from independent_windows import read_windows
 from html_render import CHROMIUM, SKIP_REASON, check_report_renders
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.study import list_studies, load_study, parse_study, run_study
-from rlgsim.sim.studies.gradient_selection import improvement_over_traditional
+from rlgsim.lab.study import list_studies, load_study, parse_study, run_study
+from rlgsim.lab.studies.gradient_selection import improvement_over_traditional
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 POINTS = ["g.A", "g.B", "g.D", "g.G", "g.H"]
@@ -286,7 +286,7 @@ def test_a_threshold_nothing_reaches_is_a_user_error(tmp_path):
 def test_monte_carlo_unit_draws_another_block_without_a_report(tmp_path):
     """Unit 1 draws another device and thermal network: other correlations, same row keys,
     the same result again for the same unit."""
-    from rlgsim.sim.study import study_unit
+    from rlgsim.lab.study import study_unit
     path = _write(tmp_path)
     payload = {"text": path.read_text(), "source": str(path), "name": "p003short",
                "base_dir": str(tmp_path)}
@@ -311,8 +311,8 @@ def test_window_series_do_not_depend_on_the_read_block(short, monkeypatch):
     """read_run reads a block of windows at a time (bounded memory); the series are the same
     bytes whatever the block size."""
     from rlgsim.sim.config import Ctx
-    from rlgsim.sim.studies import runs
-    from rlgsim.sim.studies.study_tables import FeatureSpec
+    from rlgsim.lab.studies import runs
+    from rlgsim.lab.studies.study_tables import FeatureSpec
     spec = FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
     path = short / "data" / "test.h5"
     ref = runs.read_run(path, spec, "test", Ctx("s.toml"))
@@ -333,7 +333,7 @@ def test_study_on_exported_recordings_gives_the_datasets_paper_tables(tmp_path):
     """The short study (cheap compensators) on its simulated datasets, and on the same runs
     exported as recordings (CSV and Parquet): Table 3, the selection and Tables 4-5 agree; the
     truth is absent from the recordings' report, which says why."""
-    from rlgsim.sim.cli import main
+    from rlgsim.lab.cli import main
     sim = tmp_path / "sim"
     run_study(load_study(str(_write(tmp_path, CHEAP))), sim, progress=False)
     for name, fmt in (("train", "csv"), ("train-seed3100", "parquet"), ("test", "csv")):

@@ -11,8 +11,8 @@ from scipy.integrate import simpson, solve_ivp
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.thermal import ThermalNetwork
-from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
 
 def preset(**heater) -> dict:

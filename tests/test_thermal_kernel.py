@@ -1,4 +1,4 @@
-"""The compiled heater loop (sim/_thermal_kernel.py) gives the Python step loop's states,
+"""The compiled heater loop (sim/thermal/_heater_kernel.py) gives the Python step loop's states,
 heater powers and controller states bit for bit: one and several heaters, a tracking set
 point, saturation at both limits, power switched off and on, split calls."""
 
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.thermal import ThermalNetwork
-from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
-kernel_module = pytest.importorskip("rlgsim.sim._thermal_kernel")
+kernel_module = pytest.importorskip("rlgsim.sim.thermal._heater_kernel")
 
 
 def network(two_heaters: bool, track: bool, boundary: bool = False) -> ThermalNetwork:

@@ -12,10 +12,10 @@ import h5py
 import numpy as np
 import pytest
 
-from rlgsim.sim.scenario import load_scenario
-from rlgsim.sim.schedule import build_timeline
-from rlgsim.sim.simulate import simulate
-from rlgsim.sim.thermal_integrator import ThermalIntegrator
+from rlgsim.sim.run.scenario import load_scenario
+from rlgsim.sim.run.schedule import build_timeline
+from rlgsim.sim.run.simulate import simulate
+from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 EXTRA = """

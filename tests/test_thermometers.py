@@ -12,8 +12,8 @@ from scipy.integrate import solve_ivp
 
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.thermal import ThermalNetwork
-from rlgsim.sim.thermometers import ProbeSet
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.thermometers import ProbeSet
 
 PRESETS = pathlib.Path(__file__).resolve().parents[1] / "scenarios" / "thermal"
 

@@ -14,10 +14,10 @@ from scipy.optimize import brentq
 
 from rlgsim.sim import presets
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.scenario import load_scenario, load_thermal_preset
-from rlgsim.sim.simulate import simulate
-from rlgsim.sim.studies.runs import read_run
-from rlgsim.sim.studies.study_tables import FeatureSpec
+from rlgsim.sim.run.scenario import load_scenario, load_thermal_preset
+from rlgsim.sim.run.simulate import simulate
+from rlgsim.lab.studies.runs import read_run
+from rlgsim.lab.studies.study_tables import FeatureSpec
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 THERMAL = ROOT / "scenarios" / "thermal" / "trplg_001_cabinet.toml"

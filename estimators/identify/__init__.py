@@ -4,7 +4,7 @@ maths, usable on any data because it never imports the simulator.
 Split between the two sides. The thermal grey-box fit needs the exact network integrator,
 which lives in :mod:`rlgsim.sim` and which :mod:`rlgsim.estimators` must never import; so the
 orchestration (read the recording, build candidate networks from a template, integrate them,
-write the presets, the scenario and the report) lives in :mod:`rlgsim.sim.identify`, which may
+write the presets, the scenario and the report) lives in :mod:`rlgsim.lab.identify`, which may
 import the estimators, while everything here works on plain arrays and callables:
 
 - :mod:`.lsq_stats` — a nonlinear least-squares fit with standard errors and correlations from

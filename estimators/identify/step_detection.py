@@ -1,5 +1,5 @@
 """Steps in a regression residual under correlated noise: where does a series jump by an amount
-the law cannot explain? (The mode hops of a gyro bias, :mod:`rlgsim.sim.identify.hop_fit`.)
+the law cannot explain? (The mode hops of a gyro bias, :mod:`rlgsim.lab.identify.hop_fit`.)
 
 Model: ``y = Xβ + Σ_h δ_h·s_h + e`` with ``e ~ N(0, C)`` (``C`` the modelled covariance of the
 window noise, e.g. :mod:`rlgsim.estimators.identify.window_noise`, flicker included) and the

@@ -50,7 +50,7 @@ the variance inflation factors, the unseparable groups — and the standard erro
 modelled ``(XᵀC⁻¹X)⁻¹`` instead of batch means.
 
 Fixed regressors (``fixed``): linear columns that are in every model — e.g. the piecewise
-offsets of detected mode hops (:mod:`rlgsim.sim.identify.hop_fit`) — are part of the base
+offsets of detected mode hops (:mod:`rlgsim.lab.identify.hop_fit`) — are part of the base
 beside the intercept: not selected, not counted in the BIC's comparison (every subset carries
 them), refined jointly with the chosen terms (parameters named as the fixed terms) and held in
 every averaged model (inclusion 1).

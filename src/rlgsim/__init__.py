@@ -25,26 +25,26 @@ except PackageNotFoundError:          # run from a source tree that was never in
 
 #: public name -> "module:attribute" it is imported from on first use
 _PUBLIC = {
-    "load_scenario": "rlgsim.sim.scenario:load_scenario",
-    "parse_scenario": "rlgsim.sim.scenario:parse_scenario",
-    "Scenario": "rlgsim.sim.scenario:Scenario",
-    "simulate": "rlgsim.sim.simulate:simulate",
+    "load_scenario": "rlgsim.sim.run.scenario:load_scenario",
+    "parse_scenario": "rlgsim.sim.run.scenario:parse_scenario",
+    "Scenario": "rlgsim.sim.run.scenario:Scenario",
+    "simulate": "rlgsim.sim.run.simulate:simulate",
     "open_dataset": "rlgsim.ground.dataset_format:open_dataset",
-    "load_study": "rlgsim.sim.study:load_study",
-    "run_study": "rlgsim.sim.study:run_study",
+    "load_study": "rlgsim.lab.study:load_study",
+    "run_study": "rlgsim.lab.study:run_study",
     "UserInputError": "rlgsim.ground.errors:UserInputError",
-    # the notebook API (docs/api.md; rlgsim.api)
-    "with_changes": "rlgsim.api:with_changes",
-    "run": "rlgsim.api:run",
-    "open_tree": "rlgsim.api:open_tree",
-    "window_table": "rlgsim.api:window_table",
-    "score": "rlgsim.api:score",
-    "calibrate": "rlgsim.api:calibrate",
+    # the notebook API (docs/api.md; rlgsim.api, a facade over rlgsim.lab.api)
+    "with_changes": "rlgsim.lab.api:with_changes",
+    "run": "rlgsim.lab.api:run",
+    "open_tree": "rlgsim.lab.api:open_tree",
+    "window_table": "rlgsim.lab.api:window_table",
+    "score": "rlgsim.lab.api:score",
+    "calibrate": "rlgsim.lab.api:calibrate",
     # recordings (docs/recordings.md)
     "load_recording": "rlgsim.ground.recording:load_recording",
     "export": "rlgsim.ground.recording_export:export",
     # the digital twin (docs/identify.md)
-    "identify": "rlgsim.sim.identify:identify",
+    "identify": "rlgsim.lab.identify:identify",
 }
 
 __all__ = ["__version__", *_PUBLIC]

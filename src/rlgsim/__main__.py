@@ -2,6 +2,6 @@
 
 import sys
 
-from rlgsim.sim.cli import main
+from rlgsim.lab.cli import main
 
 sys.exit(main())

@@ -4,8 +4,8 @@ A dataset is one HDF5 file laid out the netCDF-4 way (docs/dataset.md is the sch
 group per part of the run, a coordinate (HDF5 dimension scale) per dimension, ``units`` and
 ``description`` on every variable. The root carries the format marker
 ``rlgsim_format = "rlgsim dataset"`` and ``rlgsim_format_version``. The simulator declares the
-groups in one place (:mod:`rlgsim.sim.dataset_schema`) and writes them with
-:mod:`rlgsim.sim.dataset`; everything that *reads* a dataset — ``rlgsim info``, the calibration,
+groups in one place (:mod:`rlgsim.sim.writer.schema`) and writes them with
+:mod:`rlgsim.sim.writer.dataset`; everything that *reads* a dataset — ``rlgsim info``, the calibration,
 the studies, a user's notebook — goes through :func:`open_dataset` and :class:`Dataset`, so the
 marker is checked once and no module spells raw HDF5 paths.
 
@@ -76,7 +76,7 @@ SAMPLE = "sample"          #: IMU sample axis (no stored coordinate)
 #: declares them; the device-dependent ones (accelerometers, UHFO, per-sample truth) are listed
 #: too. Parts a scenario switches on (heaters, boundaries, anomalies) are in
 #: :data:`OPTIONAL_VARIABLES`.
-#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_imu.py checks it).
+#: :mod:`rlgsim.sim.writer.schema` declares exactly these (tests/test_imu.py checks it).
 VARIABLES: dict[str, tuple[str, ...]] = {
     TIMELINE: ("segment", "t0", "t1", "track", "label", "details", "breakpoint", "setpoint_time",
                "setpoint"),
@@ -108,7 +108,7 @@ VARIABLES: dict[str, tuple[str, ...]] = {
 #: * ``imu``: ``sample_valid`` — the device's ``[anomalies]`` table has IMU frame dropouts;
 #: * ``anomalies`` (the whole group) — the device has an active ``[anomalies]`` table.
 #:
-#: :mod:`rlgsim.sim.dataset_schema` declares exactly these (tests/test_dataset_optional.py).
+#: :mod:`rlgsim.sim.writer.schema` declares exactly these (tests/test_dataset_optional.py).
 OPTIONAL_VARIABLES: dict[str, tuple[str, ...]] = {
     THERMAL: ("heater", "heater_power", "boundary", "boundary_temperature"),
     IMU: ("sample_valid",),

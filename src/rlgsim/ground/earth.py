@@ -23,7 +23,7 @@ The plumb line is taken along −Up (the deflection of the vertical, a few arcse
 so the gravity vector in ENU is g^n = (0, 0, −γ) and the specific force sensed by an IMU at rest
 on the table is f^n = −g^n = (0, 0, γ).
 
-Both sides use these functions: the simulator's site (:class:`rlgsim.sim.earth.Site`) and the
+Both sides use these functions: the simulator's site (:class:`rlgsim.sim.motion.site.Site`) and the
 strapdown navigation of the calibration (:mod:`rlgsim.estimators.strapdown`), so the dataset's
 truth and its estimate share one Earth model.
 """

@@ -13,7 +13,7 @@ axis, and the body frame coincides with ENU at zero angles. The attitude is
 
 (:func:`body_to_enu`); the outer axis in body coordinates is C_n^b e_East = (cos i, −sin i, 0)
 and the inner axis is body z (:func:`body_axis`). The simulator's kinematics
-(:mod:`rlgsim.sim.motion`) and the calibration's strapdown navigation
+(:mod:`rlgsim.sim.motion.kinematics`) and the calibration's strapdown navigation
 (:mod:`rlgsim.estimators.strapdown`) both use these functions.
 
 Rotation algebra (Titterton & Weston 2004 §3.6, §11.2; Savage, *Strapdown Analytics* 2nd ed.

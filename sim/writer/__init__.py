@@ -1,0 +1,1 @@
+"""The dataset writer: the HDF5 streaming writer, the one schema room, the direct chunk path."""

@@ -1,0 +1,104 @@
+"""Whole chunks of a scale-offset dataset encoded here (:mod:`rlgsim.sim.writer._scaleoffset`) and
+written with ``write_direct_chunk`` — at the moment HDF5 would have written them, so the file
+keeps its bytes.
+
+Through ``write_direct`` a whole chunk of a filtered dataset goes into the dataset's chunk
+cache (HDF5 ``H5Dchunk.c``); it is filtered and given file space only when it leaves the cache:
+when a new chunk needs room (the oldest chunk first — every chunk here is written whole once,
+so the LRU list is the order of writing, and an entry leaves while the cache's bytes plus the
+new chunk's exceed its size) or when the dataset is closed (oldest first). File space is
+allocated in that order, interleaved with the other datasets', so writing each chunk as it
+comes would move the chunks and the index nodes in the file. :class:`DirectChunks` keeps the
+encoded chunks in a mirror of that cache (the same capacity in bytes of unfiltered chunks,
+read from the dataset's access properties) and writes each one when HDF5 would have flushed it.
+A direct write allocates, writes and indexes a chunk in the same order as a flush.
+
+Two calls stay with HDF5: the dataset's first write goes through ``write_direct`` for its first
+chunk (HDF5 creates the chunk index then; that chunk stays in HDF5's cache, and the direct write
+of its encoded copy at its turn evicts it unwritten), and a partial chunk (the last one)
+goes to HDF5's cache after the mirror made the room HDF5 would make. The caller then closes the
+datasets in the order HDF5 closes a file's open datasets (the order they were opened), each
+after :meth:`DirectChunks.close` wrote what the mirror still holds.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import h5py
+import numpy as np
+
+from rlgsim.sim.writer._scaleoffset import Codec, codec_of, encode
+
+
+class DirectChunks:
+    """The mirror of one dataset's chunk cache, holding encoded chunks (see the module)."""
+
+    def __init__(self, ds: h5py.Dataset, codec: Codec, capacity: int, compiled: bool) -> None:
+        self.ds = ds
+        self.codec = codec
+        self.rows = int(ds.chunks[0])
+        self.tail = (0,) * (len(ds.shape) - 1)
+        self.chunk_bytes = codec.chunk_elements * codec.dtype.itemsize
+        self.capacity = capacity              # bytes of unfiltered chunks; 0: no cache
+        self.compiled = compiled
+        #: chunks the cache holds: (n + 1)·chunk_bytes > capacity ⇔ n ≥ capacity // chunk_bytes
+        self.entries = capacity // self.chunk_bytes
+        self.pending: deque[tuple[int, np.ndarray]] = deque()   # (first row, encoded bytes)
+        self.started = False                  # the chunk index exists
+
+    @classmethod
+    def of(cls, ds: h5py.Dataset, start: int, compiled: bool) -> "DirectChunks | None":
+        """The mirror of ``ds`` written from row ``start``, or None when HDF5's own path must
+        stay: not a scale-offset dataset :mod:`rlgsim.sim.writer._scaleoffset` encodes, rows already
+        written, chunks not spanning the trailing dimensions, or a cache small enough in slots
+        that chunks could collide in its hash table."""
+        codec = codec_of(ds)
+        if codec is None or start != 0 or ds.shape[0] != 0 or tuple(ds.chunks[1:]) != ds.shape[1:]:
+            return None
+        nslots, nbytes, _w0 = ds.id.get_access_plist().get_chunk_cache()
+        chunk_bytes = codec.chunk_elements * codec.dtype.itemsize
+        cacheable = nslots > 0 and chunk_bytes <= nbytes
+        capacity = int(nbytes) if cacheable else 0
+        if cacheable and capacity // chunk_bytes + 2 >= nslots:
+            return None
+        return cls(ds, codec, capacity, compiled)
+
+    def write(self, data: np.ndarray, row: int) -> None:
+        """Whole chunks ``data`` (a multiple of the chunk's rows) at row ``row`` (a chunk
+        boundary; the dataset already extends over them)."""
+        buf, ends = encode(self.codec, data, compiled=self.compiled)
+        buf = buf[:ends[-1]].copy()               # what the mirror holds: the encoded bytes
+        first = 0
+        if not self.started:
+            # HDF5 creates the chunk index at the dataset's first write
+            self.ds.write_direct(np.ascontiguousarray(data[:self.rows]),
+                                 dest_sel=np.s_[row:row + self.rows])
+            self.started = True
+            first = 1
+            if self.capacity:
+                self._insert(row, buf[ends[0]:ends[1]])
+        for j in range(first, len(ends) - 1):
+            self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]])
+
+    def make_room(self) -> None:
+        """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk
+        written through ``write_direct`` right after): the oldest chunks while the cache's
+        bytes and the new chunk's exceed its size."""
+        while self.pending and len(self.pending) >= self.entries:
+            row, chunk = self.pending.popleft()
+            self.ds.id.write_direct_chunk((row, *self.tail), chunk)
+
+    def close(self) -> None:
+        """Write every chunk the mirror holds, oldest first (what closing the dataset flushes)."""
+        while self.pending:
+            row, chunk = self.pending.popleft()
+            self.ds.id.write_direct_chunk((row, *self.tail), chunk)
+
+    def _insert(self, row: int, chunk: np.ndarray) -> None:
+        """A chunk enters the cache: HDF5 makes room first (no cache: writes it at once)."""
+        if len(self.pending) >= self.entries:
+            self.make_room()
+        self.pending.append((row, chunk))
+        if not self.capacity:
+            self.make_room()

@@ -1,0 +1,539 @@
+"""rlgsim datasets: HDF5 files (h5py) laid out the netCDF-4 way, written by streaming.
+
+Layout (docs/dataset.md is the schema; :mod:`rlgsim.sim.writer.schema` declares every group the
+simulator writes): one HDF5 group per part of the simulation (``timeline``, ``thermal``,
+``probes``, ``imu``, ``turntable``, ``truth``). Inside a group every dimension has a coordinate
+variable that is an HDF5 *dimension scale*, and every variable has its dimensions attached,
+exactly as netCDF-4 does it — so each group opens with
+``xarray.open_dataset(path, engine="h5netcdf", group="thermal")``. Every variable carries
+``units`` and ``description`` attributes. The root carries the format marker
+(:data:`rlgsim.ground.dataset_format.FORMAT`, ``FORMAT_VERSION``), the scenario text, seed and
+software version.
+
+Writing: :class:`DatasetWriter` opens a temporary file in the target directory
+(``<out>.tmp-<pid>``); groups declare their coordinates and variables, then rows are appended
+along the growing dimension (``time``) in bounded chunks; :meth:`DatasetWriter.commit` closes
+the file and ``os.replace``-s it onto the final path, so a run that fails or is killed never
+leaves a file at the output path. HDF5 chunk shapes depend only on a variable's shape, never on
+how the caller chunks its appends, so the stored arrays do not depend on the chunk size. The
+whole chunks of scale-offset variables (the IMU pulses) are packed by
+:mod:`rlgsim.sim.writer._scaleoffset` and written directly when HDF5's chunk cache would have written
+them (:mod:`rlgsim.sim.writer._direct_chunks`): the same bytes as HDF5's filter, in a fraction of its
+CPU time — once a self-check has shown that with the HDF5 this process loaded
+(:mod:`rlgsim.sim.writer._direct_check`; HDF5's filter otherwise).
+:func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
+
+Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
+format marker and version); :func:`summary` is what ``rlgsim info`` prints.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import itertools
+import os
+import pathlib
+import sys
+import threading
+from typing import Any, Iterable, Iterator, Mapping
+
+import h5py
+import numpy as np
+
+from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
+                                          INCOMPLETE_ATTR, TIME,
+                                          VERSION_ATTR, open_dataset)
+from rlgsim.ground.errors import UserInputError
+
+#: Target size of one HDF5 chunk [bytes] along the growing dimension.
+_CHUNK_BYTES = 1 << 18
+_STR = h5py.string_dtype("utf-8")
+#: NAME of a netCDF-4 dimension scale that is not a variable (netCDF-C / h5netcdf convention).
+_NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
+
+
+def software_version() -> str:
+    """The installed rlgsim version (``0+unknown`` when run from an uninstalled tree)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("rlgsim")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def _attr_value(value: Any) -> Any:
+    if isinstance(value, str):
+        return value
+    if isinstance(value, bool):
+        return np.int8(value)
+    if value is None:
+        return ""
+    return value
+
+
+def check_writable(path: str | os.PathLike) -> pathlib.Path:
+    """Check, before any work, that ``path`` can be written; return it absolute.
+
+    Raises UserInputError naming the path when the directory is missing or not writable or
+    the path is a directory.
+    """
+    out = pathlib.Path(path).expanduser()
+    if out.is_dir():
+        raise UserInputError(f"{out}: output path is a directory; give a file name such as "
+                             f"{out / 'run.h5'}")
+    parent = out.parent if str(out.parent) else pathlib.Path(".")
+    if not parent.is_dir():
+        raise UserInputError(f"{out}: cannot write output: directory {parent} does not exist")
+    probe = parent / f".{out.name}.probe-{os.getpid()}"
+    try:
+        with open(probe, "wb"):
+            pass
+    except OSError as exc:
+        raise UserInputError(f"{out}: cannot write output ({exc.strerror or exc}); "
+                             f"choose a writable location with -o") from None
+    finally:
+        try:
+            probe.unlink()
+        except OSError:
+            pass
+    return out.absolute()
+
+
+class GroupWriter:
+    """One group: coordinates (dimension scales) and variables; rows appended along ``time``."""
+
+    def __init__(self, group: h5py.Group, *, direct: bool | None = None) -> None:
+        self._g = group
+        self._direct = direct       # the direct-chunk path forced on/off (None: _direct_chunks)
+        self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
+        self._dim_only: set[str] = set()             # growing dims without coordinate values
+        self._staged: dict[str, _ChunkStage] = {}    # name -> its chunk-aligned writer
+        self._rows: dict[str, int] = {}              # growing dim -> rows appended so far
+
+    @property
+    def name(self) -> str:
+        return self._g.name.lstrip("/")
+
+    def _chunks(self, dtype: np.dtype, tail: tuple[int, ...]) -> tuple[int, ...]:
+        row = max(1, int(np.prod(tail, dtype=np.int64))) * max(1, np.dtype(dtype).itemsize)
+        rows = int(min(1 << 16, max(64, _CHUNK_BYTES // row)))
+        return (rows, *tail)
+
+    def coordinate(self, name: str, values: Iterable | None = None, *, units: str | None = None,
+                   description: str, dtype: Any = np.float64, growing: bool = False,
+                   attrs: Mapping[str, Any] | None = None) -> None:
+        """A dimension with its coordinate variable. ``growing=True`` makes it the unlimited
+        dimension that :meth:`append` extends (its values arrive with the rows)."""
+        if growing:
+            ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
+                                        chunks=self._chunks(dtype, ()), track_times=False)
+            self._growing[name] = [name]
+        else:
+            data = np.asarray(list(values) if not isinstance(values, np.ndarray) else values)
+            if data.dtype.kind in "UO":
+                data = np.asarray([str(v) for v in data], dtype=object)
+                dtype = _STR
+            ds = self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
+        ds.make_scale(name)
+        self._set_attrs(ds, units, description, attrs)
+
+    def dimension(self, name: str) -> None:
+        """A growing dimension *without* coordinate values (netCDF-4: "a dimension but not a
+        variable"; xarray shows it without an index). For sample-rate axes whose coordinate is
+        implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
+        it takes the variables only."""
+        ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=">f4",
+                                    chunks=(1 << 16,), track_times=False)
+        ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
+        self._growing[name] = []
+        self._dim_only.add(name)
+
+    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
+        """Set attributes of the group itself."""
+        for key, value in attrs.items():
+            self._g.attrs[key] = _attr_value(value)
+
+    def variable(self, name: str, dims: tuple[str, ...], *, units: str | None = None,
+                 description: str, dtype: Any = np.float64, data: Any = None,
+                 attrs: Mapping[str, Any] | None = None,
+                 storage: Mapping[str, Any] | None = None) -> None:
+        """A variable over existing dimensions; along a growing dimension (first) it starts empty
+        and is filled by :meth:`append`, otherwise ``data`` gives its values. ``storage``: extra
+        h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
+        filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
+        ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
+        scales = [self._g[d] for d in dims]
+        string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
+        if string:
+            dtype = _STR
+        if dims and dims[0] in self._growing:
+            tail = tuple(len(s) for s in scales[1:])
+            extra = dict(storage or {})
+            chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
+            ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
+                                        dtype=dtype, chunks=chunks, track_times=False, **extra)
+            self._growing[dims[0]].append(name)
+        else:
+            arr = np.asarray(data)
+            if string:
+                arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
+            ds = self._g.create_dataset(name, data=arr, dtype=dtype, track_times=False)
+        for axis, scale in enumerate(scales):
+            ds.dims[axis].attach_scale(scale)
+        self._set_attrs(ds, units, description, attrs)
+
+    @staticmethod
+    def _set_attrs(ds: h5py.Dataset, units: str | None, description: str,
+                   attrs: Mapping[str, Any] | None) -> None:
+        if units is not None:
+            ds.attrs["units"] = units
+        ds.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            ds.attrs[key] = _attr_value(value)
+
+    def append(self, dim: str, rows: Mapping[str, np.ndarray]) -> None:
+        """Append the same number of rows to ``dim`` and every variable along it.
+
+        Rows are staged per variable and reach the file in whole HDF5 chunks
+        (:class:`_ChunkStage`); :meth:`flush` (called by :meth:`DatasetWriter.commit` and
+        :func:`add_group`) writes the last, partial chunk. The stored arrays — and the file's
+        bytes — depend only on the rows in order, not on how they were grouped into calls."""
+        names = self._growing[dim]
+        if len(rows) != len(names) or any(v not in rows for v in names):
+            missing = set(names) - set(rows)
+            extra = set(rows) - set(names)
+            raise ValueError(f"{self.name}: append along {dim} needs exactly {sorted(names)}; "
+                             f"missing {sorted(missing)}, unexpected {sorted(extra)}")
+        n = {len(rows[v]) for v in names}
+        if len(n) != 1:
+            raise ValueError(f"{self.name}: rows of different lengths {sorted(n)}")
+        m = n.pop()
+        if m == 0:
+            return
+        start = self._rows.get(dim)
+        if start is None:
+            start = self._rows[dim] = self._g[dim].shape[0]
+        for v in names:
+            st = self._staged.get(v)
+            if st is None:
+                st = self._staged[v] = _ChunkStage(self._g[v], start, self._direct)
+            st.append(rows[v])
+        self._rows[dim] = start + m
+
+    def flush(self) -> None:
+        """Write every staged row (the partial last chunks) and size the coordinate-less
+        dimensions; the group's datasets then hold every appended row once their stages are
+        closed (:class:`DatasetWriter` and :func:`add_group` close them: whole chunks of a
+        scale-offset dataset may wait until then, as they would in HDF5's chunk cache)."""
+        for st in self._staged.values():
+            st.flush()
+        for dim in self._dim_only:
+            rows = self._rows.get(dim)
+            if rows is not None and self._g[dim].shape[0] != rows:
+                self._g[dim].resize(rows, axis=0)
+
+
+class _ChunkStage:
+    """Appends to one growing dataset in whole HDF5 chunks.
+
+    The hot path of a long run: each block appends a few hundred to tens of thousands of rows
+    to ~30 datasets. Writing each append as it comes costs a resize and an HDF5 write per call
+    (~0.1 ms each through h5py) and writes partial chunks that HDF5 must complete later
+    (through its chunk cache and, for filtered datasets, the filter). Here rows are copied into
+    a one-chunk staging buffer (the dataset's dtype: the conversion happens once, in numpy)
+    and every run of full chunks goes to the file in one ``write_direct`` — straight from the
+    caller's array when it is aligned. Memory: one chunk per dataset.
+
+    A scale-offset dataset's whole chunks are packed here instead of by HDF5's filter and
+    written with ``write_direct_chunk`` when HDF5 would have written them
+    (:mod:`rlgsim.sim.writer._direct_chunks`, :data:`DIRECT_CHUNKS`): the same file, bytes and all.
+    :meth:`close` (in the order the stages were created: the order HDF5 closes the datasets
+    at file close) writes what that path still holds and closes the dataset."""
+
+    __slots__ = ("ds", "rows", "tail", "written", "buf", "fill", "dtype", "direct", "flushed",
+                 "order")
+
+    def __init__(self, ds: h5py.Dataset, start: int, direct: bool | None = None) -> None:
+        self.ds = ds
+        self.dtype = ds.dtype
+        self.rows = int(ds.chunks[0])
+        self.tail = tuple(ds.shape[1:])      # the fixed dimensions
+        self.written = int(start)            # rows in the file (a chunk boundary once staged)
+        self.buf = None
+        self.fill = 0                        # rows staged in buf
+        self.direct = _direct_chunks(ds, start, direct)
+        self.flushed = False
+        self.order = next(_STAGE_ORDER)      # creation order = the dataset's open order
+
+    def _write(self, data: np.ndarray) -> None:
+        k = data.shape[0]
+        # Dataset.resize(n, axis=0) without its checks (~35 µs a call: the dataset's creation
+        # properties and shape read back each time): the same HDF5 call
+        self.ds.id.set_extent((self.written + k, *self.tail))
+        if self.direct is not None and self.flushed:
+            # rows after a flush: the mirror's chunks go now and HDF5 writes the rest (the
+            # data are right; the file layout need not match a run without the flush)
+            self.direct.close()
+            self.direct = None
+        if self.direct is not None and k % self.rows == 0 and self.written % self.rows == 0:
+            self.direct.write(data, self.written)
+        else:
+            if self.direct is not None:
+                self.direct.make_room()      # what HDF5 evicts to cache this partial chunk
+            self.ds.write_direct(data, dest_sel=np.s_[self.written:self.written + k])
+        self.written += k
+
+    def append(self, arr: np.ndarray) -> None:
+        arr = np.asarray(arr)
+        m, r = arr.shape[0], self.rows
+        pos = 0
+        if self.fill or self.written % r:
+            if self.buf is None:
+                self.buf = np.empty((r, *self.tail), dtype=self.dtype)
+            # complete the chunk in progress (the first one may start mid-chunk: an
+            # existing dataset that is appended to)
+            room = r - (self.written + self.fill) % r
+            pos = min(room, m)
+            self.buf[self.fill:self.fill + pos] = arr[:pos]
+            self.fill += pos
+            if pos < room:
+                return
+            self._write(self.buf[:self.fill])
+            self.fill = 0
+        full = (m - pos) // r * r
+        if full:
+            self._write(np.ascontiguousarray(arr[pos:pos + full], dtype=self.dtype))
+            pos += full
+        if pos < m:
+            if self.buf is None:
+                self.buf = np.empty((r, *self.tail), dtype=self.dtype)
+            self.buf[:m - pos] = arr[pos:]
+            self.fill = m - pos
+
+    def flush(self) -> None:
+        if self.fill:
+            self._write(self.buf[:self.fill])
+            self.fill = 0
+        self.flushed = True
+
+    def close(self) -> None:
+        """Write what the direct path still holds and close the dataset (as closing the file
+        would: HDF5 then writes the chunks its cache holds)."""
+        if self.direct is not None:
+            self.direct.close()
+            self.direct = None
+        if self.ds.id.valid:
+            self.ds.id.close()
+
+
+#: Whole chunks of scale-offset datasets packed by :mod:`rlgsim.sim.writer._scaleoffset` and written
+#: directly (:mod:`rlgsim.sim.writer._direct_chunks`; the same file bytes as HDF5's filter): None (the
+#: default) when numba is already loaded in the process (the compiled packer; a long run's IMU
+#: stage loads it — importing it only for this would cost a short run more than it saves),
+#: True always, False never (HDF5's filter packs them). Either way only if the process's HDF5
+#: passes the self-check (:func:`_direct_path_ok`).
+DIRECT_CHUNKS: bool | None = None
+
+_STAGE_ORDER = itertools.count()
+
+#: The self-check's result (:func:`_direct_path_ok`): None until it has run.
+_DIRECT_OK: bool | None = None
+_DIRECT_OK_LOCK = threading.Lock()
+
+
+def _direct_path_ok() -> bool:
+    """Whether the direct-chunk path writes HDF5's file with the HDF5 this process loaded:
+    :func:`rlgsim.sim.writer._direct_check.direct_path_agrees` (two small in-memory files, a few ms),
+    run once per process, before the first direct write; False keeps HDF5's filter."""
+    global _DIRECT_OK
+    ok = _DIRECT_OK
+    if ok is None:
+        with _DIRECT_OK_LOCK:
+            ok = _DIRECT_OK
+            if ok is None:
+                from rlgsim.sim.writer._direct_check import direct_path_agrees
+                ok = _DIRECT_OK = direct_path_agrees(GroupWriter, _close_stages)
+    return ok
+
+
+def _direct_chunks(ds: h5py.Dataset, start: int, force: bool | None = None):
+    """The direct-chunk path of a dataset (:class:`rlgsim.sim.writer._direct_chunks.DirectChunks`)
+    or None (HDF5's own path). ``force`` True/False: on/off without :data:`DIRECT_CHUNKS` or
+    the self-check (the self-check's own files)."""
+    if force is False or ds.scaleoffset is None:
+        return None
+    numba = "numba" in sys.modules
+    if force is None and not (DIRECT_CHUNKS is not False and (DIRECT_CHUNKS or numba)
+                              and _direct_path_ok()):
+        return None
+    from rlgsim.sim.writer._direct_chunks import DirectChunks
+    compiled = numba or importlib.util.find_spec("numba") is not None
+    return DirectChunks.of(ds, start, compiled=compiled)
+
+
+def _close_stages(groups: Iterable[GroupWriter]) -> None:
+    """Close every staged dataset of ``groups`` in the order they were opened — the order in
+    which closing the file would close (and flush) them."""
+    stages = sorted((st for g in groups for st in g._staged.values()), key=lambda st: st.order)
+    for st in stages:
+        st.close()
+    for g in groups:
+        g._staged.clear()
+
+
+def remove_stale_temporaries(path: pathlib.Path) -> list[pathlib.Path]:
+    """Delete ``<path>.tmp-<pid>`` files whose writing process no longer runs (a run killed
+    with SIGKILL, a power cut); the temporary file of a live process is kept. Returns the
+    files removed."""
+    from rlgsim.ground.lifeline import process_alive
+    prefix = f"{path.name}.tmp-"
+    removed = []
+    try:
+        entries = list(path.parent.iterdir())
+    except OSError:
+        return removed
+    for p in entries:
+        pid = p.name[len(prefix):]
+        if not p.name.startswith(prefix) or not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        if process_alive(int(pid)):
+            continue
+        try:
+            if p.is_file() and not p.is_symlink():
+                p.unlink()
+                removed.append(p)
+        except OSError:
+            pass
+    return removed
+
+
+class DatasetWriter:
+    """Stream a dataset to ``<path>.tmp-<pid>``; :meth:`commit` renames it onto ``path``.
+
+    Use as a context manager: leaving the block normally commits, an exception (or
+    KeyboardInterrupt) deletes the temporary file.
+    """
+
+    def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any]) -> None:
+        self.path = check_writable(path)
+        remove_stale_temporaries(self.path)
+        self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
+        self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True)
+        self._groups: list[GroupWriter] = []
+        # The format marker is written last (commit): until then the file says it is
+        # incomplete, so the temporary file of a killed run is never taken for a dataset.
+        self._file.attrs[INCOMPLETE_ATTR] = INCOMPLETE
+        self._file.attrs["software_version"] = software_version()
+        for key, value in attrs.items():
+            self._file.attrs[key] = _attr_value(value)
+
+    def group(self, name: str, description: str,
+              attrs: Mapping[str, Any] | None = None) -> GroupWriter:
+        g = self._file.create_group(name, track_order=True)
+        g.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            g.attrs[key] = _attr_value(value)
+        writer = GroupWriter(g)
+        self._groups.append(writer)
+        return writer
+
+    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
+        for key, value in attrs.items():
+            self._file.attrs[key] = _attr_value(value)
+
+    def commit(self) -> pathlib.Path:
+        for g in self._groups:                 # rows still staged (GroupWriter.append)
+            g.flush()
+        del self._file.attrs[INCOMPLETE_ATTR]
+        self._file.attrs[FORMAT_ATTR] = FORMAT
+        self._file.attrs[VERSION_ATTR] = FORMAT_VERSION
+        _close_stages(self._groups)
+        self._file.close()
+        os.replace(self.tmp_path, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        try:
+            self._file.close()
+        finally:
+            try:
+                self.tmp_path.unlink()
+            except OSError:
+                pass
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+
+
+@contextlib.contextmanager
+def add_group(path: str | os.PathLike, name: str, description: str,
+              attrs: Mapping[str, Any] | None = None) -> Iterator[GroupWriter]:
+    """Add (or replace) the group ``name`` of an existing dataset: yields a
+    :class:`GroupWriter` of a group under a temporary name that is moved onto ``name`` when the
+    block ends normally (and deleted on an error), so an interrupted write never leaves a half
+    group named ``name``."""
+    tmp = f"{name}.tmp-{os.getpid()}"
+    with h5py.File(path, "r+") as f:
+        if tmp in f:
+            del f[tmp]
+        g = f.create_group(tmp, track_order=True)
+        g.attrs["description"] = description
+        for key, value in (attrs or {}).items():
+            g.attrs[key] = _attr_value(value)
+        try:
+            writer = GroupWriter(g)
+            yield writer
+            writer.flush()
+        except BaseException:
+            del f[tmp]
+            raise
+        if name in f:
+            del f[name]
+        f.move(tmp, name)
+        _close_stages([writer])
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.generic):
+        return str(value.item())
+    return str(value)
+
+
+def summary(path: str | os.PathLike) -> str:
+    """A human-readable summary of a dataset (what ``rlgsim info`` prints)."""
+    with open_dataset(path) as ds:
+        a = ds.attrs
+        lines = [f"{path}: {FORMAT} v{_text(a.get(VERSION_ATTR))}, "
+                 f"rlgsim {_text(a.get('software_version', '?'))}"]
+        for key, label in (("scenario_name", "scenario"), ("scenario_source", "scenario file"),
+                           ("device", "device"), ("seed", "seed"),
+                           ("duration_s", "duration [s]"),
+                           ("thermal_step_s", "thermal step [s]")):
+            if key in a:
+                lines.append(f"  {label}: {_text(a[key])}")
+        for gname in ds.groups():
+            desc = _text(ds.group_attrs(gname).get("description", ""))
+            lines.append(f"  group {gname}: {desc}")
+            for v in ds.variables(gname):
+                shape = "×".join(f"{d}={n}" for d, n in zip(v.dims, v.shape))
+                units = _text(v.units) if v.units is not None else ""
+                extra = ""
+                if v.name == TIME and v.shape[0]:
+                    n = v.shape[0]
+                    first = ds.read(gname, TIME, slice(0, 1))[0]
+                    last = ds.read(gname, TIME, slice(n - 1, n))[0]
+                    extra = f"  [{first:g} .. {last:g}]"
+                lines.append(f"    {v.name:<18} ({shape}) {units}{extra}")
+    return "\n".join(lines)

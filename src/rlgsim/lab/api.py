@@ -1,0 +1,280 @@
+"""The public Python API (docs/api.md is its tutorial): the few functions a notebook needs, on
+top of the simulator (:mod:`rlgsim.sim`) and the estimators (:mod:`rlgsim.estimators`).
+
+- :func:`load_scenario`, :func:`with_changes` — a scenario and a changed copy whose embedded
+  TOML says what was run;
+- :func:`run` — simulate to a file or into memory, as an :class:`xarray.DataTree`;
+- :func:`open_tree` — any dataset or recording as an :class:`xarray.DataTree` with a time
+  coordinate on every group;
+- :func:`window_table` — the 100 s window series of a run (measured bias with the Earth rate
+  removed, window means of every probe, temperature rates, UHFO; the truth for simulated runs)
+  as a :class:`pandas.DataFrame` whose column names carry their units — what the compensators
+  (:mod:`rlgsim.estimators`) fit on, their equations printing those names;
+- :func:`score` — RMSE, MAE and R² of a prediction against the truth;
+- :func:`calibrate` — the turntable calibration of a dataset, or of a recording with its
+  commanded programme, with the same filter settings as ``rlgsim calibrate``;
+- :func:`load_study`, :func:`run_study` — a study object and its report folder.
+
+Everything is imported lazily: ``import rlgsim`` stays light.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+import tempfile
+from typing import Any
+
+import numpy as np
+
+__all__ = ["load_scenario", "with_changes", "run", "open_tree", "window_table", "score",
+           "calibrate", "load_study", "run_study"]
+
+_DEG_PER_H = math.pi / 180.0 / 3600.0          # rad/s per °/h
+_ARCSEC = math.pi / 180.0 / 3600.0             # rad per arcsec
+
+
+def load_scenario(ref: str):
+    """A scenario by shipped name (``rlgsim list``) or path (:class:`rlgsim.Scenario`)."""
+    from rlgsim.sim.run.scenario import load_scenario as _load
+    return _load(ref)
+
+
+def with_changes(scenario, changes: dict | None = None, /, **keys):
+    """``scenario`` with TOML keys changed (dotted paths, ``[i]`` for list elements; top-level
+    keywords), validated again; its ``text`` is the changed TOML."""
+    from rlgsim.sim.run.scenario_changes import with_changes as _with
+    return _with(scenario, changes, **keys)
+
+
+def run(scenario, out: str | os.PathLike | None = None, *, progress: bool = False):
+    """Simulate ``scenario`` (a :class:`~rlgsim.Scenario`, a shipped name or a path).
+
+    With ``out`` the dataset is written there and opened lazily; without it the run goes to a
+    temporary file that is read into memory and deleted (mind the size: ``rlgsim run`` streams
+    runs of any length to disk). Returns an :class:`xarray.DataTree` (:func:`open_tree`)."""
+    from rlgsim.sim.run.simulate import simulate
+    if isinstance(scenario, (str, os.PathLike)):
+        scenario = load_scenario(os.fspath(scenario))
+    if out is not None:
+        path = simulate(scenario, out, progress=progress)
+        return open_tree(path)
+    with tempfile.TemporaryDirectory(prefix="rlgsim-run-") as tmp:
+        path = simulate(scenario, pathlib.Path(tmp) / f"{scenario.name}.h5", progress=progress)
+        return open_tree(path, load=True)
+
+
+def open_tree(path: str | os.PathLike, *, load: bool = False):
+    """A dataset or a recording as an :class:`xarray.DataTree` (time coordinates on every group;
+    :mod:`rlgsim.ground.datatree`)."""
+    from rlgsim.ground.datatree import open_tree as _open
+    return _open(path, load=load)
+
+
+# ---------------------------------------------------------------------------- windows
+
+def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
+    """The window series of one run as a :class:`pandas.DataFrame` (one row per complete
+    window, columns named with their units):
+
+    ``time_s`` (window end), ``bias_deg_per_h`` (pulses / (K·W) minus the Earth rate on the
+    gyro axis), ``probe_<name>_c`` (window mean), ``dTdt_<name>_k_per_s`` (least-squares slope
+    in the window), ``uhfo_v`` (when logged), and for a simulated dataset
+    ``true_bias_deg_per_h`` and ``true_random_deg_per_h`` (the truth's window mean and its
+    flicker + random-walk part). Windows that are not powered throughout, or whose gyro
+    output holds a dropout, are left out; a probe, UHFO or power reading missing inside a
+    window (a dropout row) is left out of that window's mean and slope, and a window missing
+    more than half of a channel's readings is left out.
+
+    ``source``: a dataset or recording path. K is the nominal scale factor (the truth's drawn
+    ``gyro.k0`` for a dataset, the sidecar's for a recording); the Earth rate is the exact
+    projection the truth stores for a dataset, and for a recording the site latitude and the
+    sidecar's ``[orientation]`` (a static mount)."""
+    import pandas as pd
+
+    from rlgsim.estimators.features import samples_per_window, temperature_rate, window_average
+    from rlgsim.ground.recording import is_recording, load_recording
+    if is_recording(source):
+        rec = load_recording(source)
+        axes = rec.gyro_axes
+        axis = _axis(axes, gyro, source)
+        i = axes.index(axis)
+        f = rec.sample_rate_hz
+        rate = rec.gyro_rate_deg_per_h()[:, i] * _DEG_PER_H            # rad/s per sample
+        n = rec.n_samples
+        m_s = samples_per_window(f, window_s)
+        n_win = n // m_s
+        rate_w = rate[:n_win * m_s].reshape(n_win, m_s).mean(axis=1)
+        earth = np.full(n_win, rec.earth_rate_deg_per_h()[i] * _DEG_PER_H)
+        t_slow, temps = rec.probes()
+        names = rec.probe_names
+        f_slow = rec.sidecar.temperature_rate_hz or f
+        extra = {}
+        uh = [k for k, (kind, _, g) in rec.kinds.items() if kind == "uhfo"
+              and (g.get("axis") in (None, axis))]
+        if uh:
+            extra["uhfo_v"] = rec.slow(uh[0])[1]
+        power = rec.slow("power_on")[1] if "power_on" in rec.columns else None
+        bad = rec.dropout[:n_win * m_s].reshape(n_win, m_s).any(axis=1)
+        truth = None
+    else:
+        tree = open_tree(source)
+        try:
+            imu = tree["imu"]
+            axes = [str(a) for a in imu["gyro"].values]
+            axis = _axis(axes, gyro, source)
+            i = axes.index(axis)
+            f = float(imu.attrs["sample_rate_hz"])
+            coeffs = {}
+            if "truth" in tree.children and "coefficient" in tree["truth"].coords:
+                coeffs = dict(zip(map(str, tree["truth"]["coefficient"].values),
+                                  map(float, tree["truth"]["coefficient_value"].values)))
+            k = coeffs.get(f"gyro.k0[{axis}]")
+            if k is None:
+                import tomllib
+                dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
+                from rlgsim.sim.sensors.gyro import pulses_per_arcsec
+                k = pulses_per_arcsec(dev) / _ARCSEC
+            pulses = np.asarray(imu["gyro_pulses"][:, i].values, dtype=np.float64)
+            m_s = samples_per_window(f, window_s)
+            n_win = pulses.size // m_s
+            rate_w = pulses[:n_win * m_s].reshape(n_win, m_s).sum(axis=1) / (k * window_s)
+            step = float(tree.attrs["thermal_step_s"])
+            f_slow = 1.0 / step
+            m_t = samples_per_window(f_slow, window_s)
+            truth = None
+            if "truth" in tree.children and "dtheta_step" in tree["truth"]:
+                tr = tree["truth"]
+                b = list(map(str, tr["body"].values)).index(axis)
+                dth = np.asarray(tr["dtheta_step"][:, b].values)
+                n_win = min(n_win, dth.size // m_t)
+                earth = dth[:n_win * m_t].reshape(n_win, m_t).sum(axis=1) / window_s
+                truth = {
+                    "true_bias_deg_per_h": window_average(
+                        np.asarray(tr["gyro_bias"][:, i].values), f_slow, window_s)[:n_win]
+                    / _DEG_PER_H,
+                    "true_random_deg_per_h": window_average(
+                        np.asarray(tr["gyro_bias_random"][:, i].values), f_slow, window_s
+                    )[:n_win] / _DEG_PER_H}
+            else:
+                lat = math.radians(float(tree.attrs.get("latitude_deg", 34.0)))
+                up = {"x": 0.0, "y": math.cos(lat), "z": math.sin(lat)}.get(axis, 0.0)
+                earth = np.full(n_win, 7.292115e-5 * up)
+            rate_w = rate_w[:n_win]
+            names, temps = [], np.zeros((0, 0))
+            if "probes" in tree.children:
+                names = [str(p) for p in tree["probes"]["probe"].values]
+                temps = np.asarray(tree["probes"]["temperature"].values, dtype=np.float64)
+            extra = {}
+            if "uhfo" in imu:
+                extra["uhfo_v"] = np.asarray(imu["uhfo"][:, i].values, dtype=np.float64)
+            power = (np.asarray(tree["thermal"]["power_on"].values, dtype=np.float64)
+                     if "thermal" in tree.children and "power_on" in tree["thermal"] else None)
+            bad = np.zeros(n_win, dtype=bool)
+        finally:
+            tree.close()
+    rate_w = rate_w[:n_win]
+    earth = earth[:n_win]
+    cols: dict[str, Any] = {"time_s": (np.arange(n_win) + 1) * window_s,
+                            "bias_deg_per_h": (rate_w - earth) / _DEG_PER_H}
+    if truth:
+        cols.update(truth)
+    for j, name in enumerate(names):
+        T = temps[:, j]
+        cols[f"probe_{name}_c"] = _nan_windows(window_average, T, f_slow, window_s)[:n_win]
+        cols[f"dTdt_{name}_k_per_s"] = _nan_windows(temperature_rate, T, f_slow,
+                                                    window_s)[:n_win]
+    for key, v in extra.items():
+        cols[key] = _nan_windows(window_average, v, f_slow, window_s)[:n_win]
+    keep = ~bad
+    if power is not None:
+        keep &= _nan_windows(window_average, power, f_slow, window_s)[:n_win] >= 1.0
+    for key, v in cols.items():
+        if len(v) != n_win:
+            raise ValueError(f"{source}: {key} covers {len(v)} windows, the pulses {n_win}")
+    df = pd.DataFrame(cols)
+    keep &= np.all(np.isfinite(df.to_numpy(dtype=float)), axis=1)
+    return df[keep].reset_index(drop=True)
+
+
+def _nan_windows(func, x, rate_hz: float, window_s: float) -> np.ndarray:
+    """``func`` (window mean or least-squares slope) per window of a slow channel with missing
+    readings (NaN, e.g. dropout rows of a recording): a window missing more than half of its
+    samples is NaN (the window is then left out), otherwise the value of its valid samples. A
+    complete channel goes straight through ``func``."""
+    from rlgsim.estimators.features import samples_per_window
+    x = np.asarray(x, dtype=np.float64)
+    ok = np.isfinite(x)
+    if ok.all():
+        return func(x, rate_hz, window_s)
+    m = samples_per_window(rate_hz, window_s)
+    n_win = x.size // m
+    xw = x[:n_win * m].reshape(n_win, m)
+    okw = ok[:n_win * m].reshape(n_win, m)
+    cnt = okw.sum(axis=1)
+    x0 = np.where(okw, xw, 0.0)
+    mean = x0.sum(axis=1) / np.maximum(cnt, 1)
+    if func.__name__ == "window_average":
+        out = mean
+    else:                               # slope of x against time over the valid samples
+        t = np.broadcast_to(np.arange(m, dtype=np.float64) / rate_hz, xw.shape)
+        tm = np.where(okw, t, 0.0).sum(axis=1) / np.maximum(cnt, 1)
+        dt = np.where(okw, t - tm[:, None], 0.0)
+        den = (dt * dt).sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = (dt * (x0 - mean[:, None] * okw)).sum(axis=1) / den
+    return np.where(cnt * 2 > m, out, np.nan)
+
+
+def _axis(axes: list[str], gyro: str | None, source) -> str:
+    from rlgsim.ground.gyro_axis import choose_gyro
+    return choose_gyro(axes, gyro, where=source,
+                       unknown="{where}: gyro {gyro!r} not allowed; the gyro axes are {axes}",
+                       several="{where}: several gyros ({axes}); say which one with gyro=")
+
+
+# ---------------------------------------------------------------------------- scores
+
+def score(y_true, y_pred) -> dict[str, float]:
+    """``rmse``, ``mae`` and ``r2`` of ``y_pred`` against ``y_true`` (same units)."""
+    from rlgsim.estimators.metrics import mae, r2, rmse
+    yt, yp = np.asarray(y_true, dtype=float), np.asarray(y_pred, dtype=float)
+    return {"rmse": rmse(yt, yp), "mae": mae(yt, yp), "r2": r2(yt, yp)}
+
+
+# ---------------------------------------------------------------------------- calibration
+
+def calibrate(source: str | os.PathLike, programme: str | os.PathLike | None = None, *,
+              workers: int = 1):
+    """The turntable Kalman calibration of every calibration window, as a
+    :class:`pandas.DataFrame` (the columns of ``rlgsim calibrate``'s table). ``source``: a
+    dataset, or a recording with its ``programme`` (a programme CSV or the scenario it ran).
+    The filter settings come from the device's noise levels exactly as on the command line
+    (:func:`rlgsim.estimators.calibration.filter_settings`)."""
+    import pandas as pd
+
+    from rlgsim.estimators.calibration import CampaignSettings, run_campaign
+    from rlgsim.ground.recording import is_recording
+    src: Any = pathlib.Path(source)
+    if programme is not None or is_recording(source):
+        from rlgsim.lab.recordings import calibration_source
+        src = calibration_source(source, programme)
+    result = run_campaign(src, CampaignSettings(workers=workers))
+    return pd.DataFrame([{c: r.get(c, np.nan) for c in result.columns} for r in result.rows])
+
+
+# ---------------------------------------------------------------------------- studies
+
+def load_study(ref: str):
+    """A study by shipped name (``rlgsim study --list``) or path."""
+    from rlgsim.lab.study import load_study as _load
+    return _load(ref)
+
+
+def run_study(study, out_dir: str | os.PathLike, *, progress: bool = False) -> pathlib.Path:
+    """Run a study (object or name/path) into ``out_dir``; returns the path of report.md."""
+    from rlgsim.lab.study import run_study as _run
+    if isinstance(study, (str, os.PathLike)):
+        study = load_study(os.fspath(study))
+    return _run(study, out_dir, progress=progress)

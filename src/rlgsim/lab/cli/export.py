@@ -1,0 +1,40 @@
+"""``rlgsim export DATASET_OR_RECORDING [--format csv|parquet] [-o PATH]`` — a simulated dataset
+(or a recording) as a recording: one table with units in the column names, its TOML sidecar
+and, for a run with calibration windows, the commanded programme (docs/recordings.md;
+:mod:`rlgsim.ground.recording_export`).
+
+Registered in :mod:`rlgsim.lab.cli` by :func:`add_subparser`; the dispatch calls :func:`run`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_subparser", "run"]
+
+
+def add_subparser(sub) -> None:
+    """Add the ``export`` subcommand to the ``rlgsim`` subparsers."""
+    e = sub.add_parser("export", help="a dataset or recording as a recording (CSV or Parquet "
+                                      "table + TOML sidecar)")
+    e.add_argument("source", metavar="DATASET_OR_RECORDING",
+                   help="an rlgsim dataset (.h5) or a recording (table with a .toml sidecar)")
+    e.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="table format (default: csv)")
+    e.add_argument("-o", "--output", metavar="PATH",
+                   help="output table (default: the source's stem with .csv or .parquet next to "
+                        "it); the sidecar is PATH with .toml")
+    e.add_argument("-q", "--quiet", action="store_true", help="print nothing")
+    e.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Export for parsed ``args``; returns the exit code."""
+    from rlgsim.ground.recording_export import export
+    done = export(args.source, args.format, args.output)
+    if not args.quiet:
+        print(f"table: {done.table} ({done.rows} rows)")
+        print(f"sidecar: {done.sidecar}")
+        if done.programme is not None:
+            print(f"programme: {done.programme}")
+    return 0

@@ -1,0 +1,547 @@
+"""Mode hops in a recording: bias steps the temperature law cannot explain, found, carried as
+known regressors of the law fit, and mapped onto the simulator's mode-hop model for the twin
+(docs/identify.md "Mode hops"; the model: :mod:`rlgsim.sim.sensors.anomalies`, docs/sensors.md
+"Anomalies", eq. (A1)).
+
+Detection (:func:`fit_hops`): on the 100 s window bias, under the generalised-least-squares
+noise model of the law fit (white, flicker over the template's band, random walk, quantisation:
+:mod:`rlgsim.estimators.identify.window_noise`), a likelihood-ratio step scan on the whitened
+residual of the chosen law (:func:`rlgsim.estimators.identify.step_detection.detect_steps`)
+at family false-alarm level :data:`HOP_ALPHA` per recording (Bonferroni over the candidate
+positions). The found steps become fixed regressors of the law (piecewise offsets,
+``select_terms(..., fixed=...)``), the law's terms are chosen again on the hop-free bias, the
+scan runs again given the new law, until the set of steps no longer changes (at most
+:data:`MAX_ROUNDS` rounds). Each hop's size and standard error are its coefficient in the final
+generalised-least-squares law.
+
+Where and how (:func:`describe_hops`): the hop's time is the boundary between the two windows
+the step falls between (it happened in the window before or the one after: standard error the
+two windows' span / √12); its temperature is the twin's ``T_c`` there — the mean of the mode-hop
+nodes of the device template's ``[anomalies.mode_hop]`` (the law node without one), on the
+fitted network — with the standard error of ``T_c``'s change over that span / √12 (the twin's own
+thermal error, the probe residual RMS of the report, comes on top). Direction: up (mode
+``k → k + 1``) when ``T_c`` rises through the hop (over ±10 min), down when it falls; a hop at
+a steady temperature takes its direction from the sign of its step against the others'.
+
+Mapping onto the simulator's keys (eq. (A1), start mode 0, ``a = 1/κ``, ``b = T_ref``,
+``c = R/(2κ)``): a hop up from mode ``m`` happens at ``T = b + m·a + c``, a hop down from mode
+``m`` at ``T = b + m·a − c``; the hop temperatures give ``(a, b, c)`` by weighted least
+squares. Hops at two mode levels determine all three; hops of both directions at one level (a
+hysteresis pair) determine ``b`` and ``c`` with ``κ`` from the template (``1/κ``, the spacing of
+the hop temperatures between successive modes, needs two levels); hops of one direction only
+determine ``b`` with ``κ`` and ``R`` from the template. The bias step per mode ``Δb`` is the
+weighted mean of ``direction × size``. The unit-to-unit spreads (``modes_per_k_rel``,
+``bias_step_rel``) stay the template's; ``phase_per_unit = false`` (the lock point is what was
+identified). The mapped model is then run through the simulator's own hop logic on the twin's
+``T_c`` (:meth:`rlgsim.sim.sensors.anomalies.Anomalies.mode_hops`) and its hops compared with the found
+ones (``predicted``).
+
+Without a hop: the template's mode-hop model (if any) is run on the twin's ``T_c``; if it would
+have hopped in this recording with a step the recording resolves — even the smallest a unit
+within 2σ of the template's ``bias_step_rel`` has, at (threshold + 2) standard errors of a step
+where it predicts the hops — it is contradicted and dropped, otherwise it is kept (not reached,
+or below the detection limit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rlgsim.estimators.identify.step_detection import StepFit, detect_steps, step_columns
+from rlgsim.estimators.identify.term_selection import (SelectedLaw, Term, jittered_cholesky,
+                                                       select_terms)
+from rlgsim.lab.identify.node_names import node_column
+
+__all__ = ["HOP_ALPHA", "Hop", "HopFit", "fit_hops", "find_hops", "describe_hops",
+           "hop_per_step", "hop_name"]
+
+#: family false-alarm level of the hop scan per recording: the probability of one or more false
+#: hops in a hop-free recording whose noise the model describes is at most 1 % (Bonferroni)
+HOP_ALPHA = 0.01
+
+#: rounds of (scan, refit the law with the found hops) before the set of hops is taken as it is
+MAX_ROUNDS = 4
+
+#: mode spacings per kelvin without a template value: the glass alone of a 0.36 m Zerodur class-1
+#: cavity, 0.36 m × 0.05·10⁻⁶/K / 632.8 nm ≈ 0.03 (docs/sensors.md "Anomalies")
+KAPPA_GLASS = 0.03
+
+#: |T_c change| over ±10 min [K] below which a hop's direction is taken from its step's sign
+STEADY_K = 0.05
+
+
+def hop_name(i: int) -> str:
+    """Name of the ``i``-th hop's regressor in the law (``hop1``, ``hop2``, …)."""
+    return f"hop{i + 1}"
+
+
+@dataclass(frozen=True)
+class Hop:
+    """One found hop: time [s] and its standard error, bias step [°/h] ± standard error and its
+    z, the twin's ``T_c`` there [°C] ± standard error, ``direction`` +1 (mode up) / −1 (down),
+    ``from_trend`` whether the direction came from the temperature trend, and the mode before
+    it (the start mode is 0)."""
+
+    time_s: float
+    time_se_s: float
+    size_deg_per_h: float
+    size_se_deg_per_h: float
+    z: float
+    temperature_c: float
+    temperature_se_c: float
+    direction: int
+    from_trend: bool
+    mode_before: int
+
+
+@dataclass
+class HopFit:
+    """The hops of a recording and what the twin gets from them (module docstring)."""
+
+    hops: tuple[Hop, ...]
+    threshold_z: float
+    alpha: float
+    candidates: int
+    scan_max_z: float
+    rounds: int
+    nodes: tuple[str, ...]
+    t_range_c: tuple[float, float]
+    #: (index of the hop down, index of the hop up back to the same mode, width [K], se [K])
+    pairs: tuple[tuple[int, int, float, float], ...] = ()
+    #: the twin's ``[anomalies.mode_hop]`` (simulator keys) or None, comments per key
+    mode_hop: dict | None = None
+    comments: dict = field(default_factory=dict)
+    #: one line per decision or what could not be mapped
+    notes: list = field(default_factory=list)
+    #: the mapped (or kept template) model's hops on the twin's T_c: (time [s], ±1)
+    predicted: tuple[tuple[float, int], ...] = ()
+    #: the template-guided search: (((z, threshold) per predicted hop searched), hops the
+    #: template predicts, hops it found) or None without a template model
+    pattern: tuple | None = None
+
+
+def _law_design(sel: SelectedLaw, cands: list[Term], n: int) -> np.ndarray:
+    """The chosen law's window columns (intercept first), nonlinear terms at their fit."""
+    by = {t.name: t for t in cands}
+    cols = [np.ones(n)]
+    for t in sel.terms:
+        th = np.array([sel.value(f"{t}.{tn}") for tn in by[t].theta_names])
+        cols.append(np.asarray(by[t].feature(th), dtype=float))
+    return np.column_stack(cols)
+
+
+def _hop_terms(n: int, index: tuple[int, ...]) -> list[Term]:
+    cols = step_columns(n, np.array(index, dtype=int))
+    return [Term(hop_name(i), (lambda th, v=cols[:, i].copy(): v)) for i in range(len(index))]
+
+
+def fit_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, *,
+             alpha: float = HOP_ALPHA) -> tuple[StepFit, tuple[int, ...], int, SelectedLaw]:
+    """The blind scan for hops of the window bias ``y`` under the noise covariance ``cov``
+    (module docstring). The scan's law is the best subset of the *linear* candidates (chosen
+    again with the hops found so far as fixed regressors, until the set of hops no longer
+    changes): the nonlinear knee and step terms are sigmoids in temperature, and a hop pair
+    is a sigmoid in temperature everywhere but inside its hysteresis loop — with them in the
+    scan's law a pair is absorbed before it can be tested (seen: a 0.04 °/h pair taken as a
+    knee). Returns the last scan, the hops' window indices (the first window after each), the
+    number of rounds and the scan's linear law (the full law with the hops as fixed
+    regressors is chosen by :func:`find_hops`)."""
+    n = y.size
+    lin = [c for c in cands if not c.k]
+    index: tuple[int, ...] = ()
+    rounds = 0
+    sel_lin = select_terms(y, lin, noise_cov=cov)
+    scan = detect_steps(y, _law_design(sel_lin, lin, n), cov, alpha=alpha)
+    while rounds < MAX_ROUNDS and scan.index != index:
+        rounds += 1
+        index = scan.index
+        sel_lin = select_terms(y, lin, noise_cov=cov, fixed=_hop_terms(n, index))
+        scan = detect_steps(y, _law_design(sel_lin, lin, n), cov, alpha=alpha)
+    return scan, index, rounds, sel_lin
+
+
+def _t_stat(y: np.ndarray, X: np.ndarray, col: np.ndarray, L: np.ndarray
+            ) -> tuple[float, float]:
+    """z of the column ``col`` given ``X`` and its size's standard error."""
+    from scipy.linalg import solve_triangular
+    from rlgsim.estimators.identify.step_detection import _scan
+    yw, Xw, cw = (solve_triangular(L, v, lower=True) for v in (y, X, col[:, None]))
+    z, _, se, _ = _scan(yw, Xw, cw)
+    return float(z[0]), float(se[0])
+
+
+def find_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLaw,
+              te: np.ndarray, window_s: float, t_s: np.ndarray, nodes_c: np.ndarray,
+              node_names: tuple[str, ...], block: str, law_node: str, device: dict, *,
+              alpha: float = HOP_ALPHA):
+    """The hops of the window bias ``y`` (window end times ``te``): the blind scan
+    (:func:`fit_hops`) at level α/2, then — when the device template has a mode-hop model — the
+    template-guided test at level α/2 (module docstring), both given the linear law. Returns the law with the hops as
+    fixed regressors, the blind scan, the hops' window indices, the rounds and the
+    template-guided search ``(((z, threshold) per predicted hop not found blind), hops the
+    template predicts, hops found by it)`` (None without a template model)."""
+    from scipy.stats import norm
+    n = y.size
+    scan, idx, rounds, sel_lin = fit_hops(y, cands, cov, alpha=alpha / 2.0)
+    lin = [c for c in cands if not c.k]
+    template = (device.get("anomalies", {}) or {}).get("mode_hop")
+    nodes = _tc_nodes(device, law_node)
+    tc = nodes_c[:, [node_column(block, nd, node_names) for nd in nodes]].mean(axis=1)
+    t = np.asarray(t_s, dtype=float)
+    pred = ([p for p in _simulated_hops(template, nodes, t, nodes_c, node_names, block)]
+            if template else [])
+    if not pred:
+        idx = _without_laws(idx, te, window_s, t, tc)
+        if idx:
+            sel = select_terms(y, cands, noise_cov=cov, fixed=_hop_terms(n, idx))
+        return sel, scan, idx, rounds, (((), 0, 0) if template else None)
+    # each predicted hop's local range: where T_c is within the template's unit-to-unit spread
+    # of the predicted hop temperature, between the neighbouring predicted hops
+    starts = te - window_s
+    kappa = float(template["modes_per_k"])
+    t_ref = float(template.get("reference_c", 20.0))
+    rel = float(template.get("modes_per_k_rel", 0.0))
+    phase = 0.5 / kappa if template.get("phase_per_unit", True) else 0.0
+    local = []
+    for h, (t_h, _) in enumerate(pred):
+        T_h = float(np.interp(t_h, t, tc))
+        dT = 2.0 * rel * abs(T_h - t_ref) + phase + 1.0
+        lo = 0.5 * (pred[h - 1][0] + t_h) if h else -np.inf
+        hi = 0.5 * (pred[h + 1][0] + t_h) if h + 1 < len(pred) else np.inf
+        Tj = np.interp(starts, t, tc)
+        ok = (np.abs(Tj - T_h) <= dT) & (starts > lo) & (starts < hi)
+        ok[:2] = False
+        ok[n - 1:] = False
+        js = np.flatnonzero(ok)
+        j0 = int(np.searchsorted(starts, t_h))
+        local.append(js if js.size else np.array([min(max(j0, 2), n - 2)]))
+    L = jittered_cholesky(np.asarray(cov, dtype=float))
+    # a predicted hop whose range holds a hop the blind scan found is that hop
+    todo = [h for h, js in enumerate(local) if not (set(js.tolist()) & set(idx))]
+    found, zs = [], []
+    for h in todo:
+        X = np.column_stack([_law_design(sel_lin, lin, n)]
+                            + [step_columns(n, np.array(list(idx) + found, dtype=int))])
+        thr_h = float(norm.isf(alpha / (4.0 * len(todo) * max(local[h].size, 1))))
+        zse = np.array([_t_stat(y, X, step_columns(n, np.array([j]))[:, 0], L)
+                        for j in local[h]])
+        z = zse[:, 0]
+        k = int(np.argmax(np.abs(z)))
+        zs.append((float(z[k]), thr_h, float(np.median(zse[:, 1]))))
+        if abs(z[k]) >= thr_h:
+            found.append(int(local[h][k]))
+    idx = tuple(sorted(set(idx) | set(found)))
+    idx = _without_laws(idx, te, window_s, t, tc)
+    if idx:
+        sel = select_terms(y, cands, noise_cov=cov, fixed=_hop_terms(n, idx))
+    return sel, scan, idx, rounds, (tuple(zs), len(pred), len(found))
+
+
+def _without_laws(idx: tuple[int, ...], te: np.ndarray, window_s: float, t: np.ndarray,
+                  tc: np.ndarray) -> tuple[int, ...]:
+    """``idx`` without the step pairs that are a temperature law, not hops: two consecutive
+    steps back and forth (``T_c`` moving in opposite directions through them) whose hysteresis
+    (the temperature of the one on heating minus that of the one on cooling) is not positive
+    by two standard errors. A steep knee of the law is a step in time on every ramp through
+    its centre, at the same temperature both ways; a mode hop pair has a loop (eq. (A1))."""
+    def at(j):
+        t_h = float(te[j] - window_s)
+        lo, hi = float(te[j - 1] - window_s), float(te[j])
+        T = float(np.interp(t_h, t, tc))
+        se = abs(float(np.interp(hi, t, tc) - np.interp(lo, t, tc))) / math.sqrt(12.0)
+        d = float(np.interp(t_h + 600.0, t, tc) - np.interp(t_h - 600.0, t, tc))
+        return T, max(se, 0.05), (int(np.sign(d)) if abs(d) > STEADY_K else 0)
+    keep = list(idx)
+    changed = True
+    while changed:
+        changed = False
+        for a in range(len(keep) - 1):
+            (Ta, sa, da), (Tb, sb, db) = at(keep[a]), at(keep[b := a + 1])
+            if da and db and da == -db:
+                width = (Ta - Tb) if da > 0 else (Tb - Ta)
+                if width <= 2.0 * math.hypot(sa, sb):
+                    del keep[b], keep[a]
+                    changed = True
+                    break
+    return tuple(keep)
+
+
+def hop_per_step(t_s: np.ndarray, times_s: tuple[float, ...]) -> dict:
+    """Per-step regressors {hop name: f(theta) -> 0 before the hop, 1 after} on the grid ``t_s`` (ends of
+    the thermal steps); a hop time on a window boundary makes their window means the law's
+    window columns exactly."""
+    t = np.asarray(t_s, dtype=float)
+    return {hop_name(i): (lambda th, v=(t > ts + 1e-9).astype(float): v)
+            for i, ts in enumerate(times_s)}
+
+
+def _tc_nodes(device: dict, law_node: str) -> tuple[str, ...]:
+    mh = (device.get("anomalies", {}) or {}).get("mode_hop")
+    return tuple(mh["nodes"]) if mh and mh.get("nodes") else (law_node,)
+
+
+def _simulated_hops(mh: dict, nodes: tuple[str, ...], t_s: np.ndarray, nodes_c: np.ndarray,
+                    node_names: tuple[str, ...], block: str) -> tuple[tuple[float, int], ...]:
+    """The hops the simulator's own model ``mh`` (simulator keys) makes on the twin's node
+    temperatures (:meth:`rlgsim.sim.sensors.anomalies.Anomalies.mode_hops`)."""
+    from rlgsim.sim.sensors.anomalies import Anomalies, AnomalyModel, ModeHop
+    model = AnomalyModel(mode_hop=ModeHop(
+        nodes=tuple(nodes), modes_per_k=float(mh["modes_per_k"]),
+        range_modes=float(mh["range_modes"]), reference_c=float(mh.get("reference_c", 20.0)),
+        bias_step_deg_per_h=float(mh["bias_step_deg_per_h"])))
+    an = Anomalies(model, node_names=node_names, gyro_axes=("gyro",),
+                   gyro_blocks=(block or "",))
+    state = an.initial_state(nodes_c[0])
+    _, ev, _ = an.mode_hops(state, np.asarray(t_s, dtype=float), nodes_c)
+    return tuple((float(t), 1 if k == "mode_hop_up" else -1)
+                 for t, k in zip(ev.time_s, ev.kind))
+
+
+def describe_hops(sel: SelectedLaw, scan: StepFit, index: tuple[int, ...], rounds: int,
+                  pattern, t_end_s: np.ndarray, window_s: float, t_s: np.ndarray, nodes_c: np.ndarray,
+                  node_names: tuple[str, ...], block: str, law_node: str, device: dict
+                  ) -> tuple[HopFit, tuple[float, ...]]:
+    """The found hops with times, sizes, temperatures and directions, their hysteresis pairs
+    and the twin's mode-hop table (module docstring). ``t_end_s`` are the end times of the
+    windows the law was fitted on; returns the HopFit and the hop times [s]."""
+    nodes = _tc_nodes(device, law_node)
+    idx = [node_column(block, nd, node_names) for nd in nodes]
+    tc = nodes_c[:, idx].mean(axis=1)
+    t = np.asarray(t_s, dtype=float)
+    te = np.asarray(t_end_s, dtype=float)
+    hops: list[Hop] = []
+    times: list[float] = []
+    raw = []
+    for i, j in enumerate(index):
+        t_hop = float(te[j] - window_s)                 # start of the first window after it
+        lo, hi = float(te[j - 1] - window_s), float(te[j])
+        T = float(np.interp(t_hop, t, tc))
+        span = abs(float(np.interp(hi, t, tc) - np.interp(lo, t, tc)))
+        trend = float(np.interp(t_hop + 600.0, t, tc) - np.interp(t_hop - 600.0, t, tc))
+        name = hop_name(i)
+        size, se = sel.value(name), sel.se(name)
+        raw.append((t_hop, (hi - lo) / math.sqrt(12.0), size, se, T, span / math.sqrt(12.0),
+                    trend))
+        times.append(t_hop)
+    # directions: the temperature trend, else the step's sign against the others' Δb
+    d_trend = [int(np.sign(r[6])) if abs(r[6]) > STEADY_K else 0 for r in raw]
+    known = [(d * r[2], r[3]) for d, r in zip(d_trend, raw) if d]
+    w = np.array([1.0 / s ** 2 for _, s in known])
+    db_sign = (np.sign(float(np.dot(w, [v for v, _ in known]))) if known
+               else np.sign(raw[0][2]) if raw else 1.0) or 1.0
+    mode = 0
+    for r, d in zip(raw, d_trend):
+        from_trend = d != 0
+        if not d:
+            d = int(np.sign(r[2]) * db_sign) or 1
+        hops.append(Hop(time_s=r[0], time_se_s=r[1], size_deg_per_h=r[2], size_se_deg_per_h=r[3],
+                        z=r[2] / r[3] if r[3] > 0 else float("inf"), temperature_c=r[4],
+                        temperature_se_c=r[5], direction=d, from_trend=from_trend,
+                        mode_before=mode))
+        mode += d
+    powered = np.isfinite(tc)
+    out = HopFit(hops=tuple(hops), threshold_z=scan.threshold, alpha=HOP_ALPHA, pattern=pattern,
+                 candidates=scan.candidates, scan_max_z=scan.scan_max_z, rounds=rounds,
+                 nodes=nodes, t_range_c=(float(np.min(tc[powered])), float(np.max(tc[powered]))))
+    # hysteresis pairs: a hop and the next one back to the same mode
+    pairs = []
+    for a in range(len(hops) - 1):
+        h, g = hops[a], hops[a + 1]
+        if h.direction == -g.direction and g.mode_before == h.mode_before + h.direction:
+            down, up = (h, g) if h.direction < 0 else (g, h)
+            pairs.append((a if h.direction < 0 else a + 1, a + 1 if h.direction < 0 else a,
+                          up.temperature_c - down.temperature_c,
+                          math.hypot(up.temperature_se_c, down.temperature_se_c)))
+    out.pairs = tuple(pairs)
+    template = (device.get("anomalies", {}) or {}).get("mode_hop")
+    if hops:
+        _map(out, template, float(tc[0]))
+    elif template:
+        pred = _simulated_hops(template, nodes, t, nodes_c, node_names, block)
+        db_t = abs(float(template["bias_step_deg_per_h"]))
+        # the smallest step a unit of the template plausibly has (2σ of its unit-to-unit spread)
+        db_min = db_t * max(0.0, 1.0 - 2.0 * float(template.get("bias_step_rel", 0.0)))
+        searched = pattern[0] if pattern else ()
+        # would the template's hops have been seen? (found with ≥ 98 % probability at
+        # |Δb| ≥ (threshold + 2) standard errors of a step there)
+        seen = [db_min >= (thr + 2.0) * se for _, thr, se in searched]
+        if pred and any(seen):
+            out.notes.append(
+                f"no hop found, but the template's mode-hop model would hop {len(pred)} time(s) "
+                f"on the twin's T_c in this recording with a step (Δb {db_t:.3g} °/h, at least "
+                f"{db_min:.3g} °/h for a unit within 2σ of the template's spread) this "
+                f"recording resolves: the recording contradicts it, and the twin has no mode "
+                f"hops")
+        elif pred:
+            lim = ", ".join(f"{(thr + 2.0) * se:.2g}" for _, thr, se in searched)
+            out.mode_hop = dict(template)
+            out.notes.append(
+                f"no hop found; the template's mode-hop model would hop {len(pred)} time(s) on "
+                f"the twin's T_c, but its step (Δb {db_t:.3g} °/h, as small as {db_min:.3g} °/h "
+                f"for a unit within 2σ of the template's spread) is below what this recording "
+                f"reliably detects there ((threshold + 2) × standard error: {lim} °/h): not "
+                f"contradicted, "
+                f"kept from the template, not identified")
+            out.comments = {k: "kept from the template (not identified: its hops are below "
+                               "this recording's detection limit)"
+                            for k in template if k not in ("source", "nodes")}
+        else:
+            out.mode_hop = dict(template)
+            out.notes.append(
+                f"no hop found; the template's mode-hop model makes none on the twin's T_c "
+                f"either (T_c {out.t_range_c[0]:.1f}–{out.t_range_c[1]:.1f} °C does not reach "
+                f"its hop temperatures): kept from the template, not identified")
+            out.comments = {k: "kept from the template (not identified: no hop recorded)"
+                            for k in template if k not in ("source", "nodes")}
+    if out.mode_hop is not None:
+        out.predicted = _simulated_hops(out.mode_hop, nodes, t, nodes_c, node_names, block)
+    return out, tuple(times)
+
+
+def _map(out: HopFit, template: dict | None, tc0: float) -> None:
+    """The simulator's mode-hop keys from the found hops (module docstring), in place."""
+    hops = out.hops
+    kappa_t = float(template["modes_per_k"]) if template else KAPPA_GLASS
+    src_k = "the template's" if template else "the glass estimate (docs/sensors.md)"
+    # Δb: weighted mean of direction × size
+    v = np.array([h.direction * h.size_deg_per_h for h in hops])
+    s = np.array([h.size_se_deg_per_h for h in hops])
+    w = 1.0 / s ** 2
+    db = float(w @ v / w.sum())
+    db_se = float(1.0 / math.sqrt(w.sum()))
+    chi2 = float(w @ (v - db) ** 2)
+    if len(hops) > 1 and chi2 > len(hops) - 1 + 3 * math.sqrt(2 * (len(hops) - 1)):
+        out.notes.append(f"the hops' steps per mode differ more than their standard errors "
+                         f"allow (χ² {chi2:.1f} on {len(hops) - 1} degrees of freedom): one Δb "
+                         f"per mode is an average")
+    # hop temperatures: T = b + m·a ± c
+    T = np.array([h.temperature_c for h in hops])
+    sT = np.array([max(h.temperature_se_c, 0.05) for h in hops])
+    m = np.array([h.mode_before for h in hops], dtype=float)
+    d = np.array([h.direction for h in hops], dtype=float)
+    A = np.column_stack([np.ones_like(T), m, d])
+    Wt = 1.0 / sT
+    fixed: dict[str, float] = {}
+    if np.linalg.matrix_rank(A) == 3:
+        cols = [0, 1, 2]
+    else:
+        fixed["a"] = 1.0 / kappa_t
+        cols = [0, 2]
+        if np.linalg.matrix_rank(A[:, cols]) < 2:
+            fixed["c"] = (float(template["range_modes"]) / (2 * kappa_t) if template
+                          else 1.5 / (2 * kappa_t))
+            cols = [0]
+    rhs = T - sum(A[:, k] * fixed[nm] for k, nm in ((1, "a"), (2, "c")) if nm in fixed)
+    Aw = A[:, cols] * Wt[:, None]
+    est, *_ = np.linalg.lstsq(Aw, rhs * Wt, rcond=None)
+    cov = np.linalg.pinv(Aw.T @ Aw)
+    dof = len(hops) - len(cols)
+    if dof > 0:
+        r = (rhs - A[:, cols] @ est) * Wt
+        cov = cov * max(1.0, float(r @ r) / dof)
+    full = {"b": 0.0, "a": fixed.get("a", 0.0), "c": fixed.get("c", 0.0)}
+    var = {"b": 0.0, "a": 0.0, "c": 0.0}
+    cv_ac = 0.0
+    names = ["b", "a", "c"]
+    for pos, k in enumerate(cols):
+        full[names[k]] = float(est[pos])
+        var[names[k]] = float(cov[pos, pos])
+    if 1 in cols and 2 in cols:
+        cv_ac = float(cov[cols.index(1), cols.index(2)])
+    a, b, c = full["a"], full["b"], full["c"]
+    if a <= 0:
+        out.notes.append(f"the hop temperatures give a non-positive mode spacing 1/κ = {a:.3g} K: "
+                         f"not a mode-hop pattern; κ taken from {src_k} value")
+        a = 1.0 / kappa_t
+        var["a"] = 0.0
+    kappa = 1.0 / a
+    R = 2.0 * c / a
+    kappa_se = math.sqrt(var["a"]) / a ** 2
+    # R = 2c/a: gradient (−2c/a², 2/a)
+    R_se = math.sqrt(max((2 * c / a ** 2) ** 2 * var["a"] + (2 / a) ** 2 * var["c"]
+                         - 2 * (2 * c / a ** 2) * (2 / a) * cv_ac, 0.0))
+    how = {"a": "fitted" if "a" not in fixed else f"not identified by hops at one mode level: "
+                                                   f"{src_k}",
+           "c": "fitted" if "c" not in fixed else "not identified by hops of one direction: "
+                                                  + ("the template's" if template else
+                                                     "assumed 1.5")}
+    if R <= 1.0:
+        out.notes.append(f"the hop temperatures give a control range R = {R:.3g} mode spacings "
+                         f"(≤ 1: no hysteresis, the hop up below the hop down): not the "
+                         f"simulator's mode-hop model; the hops stay in the law fit but the "
+                         f"twin gets no mode hops")
+        return
+    mh = {"nodes": list(out.nodes), "modes_per_k": kappa, "range_modes": R,
+          "reference_c": b, "bias_step_deg_per_h": db}
+    if template:
+        for k in ("modes_per_k_rel", "bias_step_rel"):
+            if k in template:
+                mh[k] = template[k]
+    mh["phase_per_unit"] = False
+    out.mode_hop = mh
+    out.comments = {
+        "modes_per_k": (f"{how['a']}, standard error {kappa_se:.2g}" if "a" not in fixed
+                        else how["a"]),
+        "range_modes": (f"fitted, standard error {R_se:.2g}" if "c" not in fixed
+                        else how["c"]),
+        "reference_c": f"fitted (lock point, start mode 0), standard error "
+                       f"{math.sqrt(var['b']):.2g}",
+        "bias_step_deg_per_h": f"fitted from {len(hops)} hop(s), standard error {db_se:.2g}",
+        "phase_per_unit": "the lock point is the identified one",
+    }
+    for k in ("modes_per_k_rel", "bias_step_rel"):
+        if k in mh:
+            out.comments[k] = "unit-to-unit spread kept from the template (one unit recorded)"
+    if "a" in fixed:
+        out.notes.append(f"κ (modes_per_k) {how['a']} value {kappa_t:g} — its inverse is the "
+                         f"spacing of the hop temperatures of successive modes, which needs hops "
+                         f"at two mode levels")
+    if "c" in fixed:
+        out.notes.append(f"the control range (range_modes) {how['c']} — the hysteresis width "
+                         f"needs a hop up and a hop down")
+    k0 = round(kappa * (tc0 - b))
+    if k0 != 0:
+        out.notes.append(f"the simulator locks at the start on the mode nearest its centre, "
+                         f"{k0:+d} for the mapped lock point (T_c {tc0:.2f} °C at the start, "
+                         f"T_ref {b:.2f} °C): the twin starts {k0:+d} mode(s) from the recorded "
+                         f"unit, its hops shift accordingly")
+
+
+def anomalies_table(template: dict | None, hops: HopFit | None, spikes
+                    ) -> tuple[dict | None, dict[tuple, str]]:
+    """The twin's ``[anomalies]`` table (simulator keys) and a comment per number: the mode
+    hops and read-out spikes as identified (``hops``, ``spikes``:
+    :class:`rlgsim.lab.identify.spike_fit.SpikeFit`), every other kind kept from the
+    template's table."""
+    out = {k: v for k, v in (template or {}).items()
+           if k not in ("mode_hop", "pulse_spikes", "description", "source")}
+    com: dict[tuple, str] = {}
+    for k, v in out.items():
+        if isinstance(v, dict):
+            for key in v:
+                com[("anomalies", k, key)] = "kept from the template (not identified)"
+    if hops is not None and hops.mode_hop is not None:
+        out["mode_hop"] = dict(hops.mode_hop)
+        for key, text in hops.comments.items():
+            com[("anomalies", "mode_hop", key)] = text
+    elif hops is None and template and "mode_hop" in template:   # no search (no noise model)
+        out["mode_hop"] = dict(template["mode_hop"])
+        for key in out["mode_hop"]:
+            com[("anomalies", "mode_hop", key)] = ("kept from the template (not searched: the "
+                                                   "record is too short for a noise model)")
+    if spikes is not None and spikes.max_pulses is not None:
+        lo, hi = spikes.rate_ci95_per_h
+        out["pulse_spikes"] = {"rate_per_h": spikes.rate_per_h, "max_pulses": spikes.max_pulses}
+        com[("anomalies", "pulse_spikes", "rate_per_h")] = (
+            f"{len(spikes.sizes)} spike(s) of ≥ {spikes.threshold_pulses} pulses in "
+            f"{spikes.powered_h:.1f} powered h, scaled for the sizes below it; 95 % interval "
+            f"[{lo:.3g}, {hi:.3g}] (exact Poisson)")
+        com[("anomalies", "pulse_spikes", "max_pulses")] = "the largest spike seen"
+    if not out:
+        return None, {}
+    out = {"description": "identified by rlgsim identify (mode hops, read-out spikes); other "
+                          "kinds kept from the template", **out}
+    return out, com
