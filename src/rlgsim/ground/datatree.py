@@ -132,15 +132,21 @@ def recording_tree(rec: Recording):
                                                   f"{k:g} pulses/s/g over {dt:g} s"})
     imu["dropout"] = (("sample",), rec.dropout.astype(np.int8), {
         "units": "1", "description": "1: the sample's values are missing"})
-    uhfo = [(name, g.get("axis")) for name, (k, _, g) in rec.kinds.items() if k == "uhfo"]
+    uhfo = {(g.get("axis") or (rec.gyro_axes[0] if rec.gyro_axes else "x")): name
+            for name, (k, _, g) in rec.kinds.items() if k == "uhfo"}
     if uhfo:
-        axes = [a or (rec.gyro_axes[0] if rec.gyro_axes else "x") for _, a in uhfo]
+        # one column per gyro axis; a gyro without a UHFO column is NaN (a three-gyro log may
+        # carry only uhfo_z_v)
+        axes = list(rec.gyro_axes) or list(uhfo)
         imu = imu.assign_coords(time=("time", t_slow, {"units": "s"}))
         if "gyro" not in imu.coords:
             imu = imu.assign_coords(gyro=("gyro", axes))
-        vals = np.column_stack([rec.slow(name)[1] for name, _ in uhfo])
-        imu["uhfo"] = (("time", "gyro"), vals, {"units": "V",
-                                                "description": "logged UHFO voltage"})
+        vals = np.full((t_slow.size, len(axes)), np.nan)
+        for i, a in enumerate(axes):
+            if a in uhfo:
+                vals[:, i] = rec.slow(uhfo[a])[1]
+        imu["uhfo"] = (("time", "gyro"), vals, {
+            "units": "V", "description": "logged UHFO voltage (NaN for a gyro without one)"})
     groups = {"/": xr.Dataset(attrs=root), "/imu": imu}
     names = rec.probe_names
     if names:

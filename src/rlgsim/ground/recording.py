@@ -679,6 +679,14 @@ def load_recording(path: str | os.PathLike) -> Recording:
         if k == "uhfo" and g.get("axis") is None and len(gyro_axes) > 1:
             raise UserInputError(f"{where(std)}: uhfo_v is for a single gyro; with gyro axes "
                                  f"{gyro_axes} name one column per axis: uhfo_<axis>_v")
+        if k == "uhfo" and g.get("axis") is not None and gyro_axes \
+                and g["axis"] not in gyro_axes:
+            raise UserInputError(f"{where(std)}: axis {g['axis']!r} not allowed; the UHFO "
+                                 f"columns belong to the gyro axes {gyro_axes}")
+    if sum(1 for k, _, _ in kinds.values() if k == "uhfo") > 1 and any(
+            k == "uhfo" and g.get("axis") is None for k, _, g in kinds.values()):
+        raise UserInputError(f"{data_path}: uhfo_v and uhfo_<axis>_v together; give one "
+                             f"column per gyro axis (uhfo_<axis>_v)")
     # dropouts
     dropout = np.zeros(n, dtype=bool)
     if "dropout" in values:

@@ -163,7 +163,10 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
         uhfo = None
         if "uhfo" in imu:
             u = imu["uhfo"]
-            uhfo = np.asarray(u[:, gi].values if u.ndim == 2 else u.values, dtype=float)
+            uhfo = np.asarray(u.sel(gyro=gyro).values if "gyro" in u.dims else u.values,
+                              dtype=float)
+            if not np.isfinite(uhfo).any():     # a UHFO logged for other gyros only
+                uhfo = None
         motion = False
         table = None
         motion_note = ""
