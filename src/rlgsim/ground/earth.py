@@ -23,6 +23,19 @@ The plumb line is taken along −Up (the deflection of the vertical, a few arcse
 so the gravity vector in ENU is g^n = (0, 0, −γ) and the specific force sensed by an IMU at rest
 on the table is f^n = −g^n = (0, 0, γ).
 
+Away from the fixed site (the navigator, :mod:`rlgsim.estimators.ins`) the local-level frame
+moves over the ellipsoid; its radii of curvature (Groves, *Principles of GNSS, Inertial and
+Multisensor Integrated Navigation Systems*, 2nd ed. 2013, eqs. 2.105–2.106; Titterton & Weston
+eqs. 3.83–3.84) are
+
+    R_M(L) = a (1 − e²) / (1 − e² sin²L)^{3/2}      meridian (north–south)
+    R_E(L) = a / sqrt(1 − e² sin²L)                 transverse (east–west, prime vertical)
+
+and the transport rate of the ENU frame for a velocity v^n = (v_E, v_N, v_U) at height h is
+(Titterton & Weston eq. 3.87 written in ENU)
+
+    ω_en^n = (−v_N/(R_M + h), v_E/(R_E + h), v_E tan L/(R_E + h))              [rad/s]
+
 Both sides use these functions: the simulator's site (:class:`rlgsim.sim.motion.site.Site`) and the
 strapdown navigation of the calibration (:mod:`rlgsim.estimators.strapdown`), so the dataset's
 truth and its estimate share one Earth model.
@@ -61,3 +74,20 @@ def earth_rate_enu(latitude_deg: float) -> np.ndarray:
     """Earth rate in the local ENU frame ω_ie^n = (0, Ω cos L, Ω sin L) [rad/s], (3,)."""
     lat = latitude_deg * DEG
     return np.array([0.0, EARTH_RATE * math.cos(lat), EARTH_RATE * math.sin(lat)])
+
+
+def radii_of_curvature(latitude_deg: float) -> tuple[float, float]:
+    """Meridian and transverse radii of curvature (R_M, R_E) [m] of the WGS-84 ellipsoid at
+    geodetic latitude ``latitude_deg`` [°] (Groves 2013 eqs. 2.105–2.106)."""
+    s2 = math.sin(latitude_deg * DEG) ** 2
+    d = 1.0 - WGS84_E2 * s2
+    return WGS84_A * (1.0 - WGS84_E2) / d ** 1.5, WGS84_A / math.sqrt(d)
+
+
+def transport_rate_enu(latitude_deg: float, height_m: float, v_enu: np.ndarray) -> np.ndarray:
+    """Transport rate ω_en^n [rad/s] (3,) of the ENU frame for the ENU velocity ``v_enu`` [m/s]
+    at ``latitude_deg`` [°] and ``height_m`` [m] (Titterton & Weston eq. 3.87, ENU)."""
+    r_m, r_e = radii_of_curvature(latitude_deg)
+    ve, vn = float(v_enu[0]), float(v_enu[1])
+    return np.array([-vn / (r_m + height_m), ve / (r_e + height_m),
+                     ve * math.tan(latitude_deg * DEG) / (r_e + height_m)])

@@ -1,0 +1,158 @@
+"""Compiled inner loop of the strapdown navigator (:mod:`rlgsim.estimators.ins.mechanization`).
+
+The recursion is sequential (each sample's attitude, velocity and position start from the
+previous ones), so it runs as one pass in numba; numpy could only vectorise it with many
+(n, 3) temporaries and still needs a loop for the position-dependent terms. The algorithm and
+its sources are in the mechanization module's docstring; this file holds only the arithmetic.
+The WGS-84 constants and the Earth rate come from :mod:`rlgsim.ground.earth` and
+:mod:`rlgsim.ground.units` (numba freezes them at compile time).
+
+State vector (float64, :data:`STATE_SIZE`): q_b^n [w, x, y, z] (0–3), v^n ENU [m/s] (4–6),
+latitude [rad] (7), longitude [rad] (8), height [m] (9), the previous sample's Δθ (10–12) and
+Δv (13–15), the velocity one sample before the current one (16–18), and a flag (19) that the
+three "previous" slots hold data (0 at the start of a run: no coning/sculling reach-back).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rlgsim.ground.earth import (WGS84_A, WGS84_E2, WGS84_F, WGS84_GAMMA_E, WGS84_K,
+                                 WGS84_M)
+from rlgsim.ground.units import EARTH_RATE
+
+STATE_SIZE = 20
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _gravity(s2, h):  # pragma: no cover - compiled; tested through the navigator
+    """Normal gravity γ(L, h) [m/s²] from sin²L (Somigliana + free air, NIMA TR8350.2 4-1, 4-3)."""
+    g0 = WGS84_GAMMA_E * (1.0 + WGS84_K * s2) / math.sqrt(1.0 - WGS84_E2 * s2)
+    return g0 * (1.0 - 2.0 / WGS84_A * (1.0 + WGS84_F + WGS84_M - 2.0 * WGS84_F * s2) * h
+                 + 3.0 * h * h / (WGS84_A * WGS84_A))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _half_exp(a2):  # pragma: no cover - compiled
+    """cos(a/2) and sin(a/2)/a for a² = ``a2`` (series below 1e-4 rad², exact to 1e-19)."""
+    if a2 < 1e-4:
+        return (1.0 - a2 / 8.0 + a2 * a2 / 384.0,
+                0.5 - a2 / 48.0 + a2 * a2 / 3840.0)
+    a = math.sqrt(a2)
+    return math.cos(0.5 * a), math.sin(0.5 * a) / a
+
+
+@njit(cache=True, nogil=True)
+def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - compiled
+    """Navigate ``n`` samples; returns (q (m, 4), v (m, 3), pos (m, 3) [lat rad, lon rad, h m])
+    at the ends of samples every−1, 2·every−1, … (m = n // every); ``state`` is updated in
+    place to the end of the last sample. ``href`` (n,) heights [m] used when ``hold`` is 1
+    (vertical channel held), ignored otherwise (free vertical channel)."""
+    n = dtheta.shape[0]
+    m = n // every
+    q_out = np.empty((m, 4))
+    v_out = np.empty((m, 3))
+    p_out = np.empty((m, 3))
+    qw, qx, qy, qz = state[0], state[1], state[2], state[3]
+    ve, vn, vu = state[4], state[5], state[6]
+    lat, lon, h = state[7], state[8], state[9]
+    ptx, pty, ptz = state[10], state[11], state[12]
+    pvx, pvy, pvz = state[13], state[14], state[15]
+    oe, on, ou = state[16], state[17], state[18]
+    have = state[19] != 0.0
+    if not have:
+        oe, on, ou = ve, vn, vu
+    j = 0
+    for k in range(n):
+        tx, ty, tz = dtheta[k, 0], dtheta[k, 1], dtheta[k, 2]
+        ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
+        if not have:
+            ptx, pty, ptz, pvx, pvy, pvz = tx, ty, tz, ux, uy, uz
+            have = True
+        # --- Earth quantities at the sample start (Groves eqs. 2.105-2.106, T&W 3.87)
+        sl, cl = math.sin(lat), math.cos(lat)
+        s2 = sl * sl
+        d = 1.0 - WGS84_E2 * s2
+        sd = math.sqrt(d)
+        rm = WGS84_A * (1.0 - WGS84_E2) / (d * sd) + h
+        re = WGS84_A / sd + h
+        # velocity extrapolated to the sample middle for Coriolis and the frame rotation
+        me, mn, mu = 1.5 * ve - 0.5 * oe, 1.5 * vn - 0.5 * on, 1.5 * vu - 0.5 * ou
+        wie_n, wie_u = EARTH_RATE * cl, EARTH_RATE * sl
+        wen_e, wen_n, wen_u = -mn / rm, me / re, me * sl / (cl * re)
+        zx, zy, zz = wen_e * dt, (wie_n + wen_n) * dt, (wie_u + wen_u) * dt   # ζ = ω_in Δt
+        # --- specific-force increment: rotation + two-sample sculling (Savage 2007 §7.2.2.2)
+        cx, cy, cz = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux
+        s1x = pty * uz - ptz * uy + pvy * tz - pvz * ty
+        s1y = ptz * ux - ptx * uz + pvz * tx - pvx * tz
+        s1z = ptx * uy - pty * ux + pvx * ty - pvy * tx
+        bx = ux + 0.5 * cx + s1x / 12.0
+        by = uy + 0.5 * cy + s1y / 12.0
+        bz = uz + 0.5 * cz + s1z / 12.0
+        # into the navigation frame at the sample start: C_b^n(k-1) ΔV = V + w t + u × t
+        r1 = 2.0 * (qy * bz - qz * by)
+        r2 = 2.0 * (qz * bx - qx * bz)
+        r3 = 2.0 * (qx * by - qy * bx)
+        fx = bx + qw * r1 + (qy * r3 - qz * r2)
+        fy = by + qw * r2 + (qz * r1 - qx * r3)
+        fz = bz + qw * r3 + (qx * r2 - qy * r1)
+        # ... then to the middle of the frame's turn: (I − ½[ζ×])
+        gx = fx - 0.5 * (zy * fz - zz * fy)
+        gy = fy - 0.5 * (zz * fx - zx * fz)
+        gz = fz - 0.5 * (zx * fy - zy * fx)
+        # --- velocity: + (g − (2ω_ie + ω_en) × v) Δt   (T&W eq. 3.73, ENU)
+        ae, an, au = wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u
+        cor_e = an * mu - au * mn
+        cor_n = au * me - ae * mu
+        cor_u = ae * mn - an * me
+        grav = _gravity(s2, h)
+        oe, on, ou = ve, vn, vu
+        ve = ve + gx - cor_e * dt
+        vn = vn + gy - cor_n * dt
+        vu = vu + gz - (grav + cor_u) * dt
+        # --- position: trapezoidal velocity, radii at the sample start
+        lat_new = lat + 0.5 * (on + vn) / rm * dt
+        clm = math.cos(0.5 * (lat + lat_new))
+        lon = lon + 0.5 * (oe + ve) / ((re) * clm) * dt
+        lat = lat_new
+        if hold:
+            hn = href[k]
+            vu = (hn - h) / dt
+            h = hn
+        else:
+            h = h + 0.5 * (ou + vu) * dt
+        # --- attitude: q ← exp(−ζ/2) ⊗ q ⊗ exp(φ/2), φ with two-sample coning (Savage §7.1.1.1)
+        px = tx + (pty * tz - ptz * ty) / 12.0
+        py = ty + (ptz * tx - ptx * tz) / 12.0
+        pz = tz + (ptx * ty - pty * tx) / 12.0
+        cw, sc = _half_exp(px * px + py * py + pz * pz)
+        bw, bx, by, bz = cw, sc * px, sc * py, sc * pz
+        nw = qw * bw - qx * bx - qy * by - qz * bz
+        nx = qw * bx + qx * bw + qy * bz - qz * by
+        ny = qw * by - qx * bz + qy * bw + qz * bx
+        nz = qw * bz + qx * by - qy * bx + qz * bw
+        cw, sc = _half_exp(zx * zx + zy * zy + zz * zz)
+        ew, ex, ey, ez = cw, -sc * zx, -sc * zy, -sc * zz
+        qw = ew * nw - ex * nx - ey * ny - ez * nz
+        qx = ew * nx + ex * nw + ey * nz - ez * ny
+        qy = ew * ny - ex * nz + ey * nw + ez * nx
+        qz = ew * nz + ex * ny - ey * nx + ez * nw
+        norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
+        ptx, pty, ptz, pvx, pvy, pvz = tx, ty, tz, ux, uy, uz
+        if (k + 1) % every == 0 and j < m:
+            q_out[j, 0], q_out[j, 1], q_out[j, 2], q_out[j, 3] = qw, qx, qy, qz
+            v_out[j, 0], v_out[j, 1], v_out[j, 2] = ve, vn, vu
+            p_out[j, 0], p_out[j, 1], p_out[j, 2] = lat, lon, h
+            j += 1
+    state[0], state[1], state[2], state[3] = qw, qx, qy, qz
+    state[4], state[5], state[6] = ve, vn, vu
+    state[7], state[8], state[9] = lat, lon, h
+    state[10], state[11], state[12] = ptx, pty, ptz
+    state[13], state[14], state[15] = pvx, pvy, pvz
+    state[16], state[17], state[18] = oe, on, ou
+    state[19] = 1.0 if have else 0.0
+    return q_out, v_out, p_out
