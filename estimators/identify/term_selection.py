@@ -58,6 +58,21 @@ every averaged model (inclusion 1).
 Combined effect of an unseparable group: the one thing the recording determines about it, the
 law's dependence along the members' common direction in units of the most included member
 (:func:`_combined`), with a model-averaged standard error.
+
+Stand-ins: how the combined effect splits among a group's members is *not* determined, and the
+subset weights above do not express that — they concentrate on whichever member the noise
+favoured, so the members' averaged coefficients and the law's prediction on another programme
+(where the members no longer follow each other) covered the truth too rarely. Each member ``h``
+alone carrying the combined effect (coefficient ``b_h``, :func:`_standins`) is a law the
+recording cannot tell from the others; they are taken as equally likely, since the recording
+does not choose. A member's coefficient gets the variance of those splits about its averaged
+value, ``mean_h (b_h·[g = h] − β̄_g)²``, added to its own; a prediction the variance of
+``u_h = b_h·d_h`` about the averaged law's ``Σ β̄_g d_g`` (mean over the members), where
+``d_h`` is the member's feature on the new programme less its regression, fitted on the
+recording, on the intercept, the fixed and nonlinear terms, the chosen law's other terms and
+the lead: zero where the new programme keeps the recording's relation between the members,
+large where it breaks it. When the true law is a same-signed mixture of members, its prediction
+lies inside the span of the stand-ins'.
 """
 
 from __future__ import annotations
@@ -121,6 +136,11 @@ class SelectedLaw:
     combined: dict = field(default_factory=dict)
     #: names of the fixed regressors (in every model, not selected)
     fixed: tuple[str, ...] = ()
+    #: {unseparable group: {member: (stand-in coefficient, regressor names, coefficients)}}:
+    #: the member alone carrying the group's combined effect, and the member's feature
+    #: regressed on the intercept, the fixed and nonlinear terms, the chosen law's other terms
+    #: and the lead (:func:`_standins`)
+    standins: dict = field(default_factory=dict)
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
@@ -142,7 +162,26 @@ class SelectedLaw:
         P, V, W = np.array(preds), np.array(vars_), np.array(ws)[:, None]
         mean = (W * P).sum(axis=0)
         var = (W * (V + (P - mean) ** 2)).sum(axis=0)
-        return mean, np.sqrt(var)
+        return mean, np.sqrt(var + self.standin_variance(cols))
+
+    def standin_variance(self, cols: dict[str, np.ndarray]) -> np.ndarray:
+        """The prediction variance along the directions the recording cannot separate
+        (module docstring, *Stand-ins*): for each unseparable group, the part of every member's
+        feature on ``cols`` that its regression on the recording's other columns does not
+        reproduce, ``d_h``; each member alone carrying the group's combined effect predicts
+        ``u_h = b_h·d_h`` there, the averaged law ``ū = Σ β̄_g d_g``; the variance is the mean of
+        ``(u_h − ū)²`` over the members (equal weights: the recording does not choose)."""
+        m = next(iter(cols.values())).shape[0]
+        out = np.zeros(m)
+        for group, members in self.standins.items():
+            d = {}
+            for g, (_, names, coef) in members.items():
+                fit_g = sum((np.ones(m) if n == "intercept" else np.asarray(cols[n], float)) * a
+                            for n, a in zip(names, coef))
+                d[g] = np.asarray(cols[g], dtype=float) - fit_g
+            u_bar = sum(self.averaged[g][0] * d[g] for g in group)
+            out = out + np.mean([(members[h][0] * d[h] - u_bar) ** 2 for h in group], axis=0)
+        return out
 
 
 def _bic(y: np.ndarray, X: np.ndarray, k_extra: int) -> float:
@@ -308,6 +347,7 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
                 edges[o].append((c, rr))
     groups: list[tuple[tuple[str, ...], str]] = []
     combined: dict = {}
+    standins: dict = {}
     seen: set[str] = set()
     for c in undecided:                     # connected groups of terms that repeat each other
         if c in seen or not edges[c]:
@@ -327,16 +367,51 @@ def _averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, ba
         incl = ", ".join(f"{g} {averaged[g][2]:.2f}" for g in group)
         lead, value, se, slopes = _combined(group, averaged, base, lcols, chosen_lin, models)
         combined[tuple(group)] = (lead, value, se, slopes)
+        standins[tuple(group)] = _standins(group, lead, value, base, base_names, lcols,
+                                           chosen_lin)
+        for g in group:              # the member's coefficient over the stand-in splits
+            v, se_g, p = averaged[g]
+            hyp = [standins[tuple(group)][g][0] if h == g else 0.0 for h in group]
+            averaged[g] = (v, float(np.sqrt(se_g ** 2 + np.mean((np.array(hyp) - v) ** 2))), p)
         per = ", ".join(f"{g} × {slopes[g]:.3g}" for g in group if g != lead)
         groups.append((tuple(group), (
             f"{', '.join(group)} cannot be separated by this recording (correlation of their "
             f"window features after the other chosen terms: {corr}; inclusion probabilities "
             f"{incl}): their separate coefficients are not identified and are reported "
-            f"model-averaged with the selection in their standard errors; what the recording "
+            f"model-averaged with the selection and the stand-in splits (each member alone "
+            f"carrying the combined effect) in their standard errors; what the recording "
             f"does determine is their combined effect, in units of {lead}: {value:.4g} ± "
             f"{se:.2g} (standard error, selection included; {per} {lead}-equivalents); "
             f"{_separating_feature(group)} would separate them")))
-    return averaged, tuple(groups), c_hat, tuple(models), combined
+    return averaged, tuple(groups), c_hat, tuple(models), combined, standins
+
+
+def _standins(group, lead, value, base, base_names, lcols, chosen_lin) -> dict:
+    """For each member ``h`` of an unseparable ``group``: the coefficient ``b_h`` with which
+    ``h`` alone reproduces the combined effect ``value`` along the lead (least squares of
+    ``value × lead`` on ``h``, both with the intercept, fixed and nonlinear columns and the
+    chosen law's other terms removed; ``value`` for the lead itself), and the regression of
+    ``h``'s feature on those columns and the lead — what the recording ties ``h`` to; on
+    another programme, ``h`` less that regression is the direction the recording did not see
+    (:meth:`SelectedLaw.standin_variance`). Columns whitened under GLS: the coefficients are
+    GLS coefficients, valid on unwhitened features. Returns {member: (b_h, names, coef)}."""
+    others = [k for k in chosen_lin if k not in group]
+    Z = np.column_stack([base] + [lcols[k] for k in others])
+    names = tuple(base_names) + tuple(others)
+
+    def part(c):
+        return lcols[c] - Z @ np.linalg.lstsq(Z, lcols[c], rcond=None)[0]
+    pl = part(lead)
+    out = {}
+    for h in group:
+        if h == lead:
+            out[h] = (float(value), names + (lead,), np.r_[np.zeros(Z.shape[1]), 1.0])
+            continue
+        ph = part(h)
+        b = float(value) * float(ph @ pl) / max(float(ph @ ph), 1e-300)
+        coef = np.linalg.lstsq(np.column_stack([Z, lcols[lead]]), lcols[h], rcond=None)[0]
+        out[h] = (b, names + (lead,), coef)
+    return out
 
 
 def _combined(group, averaged, base, lcols, chosen_lin, models):
@@ -582,7 +657,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
                                                              dtype=float)
         j += k
     base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen])
-    averaged, groups, c_hat, models, combined = _averaging(
+    averaged, groups, c_hat, models, combined, standins = _averaging(
         y, base, ["intercept", *fixed_names, *nl_chosen], [t.name for t in lin], lcols,
         lin_chosen, max_linear, batches, gls)
     for name in nl_chosen:                     # held at the choice: its own refined values
@@ -591,4 +666,4 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
                        candidates=tuple(t.name for t in candidates), averaged=averaged,
                        unseparable=groups, vif=_vif(base, lcols, lin_chosen), c_hat=c_hat,
                        models=models, residual=raw_pred - y_raw, gls=gls, combined=combined,
-                       fixed=tuple(fixed_names))
+                       fixed=tuple(fixed_names), standins=standins)
