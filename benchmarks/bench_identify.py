@@ -11,7 +11,8 @@ state there against the unit's true law), with the term groups reported as unsep
 Part B — closed loop on two presets (trplg_001, rlg8_003): Monte Carlo units (unit ≥ 1: the
 thermal network and every law coefficient drawn from the presets' tolerances, i.e. a unit *not*
 in the twin's family of group multipliers) are simulated through a 20 h programme at 1 Hz
-(probes and gyro), identified (timed: the target is ≤ 60 s on 2 cores), then the twin and the
+(probes and gyro), identified (timed, target ≤ 60 s on 2 cores: median, spread, a verdict only
+with ≥ 5 units and the others' load ≤ 1.5), then the twin and the
 original unit are both simulated through a *different* programme (10 h): probe RMS difference,
 bias-law RMS difference (true law of each less its UHFO discharge wander's share — a random
 process every run draws anew — 100 s windows; beside it the figure with the wander and the
@@ -40,6 +41,7 @@ import dataclasses
 import math
 import os
 import pathlib
+import statistics
 import sys
 import tempfile
 import time
@@ -50,7 +52,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
 
 import identify_truth as IT                     # noqa: E402
-from _machine import machine                    # noqa: E402
+from _machine import LoadWatch, load_text, machine, spread  # noqa: E402
 
 PROGRAMME_20H = [{"type": "hold", "duration_h": 1}, {"type": "ramp", "to_c": -20.0,
                  "rate_c_per_min": 1.0}, {"type": "hold", "duration_h": 3},
@@ -610,39 +612,6 @@ def hop_lines(folder: pathlib.Path, r, law_o, raw_o, law_rms: float, ratio: floa
           f"{ratio_b:.2f} / {ratio:.2f}")
 
 
-def hop_false_alarms(seeds: int, work: pathlib.Path) -> None:
-    """Hop-free recordings (4.9 h, rlg_single, no anomalies) through the law fit on the true
-    network's temperatures: how many get a (false) mode hop — a c1 law with trplg_001's noise,
-    and trplg_001's own law (knee, rate, UHFO)."""
-    import tomllib
-    from rlgsim.sim import presets
-    from rlgsim.lab.identify.law_fit import fit_laws
-    from rlgsim.lab.identify.recording_data import read_recording
-    from rlgsim.lab.identify.thermal_fit import build, twin_response
-    dev_t = presets.load_device_file("trplg_001").data
-    print(f"\nC. false mode hops on hop-free recordings, {seeds} seeds per law (family level "
-          f"≤ 1 % per recording)")
-    for kind in ("c1 law, trplg_001 noise", "trplg_001 law"):
-        false, zmax = 0, []
-        for seed in range(seeds):
-            f = work / f"fa_{kind[:2]}_{seed}"
-            f.mkdir()
-            th = IT.thermal_truth(f, {})
-            bias = ({"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01,
-                     "c1_deg_per_h_per_k": 3e-4} if kind.startswith("c1") else None)
-            d = (IT.device_truth(f, th, bias=bias, keep_uhfo=False, noise=dict(dev_t["noise"]))
-                 if bias else IT.device_truth(f, th))
-            rec = read_recording(IT.simulate(IT.scenario(f, d, seed=100 + seed), f / "r.h5"))
-            net, probes = build(presets.load_thermal_file(str(f / "truth_thermal.toml")).data)
-            nodes, _ = twin_response(net, probes, rec.air_c, rec.power, rec.step_s)
-            hf = fit_laws(rec, nodes, net.node_names, tomllib.loads(d.read_text())).hops
-            false += bool(hf.hops)
-            zmax.append(hf.scan_max_z)
-        print(f"   {kind}: {false} of {seeds} recordings with a false hop; largest |z| of the "
-              f"last scan median {np.median(zmax):.2f}, max {max(zmax):.2f} (threshold "
-              f"{hf.threshold_z:.2f})")
-
-
 def timing_10hz(work: pathlib.Path) -> tuple[float, float]:
     """One identification of trplg_001 unit 1 through the 20 h programme with the gyro at its
     papers' 10 Hz (720,000 samples; probes at 1 Hz): wall and CPU seconds (all processes)."""
@@ -677,7 +646,8 @@ def main() -> None:
                     help="part C: scale-factor coverage over this many drawn rlg8_003 units")
     args = ap.parse_args()
     print("bench_identify:", machine())
-    print(f"load average at start: {os.getloadavg()}")
+    watch = LoadWatch()
+    print(f"load average before: {load_text()}", flush=True)
     times: list[float] = []
     cpus: list[float] = []
     with tempfile.TemporaryDirectory(prefix="bench-identify-") as tmp:
@@ -690,21 +660,21 @@ def main() -> None:
         for preset in args.presets:
             closed_loop(preset, args.units, work, times, cpus)
         if args.hop_seeds:
+            from identify_hops import hop_false_alarms
             hop_false_alarms(args.hop_seeds, work)
         if times:
             print(f"\none identification of a 20 h recording (1 Hz probes and gyro, 100 s "
-                  f"windows): {', '.join(f'{t:.1f}' for t in times)} s wall, "
-                  f"{', '.join(f'{t:.1f}' for t in cpus)} s CPU of all processes (target "
-                  f"≤ 60 s on 2 cores; load average now {os.getloadavg()[0]:.1f}: the wall "
-                  f"time depends on the other jobs; a heater network's Jacobian runs in two "
-                  f"processes, so on an idle 2-core machine the wall time is about the CPU "
-                  f"time less the parallel part's share)")
+                  f"windows): wall {spread(times, '.1f', ' s')}, CPU of all processes "
+                  f"{spread(cpus, '.1f', ' s')} (target ≤ 60 s on 2 cores: "
+                  f"{watch.verdict(statistics.median(times) <= 60.0, len(times))}; a heater "
+                  f"network's Jacobian runs in two processes, so on an idle 2-core machine "
+                  f"the wall time is about the CPU time less the parallel part's share)")
         if not args.no_10hz:
             wall, cpu = timing_10hz(work)
             print(f"the same with the gyro at 10 Hz (trplg_001 unit 1, 720,000 samples): "
                   f"{wall:.1f} s wall, {cpu:.1f} s CPU (target ≤ 60 s on 2 cores); load "
                   f"average now {os.getloadavg()[0]:.1f}")
-        print(f"total {time.perf_counter() - t0:.0f} s; load average at end: {os.getloadavg()}")
+        print(f"total {time.perf_counter() - t0:.0f} s; {watch.line()}")
 
 
 if __name__ == "__main__":

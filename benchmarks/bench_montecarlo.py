@@ -19,7 +19,11 @@ cycle twice, four compensators) three ways — a local pool of 1 worker, of 2 wo
 
 Every run also checks that the results table is the same bytes on all three.
 
-    python benchmarks/bench_montecarlo.py [--units 32] [--study demo]
+``--repeat`` (default 5) rounds of the three, the order reversed every other round; each
+figure is the median over the rounds with its spread, and a verdict is printed only with ≥ 5
+rounds and the others' load at most 1.5 on 2 cores (``benchmarks/_machine.py``).
+
+    python benchmarks/bench_montecarlo.py [--units 32] [--study demo] [--repeat 5]
 
 The load average is printed before and after: on a shared machine other processes take CPU
 from the workers, which lowers the efficiency figures (the mean unit time rises with workers).
@@ -30,6 +34,7 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
+import statistics
 import sys
 import tempfile
 import time
@@ -37,7 +42,7 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT)]
 
-from _machine import machine  # noqa: E402
+from _machine import MIN_PAIRS, LoadWatch, load_text, machine, spread  # noqa: E402
 from rlgsim.lab.cli.montecarlo import identity, montecarlo_unit, study_payload  # noqa: E402
 from rlgsim.lab.montecarlo import local_executor, results_csv, run_campaign  # noqa: E402
 from rlgsim.lab.study import load_study  # noqa: E402
@@ -124,35 +129,50 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--units", type=int, default=32)
     ap.add_argument("--study", default="demo")
+    ap.add_argument("--repeat", type=int, default=MIN_PAIRS,
+                    help=f"rounds of the three runs (default {MIN_PAIRS}, the fewest for a "
+                         f"verdict)")
     args = ap.parse_args()
+    watch = LoadWatch()
     study = load_study(args.study)
     payload = study_payload(study)
     n = args.units
     print(f"machine: {machine()}")
-    print(f"study {study.name}: {n} units; load average {os.getloadavg()[0]:.2f}")
+    print(f"study {study.name}: {n} units; load average before: {load_text()}", flush=True)
+    runners = (("local, 1 worker", _local, 1), ("local, 2 workers", _local, 2),
+               ("dask LocalCluster, 2 workers", _dask, 2))
+    runs: dict[str, list[tuple]] = {label: [] for label, _, _ in runners}
     rows = []
-    for label, runner, workers in (("local, 1 worker", _local, 1),
-                                   ("local, 2 workers", _local, 2),
-                                   ("dask LocalCluster, 2 workers", _dask, 2)):
-        start, wall, unit_s, cpu_s, table, gaps = runner(payload, n, workers)
-        overhead = 1.0 - unit_s / (workers * wall)
-        rows.append((label, workers, start, wall, unit_s, overhead, table, cpu_s, gaps))
-        print(f"  {label:<30} {n / wall * 3600:6.0f} units/h  wall {wall:6.1f} s  "
-              f"unit {unit_s / n:5.2f} s (CPU {100 * cpu_s / unit_s:3.0f} %)  "
-              f"scheduler overhead {100 * overhead:4.1f} % (between units "
-              f"{100 * gaps:4.1f} %)  pool start {start:4.1f} s", flush=True)
-    w1, w2, wd = rows[0][3], rows[1][3], rows[2][3]
-    print(f"parallel efficiency, 2 local workers: {100 * w1 / w2 / 2:.0f} % "
-          f"(target >= 90 % on an idle 2-core machine, issue 16)")
-    print(f"parallel efficiency, 2-worker LocalCluster: {100 * w1 / wd / 2:.0f} %")
-    c1, c2 = rows[0][7] / n, rows[1][7] / n
-    print(f"CPU seconds per unit: {c1:.2f} (1 worker), {c2:.2f} (2 workers); a unit's CPU share "
-          f"below 100 % means the workers waited for a core (other processes on the machine)")
+    for rnd in range(max(1, args.repeat)):     # the order reversed every other round
+        for label, runner, workers in (runners if rnd % 2 == 0 else runners[::-1]):
+            start, wall, unit_s, cpu_s, table, gaps = runner(payload, n, workers)
+            overhead = 1.0 - unit_s / (workers * wall)
+            row = (label, workers, start, wall, unit_s, overhead, table, cpu_s, gaps)
+            runs[label].append(row)
+            rows.append(row)
+            watch.sample()
+            print(f"  {rnd + 1}: {label:<30} {n / wall * 3600:6.0f} units/h  wall {wall:6.1f} s  "
+                  f"unit {unit_s / n:5.2f} s (CPU {100 * cpu_s / unit_s:3.0f} %)  "
+                  f"scheduler overhead {100 * overhead:4.1f} % (between units "
+                  f"{100 * gaps:4.1f} %)  pool start {start:4.1f} s", flush=True)
+    r1, r2, rd = (runs[label] for label, _, _ in runners)
+    eff2 = [100 * a[3] / b[3] / 2 for a, b in zip(r1, r2)]     # per round
+    effd = [100 * a[3] / b[3] / 2 for a, b in zip(r1, rd)]
+    k = len(eff2)
+    print(f"parallel efficiency, 2 local workers: {spread(eff2, '.0f', ' %')} (target >= 90 % "
+          f"on an idle 2-core machine, issue 16: "
+          f"{watch.verdict(statistics.median(eff2) >= 90.0, k)})")
+    print(f"parallel efficiency, 2-worker LocalCluster: {spread(effd, '.0f', ' %')}")
+    c1 = statistics.median(r[7] for r in r1) / n
+    c2 = statistics.median(r[7] for r in r2) / n
+    print(f"CPU seconds per unit (median): {c1:.2f} (1 worker), {c2:.2f} (2 workers); a unit's "
+          f"CPU share below 100 % means the workers waited for a core (other processes)")
     print(f"CPU-time efficiency of 2 workers (CPU per unit, 1 vs 2 workers): "
           f"{100 * c1 / c2:.0f} %; the wall-clock efficiency above reaches it on an idle machine")
-    print(f"scheduler overhead: max {100 * max(r[5] for r in rows):.1f} % of the campaign "
-          f"(target < 5 %)")
-    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
+    over = [max(100 * x[5] for x in trio) for trio in zip(r1, r2, rd)]
+    print(f"scheduler overhead, the largest of the three per round: {spread(over, '.1f', ' %')} "
+          f"(target < 5 %: {watch.verdict(statistics.median(over) < 5.0, k)})")
+    print(watch.line())
     same = len({r[6] for r in rows}) == 1
     print(f"results.csv identical on all three: {same}")
     if not same:

@@ -2,9 +2,11 @@
 
 Issue 12 asks that the realism mechanisms (real chamber, anomalies, heaters, boundaries, …)
 leave ``benchmarks/bench_sim.py``'s throughput no more than 20 % below the build before them.
-This script times both builds on this machine in the same run, alternating them (old, new,
-old, new, …) so that a change of load hits both, and prints the median epochs/s of each and
-their ratio beside the target, with the machine and the load average.
+This script times both builds on this machine in the same run, in ``--rounds`` (default 5)
+pairs whose order alternates (old new, new old, …) so that a change of load hits both, and
+prints the median and spread of the epochs/s of each and of their ratio per pair beside the
+target, with the machine and the load average before and after; a verdict only with ≥ 5 pairs
+and the others' load at most 1.5 on 2 cores (``benchmarks/_machine.py``).
 
 The earlier revision (default: the parent of the first commit that added
 ``sim/thermal/chamber_controller.py`` or ``sim/sensors/anomalies.py`` — the start of the issue-12 work) is
@@ -37,7 +39,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
-from _machine import machine  # noqa: E402
+from _machine import MIN_PAIRS, LoadWatch, alternate, load_text, machine, spread  # noqa: E402
 
 #: the largest slowdown issue 12 allows against the build before the realism mechanisms
 MAX_SLOWDOWN = 0.20
@@ -47,12 +49,16 @@ MAX_SLOWDOWN = 0.20
 DRIVER = r"""
 import json, os, sys, tempfile, time
 hours = float(sys.argv[1]); root = sys.argv[2]
-try:
+try:                                        # the simulator in rooms (sim/run/, ...)
     from rlgsim.sim.run.scenario import parse_scenario
     from rlgsim.sim.run.simulate import simulate
-except ImportError:                         # before the rlgsim namespace: top-level packages
-    from sim.scenario import parse_scenario
-    from sim.simulate import simulate
+except ImportError:
+    try:                                    # the rlgsim namespace, sim/ flat
+        from rlgsim.sim.scenario import parse_scenario
+        from rlgsim.sim.simulate import simulate
+    except ImportError:                     # before the rlgsim namespace: top-level packages
+        from sim.scenario import parse_scenario
+        from sim.simulate import simulate
 text = open(os.path.join(root, "scenarios", "paper000_ramp.toml"), encoding="utf-8").read()
 text = f"duration_h = {hours}\n" + text     # a top-level key: before the first table
 sc = parse_scenario(text, "paper000_ramp.toml")
@@ -76,8 +82,9 @@ def git(*args: str) -> str:
 
 def default_revision() -> str:
     """The parent of the first commit touching the issue-12 modules."""
-    first = git("log", "--format=%H", "--reverse", "--", "sim/thermal/chamber_controller.py",
-                "sim/sensors/anomalies.py").splitlines()
+    first = git("log", "--format=%H", "--reverse", "--", "sim/chamber_controller.py",
+                "sim/anomalies.py", "sim/thermal/chamber_controller.py",
+                "sim/sensors/anomalies.py").splitlines()     # their paths then and now
     if not first:
         raise SystemExit("no commit touches sim/thermal/chamber_controller.py or sim/sensors/anomalies.py; "
                          "give --rev")
@@ -120,12 +127,15 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rev", default=None, help="earlier revision (default: before issue 12)")
     ap.add_argument("--hours", type=float, default=12.0, help="simulated hours per run")
-    ap.add_argument("--rounds", type=int, default=3, help="runs of each build (alternating)")
+    ap.add_argument("--rounds", type=int, default=MIN_PAIRS,
+                    help=f"(old, new) pairs, alternating which runs first (default "
+                         f"{MIN_PAIRS}, the fewest for a verdict)")
     args = ap.parse_args(argv)
     rev = git("rev-parse", args.rev) if args.rev else default_revision()
     head = git("rev-parse", "HEAD")
     dirty = bool(git("status", "--porcelain", "--", "sim", "src", "scenarios"))
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="rlgsim-rev-"))
+    watch = LoadWatch()
     try:
         old_path = unpack(rev, tmp)
         old_root = tmp / "tree"
@@ -135,35 +145,34 @@ def main(argv: list[str] | None = None) -> None:
                         ignore=shutil.ignore_patterns("__pycache__"))
         for sub in ("sim", "estimators", "scenarios"):
             (new_pkg / sub).symlink_to(ROOT / sub, target_is_directory=True)
-        old, new = [], []
         print(f"machine: {machine()}")
-        print(f"load average at the start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-        for i in range(args.rounds):
-            o = run(old_path, old_root, args.hours)
-            n = run(new_path, ROOT, args.hours)
-            old.append(o)
-            new.append(n)
-            print(f"round {i + 1}: old {o['epochs'] / o['wall'] / 1e6:.2f} M epochs/s "
-                  f"({o['wall']:.2f} s, CPU {o['cpu']:.2f} s), new "
-                  f"{n['epochs'] / n['wall'] / 1e6:.2f} M epochs/s ({n['wall']:.2f} s, CPU "
-                  f"{n['cpu']:.2f} s); load {os.getloadavg()[0]:.2f}", flush=True)
+        print(f"load average before: {load_text()}", flush=True)
+
+        def report(i: int, o: dict, n: dict) -> None:
+            watch.sample()
+            print(f"pair {i} ({'old' if i % 2 else 'new'} first): old "
+                  f"{o['epochs'] / o['wall'] / 1e6:.2f} M epochs/s ({o['wall']:.2f} s, CPU "
+                  f"{o['cpu']:.2f} s), new {n['epochs'] / n['wall'] / 1e6:.2f} M epochs/s "
+                  f"({n['wall']:.2f} s, CPU {n['cpu']:.2f} s); load {os.getloadavg()[0]:.2f}",
+                  flush=True)
+        old, new = alternate(lambda: run(old_path, old_root, args.hours),
+                             lambda: run(new_path, ROOT, args.hours), max(1, args.rounds),
+                             report)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    o_rate = statistics.median(r["epochs"] / r["wall"] for r in old)
-    n_rate = statistics.median(r["epochs"] / r["wall"] for r in new)
-    o_cpu = statistics.median(r["epochs"] / r["cpu"] for r in old)
-    n_cpu = statistics.median(r["epochs"] / r["cpu"] for r in new)
+    ratio = [(n["epochs"] / n["wall"]) / (o["epochs"] / o["wall"]) for o, n in zip(old, new)]
+    ratio_cpu = [(n["epochs"] / n["cpu"]) / (o["epochs"] / o["cpu"]) for o, n in zip(old, new)]
     print(f"scenario: each build's own paper000_ramp, {args.hours:g} h at 100 Hz "
           f"({old[0]['epochs']:,} epochs); files {old[0]['bytes'] / 1e6:.0f} MB (old), "
           f"{new[0]['bytes'] / 1e6:.0f} MB (new)")
     print(f"old: {rev[:10]} (before the issue-12 realism work unless --rev)")
     print(f"new: {head[:10]}{' + uncommitted changes' if dirty else ''} (this tree)")
-    print(f"median throughput: old {o_rate / 1e6:.2f} M epochs/s, new {n_rate / 1e6:.2f} M "
-          f"epochs/s; new / old = {n_rate / o_rate:.2f}  (target >= {1 - MAX_SLOWDOWN:.2f})")
-    print(f"per CPU second (less sensitive to load): old {o_cpu / 1e6:.2f} M, new "
-          f"{n_cpu / 1e6:.2f} M epochs; new / old = {n_cpu / o_cpu:.2f}")
-    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-
+    print(f"throughput, M epochs/s: old {spread([r['epochs'] / r['wall'] / 1e6 for r in old])}, "
+          f"new {spread([r['epochs'] / r['wall'] / 1e6 for r in new])}")
+    print(f"new / old per pair: {spread(ratio)}  (target >= {1 - MAX_SLOWDOWN:.2f}: "
+          f"{watch.verdict(statistics.median(ratio) >= 1 - MAX_SLOWDOWN, len(ratio))})")
+    print(f"per CPU second (less sensitive to load), new / old: {spread(ratio_cpu)}")
+    print(watch.line())
 
 if __name__ == "__main__":
     main()
