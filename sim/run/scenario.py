@@ -61,7 +61,7 @@ DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
 #: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
 SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device",
                  *unit_keys("duration", TIME_UNITS), "site", "acquisition", "power", "chamber",
-                 "turntable")
+                 "turntable", "trajectory")
 
 _TOLERANCE = 1e-9
 
@@ -218,6 +218,9 @@ class Scenario:
     tables: dict = field(default_factory=dict, repr=False)   # the parsed TOML, for later issues
     device_seed: int | None = None   # seed of the unit's drawn realisation (None: ``seed``)
     unit: int = 0                    # Monte Carlo unit index in the seed tree (runs: 0)
+    #: a vehicle's route instead of the turntable (rlgsim.sim.motion.trajectory_config; None:
+    #: the turntable)
+    trajectory: Any = None
 
     @property
     def realisation_seed(self) -> int:
@@ -249,6 +252,19 @@ def _parse_turntable(table: dict | None, ctx: Ctx) -> TurntableProgram:
     return TurntableProgram.from_config(table, ctx)
 
 
+def _parse_trajectory(data: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None) -> Any:
+    """The ``[trajectory]`` table (a vehicle): no ``[turntable]`` and no ``[site]`` beside it
+    (the route's start is the site)."""
+    from rlgsim.sim.motion.trajectory_config import TrajectoryProgram
+    for other in ("turntable", "site"):
+        if other in data:
+            raise ctx.error(other, f"not allowed with [trajectory]: the IMU rides the vehicle "
+                                   f"(its start is the site); give one of [{other}] and "
+                                   f"[trajectory]")
+    return TrajectoryProgram.from_config(get_table(data, "trajectory", ctx),
+                                         ctx.child("trajectory"), base_dir)
+
+
 def parse_scenario(text: str, source: str = "<string>", *,
                    base_dir: pathlib.Path | None = None, default_name: str = "scenario"
                    ) -> Scenario:
@@ -262,7 +278,13 @@ def parse_scenario(text: str, source: str = "<string>", *,
     device_seed = get_int(data, "device_seed", ctx, None, min=0, max=2**63 - 1)
     device = load_device(get_str(data, "device", ctx), base_dir=base_dir,
                          context=f"{source}: device")
-    site = _parse_site(get_table(data, "site", ctx, {}), ctx.child("site"))
+    trajectory = None
+    if "trajectory" in data:
+        trajectory = _parse_trajectory(data, ctx, base_dir)
+        site = Site(latitude_deg=math.degrees(trajectory.initial.lat_rad),
+                    height_m=trajectory.initial.height_m)
+    else:
+        site = _parse_site(get_table(data, "site", ctx, {}), ctx.child("site"))
     acquisition = _parse_acquisition(get_table(data, "acquisition", ctx, {}),
                                      ctx.child("acquisition"))
     power = _parse_power(get_table(data, "power", ctx, {}), ctx.child("power"))
@@ -270,6 +292,8 @@ def parse_scenario(text: str, source: str = "<string>", *,
     turntable = _parse_turntable(get_table(data, "turntable", ctx, None), ctx.child("turntable"))
     step = acquisition.thermal_step_s
     duration = get_quantity(data, "duration", ctx, TIME_UNITS, None, min=0.0, min_exclusive=True)
+    if duration is None and trajectory is not None:
+        duration = trajectory.duration_s
     if duration is None:
         rng = generator(seed, 0, "chamber", "programme", 0)
         duration = float(chamber.rate_limited(chamber.setpoint(rng)).end_s)
@@ -284,7 +308,7 @@ def parse_scenario(text: str, source: str = "<string>", *,
     return Scenario(name=name, description=description, source=source, text=text, seed=seed,
                     device=device, site=site, acquisition=acquisition, power=power,
                     chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data,
-                    device_seed=device_seed)
+                    device_seed=device_seed, trajectory=trajectory)
 
 
 def load_scenario(ref: str) -> Scenario:

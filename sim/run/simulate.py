@@ -359,8 +359,11 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
     motion = None
     if any(getattr(s, "needs_motion", False) for s in stages):
-        from rlgsim.sim.motion.kinematics import Motion
-        motion = Motion(timeline.segments, scenario.site)      # exact turntable kinematics
+        if getattr(scenario, "trajectory", None) is not None:     # a vehicle's route
+            motion = scenario.trajectory.build(float(timeline.duration_s))
+        else:
+            from rlgsim.sim.motion.kinematics import Motion
+            motion = Motion(timeline.segments, scenario.site)  # exact turntable kinematics
 
     attrs = {
         "title": f"rlgsim run of scenario {scenario.name}",

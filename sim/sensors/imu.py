@@ -65,8 +65,9 @@ import numpy as np
 from rlgsim.sim.sensors.accelerometer import AccelerometerModel, Accelerometers
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
 from rlgsim.sim.writer.schema import (DESCRIPTIONS, declare_imu, declare_sample_valid,
-                                       declare_truth, declare_turntable)
-from rlgsim.ground.dataset_format import IMU, TRUTH, TURNTABLE
+                                       declare_trajectory, declare_truth, declare_turntable,
+                                       trajectory_rows)
+from rlgsim.ground.dataset_format import IMU, TRAJECTORY, TRUTH, TURNTABLE
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.sensors.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
 from rlgsim.sim.sensors.noise import NOISE_LEVELS, NoiseModel, SlowNoise
@@ -577,6 +578,8 @@ class ImuSimulator:
         rows["turntable"] = {"time": {
             "time": trace.t_s, "outer_angle": outer, "inner_angle": inner,
             "motion_index": segment}}
+        if getattr(self.motion, "kind", "turntable") == "trajectory":   # a vehicle's states
+            rows[TRAJECTORY] = {"sample": trajectory_rows(self.motion, motion_block.t_s)}
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
@@ -661,6 +664,10 @@ class ImuStage:
         self.realisation = model.realise(generator(scenario.realisation_seed, self.unit,
                                                    "realisation", "imu", 0))
         self.turntable_segments = [s for s in timeline.segments if s.track == "turntable"]
+        #: a vehicle's route (rlgsim.sim.motion.trajectory_config.TrajectoryProgram) or None
+        self.trajectory = getattr(scenario, "trajectory", None)
+        if self.trajectory is not None:
+            self.groups = {**type(self).groups, TRAJECTORY: DESCRIPTIONS[TRAJECTORY]}
         self.truth_samples = bool(getattr(scenario.acquisition, "truth_samples", False))
         self.sim = ImuSimulator(self.realisation, network.node_names, seed=scenario.seed,
                                 unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
@@ -687,6 +694,9 @@ class ImuStage:
         if sim.anomalies is not None and sim.anomalies.model.imu_dropout_rate_per_h > 0:
             declare_sample_valid(writers[IMU])           # frame dropouts on
         declare_turntable(writers[TURNTABLE], self.turntable_segments)
+        if self.trajectory is not None:
+            declare_trajectory(writers[TRAJECTORY],
+                               self.trajectory.build(float(self.timeline.duration_s)))
         declare_truth(writers[TRUTH], r, seed=self.scenario.seed, unit=self.unit,
                       rate_hz=sim.rate_hz, step_s=sim.step_s,
                       gyro_white_sigma=sim.gyro_white_sigma,
@@ -705,6 +715,8 @@ class ImuStage:
         :class:`rlgsim.sim.motion.kinematics.Motion` (the stage's own when None)."""
         if self.sim.motion is None:                 # first block: adopt the run's kinematics
             from rlgsim.sim.motion.kinematics import Motion
+            if motion is None and self.trajectory is not None:
+                motion = self.trajectory.build(float(self.timeline.duration_s))
             self.sim.motion = (motion if motion is not None
                                else Motion(self.turntable_segments, self.scenario.site))
         return self.sim.block(state, b, trace)

@@ -17,6 +17,7 @@ imu         pulses per sample, UHFO on the thermal grid           :func:`declare
 turntable   table angles on the thermal grid, table of motions    :func:`declare_turntable`
 truth       true sensor parameters and inputs, the drawn unit     :func:`declare_truth`
 anomalies   the sensor anomalies' event record (optional)         :func:`declare_anomalies`
+trajectory  a vehicle's position, velocity, attitude (optional)   :func:`declare_trajectory`
 ==========  ====================================================  =============================
 
 Optional variables — parts a scenario switches on, named in
@@ -56,6 +57,9 @@ DESCRIPTIONS: dict[str, str] = {
                    "table of motions (labels for calibration)",
     fmt.TRUTH: "ground truth: every true sensor parameter on the thermal grid, the true inputs "
                "and the drawn device realisation",
+    fmt.TRAJECTORY: "truth of a vehicle's motion: geodetic position, ENU ground velocity and "
+                    "attitude at the end of each IMU sample, GNSS visibility, and the table of "
+                    "legs",
     fmt.ANOMALIES: "truth: every sensor anomaly of the run (mode hops, pulse spikes, IMU frame "
                    "dropouts, probe glitches, stuck readings, probe dropouts), one row per event",
 }
@@ -368,3 +372,61 @@ def declare_anomalies(g: GroupWriter) -> None:
                description="bias step [deg/h], extra or lost pulses, replaced minus true "
                            "reading [degC] or duration [s]")
     g.variable("size_units", ("event",), dtype=str, description="unit of size")
+
+
+# --------------------------------------------------------------------------- trajectory
+
+
+def declare_trajectory(g: GroupWriter, trajectory) -> None:
+    """The ``trajectory`` group of a run on a vehicle (:class:`rlgsim.sim.motion.trajectory.
+    Trajectory`): the states at the end of each IMU sample along ``sample`` (no stored
+    coordinate, as in ``imu``) and the table of the legs (dimension ``leg``)."""
+    legs = trajectory.legs
+    g.set_attrs({"frames": "navigation frame ENU at the vehicle; body axes x right, y forward, "
+                           "z up; C_b^n = R_z(-heading) R_x(pitch) R_y(roll)",
+                 "initial_longitude_deg": float(np.degrees(trajectory.initial.lon_rad))})
+    g.dimension("sample")
+    g.coordinate("enu", ["east", "north", "up"], description="navigation-frame axis")
+    g.coordinate("quaternion", ["w", "x", "y", "z"],
+                 description="component of a Hamilton quaternion, scalar first")
+    g.variable("latitude", ("sample",), units="degree",
+               description="geodetic latitude (WGS-84) at the end of the sample")
+    g.variable("longitude", ("sample",), units="degree",
+               description="longitude at the end of the sample")
+    g.variable("height", ("sample",), units="m",
+               description="height above the WGS-84 ellipsoid at the end of the sample")
+    g.variable("velocity", ("sample", "enu"), units="m s-1",
+               description="ground velocity in ENU at the end of the sample")
+    g.variable("attitude", ("sample", "quaternion"), units="1",
+               description="attitude q_b^n (body to ENU) at the end of the sample")
+    g.variable("heading", ("sample",), units="degree",
+               description="heading from North, clockwise, in [0, 360)")
+    g.variable("pitch", ("sample",), units="degree", description="pitch, nose up")
+    g.variable("roll", ("sample",), units="degree", description="roll, right wing down")
+    g.variable("gnss_visible", ("sample",), units="1", dtype=np.int8,
+               description="1 where a GNSS receiver sees the sky (the leg's flag)")
+    t0 = np.concatenate([[0.0], np.cumsum([leg.duration_s for leg in legs])])
+    g.coordinate("leg", np.arange(len(legs), dtype=np.int32), units="1", dtype=np.int32,
+                 description="leg index")
+    g.variable("leg_t0", ("leg",), units="s", data=t0[:-1], description="start of the leg")
+    g.variable("leg_t1", ("leg",), units="s", data=t0[1:], description="end of the leg")
+    g.variable("leg_label", ("leg",), dtype=str, data=[leg.label for leg in legs],
+               description="label of the leg")
+    g.variable("leg_kind", ("leg",), dtype=str, data=[leg.kind for leg in legs],
+               description="'rate' (constant rates) or 'smooth' (quintic to a target)")
+    g.variable("leg_gnss", ("leg",), units="1", dtype=np.int8,
+               data=np.array([leg.gnss for leg in legs], dtype=np.int8),
+               description="1 where a GNSS receiver sees the sky during the leg")
+
+
+def trajectory_rows(trajectory, t_s: np.ndarray) -> dict[str, np.ndarray]:
+    """The ``trajectory`` group's rows along ``sample`` at sample end times ``t_s``."""
+    from rlgsim.sim.motion.trajectory import quaternion_from_euler
+    st = trajectory.states(t_s)
+    heading, pitch, roll = st.euler
+    return {"latitude": np.degrees(st.lat), "longitude": np.degrees(st.lon),
+            "height": st.height, "velocity": st.v_n,
+            "attitude": quaternion_from_euler(heading, pitch, roll),
+            "heading": np.degrees(heading) % 360.0, "pitch": np.degrees(pitch),
+            "roll": np.degrees(roll),
+            "gnss_visible": trajectory.gnss_visible(t_s).astype(np.int8)}

@@ -37,6 +37,7 @@ from rlgsim.ground.errors import UserInputError
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_ATTR", "VERSION_ATTR", "SEGMENT_DETAILS",
            "TIMELINE", "THERMAL", "PROBES", "IMU", "TURNTABLE", "TRUTH", "ANOMALIES",
+           "TRAJECTORY",
            "CALIBRATION", "TIME", "SAMPLE", "VARIABLES", "OPTIONAL_VARIABLES",
            "MissingVariableError", "VariableInfo", "open_dataset", "Dataset"]
 
@@ -66,6 +67,7 @@ IMU = "imu"                #: pulses per sample, UHFO on the thermal grid (what 
 TURNTABLE = "turntable"    #: table angles on the thermal grid and the table of motions
 TRUTH = "truth"            #: true sensor parameters, true inputs, the drawn unit
 ANOMALIES = "anomalies"    #: the sensor anomalies' event record (only with ``[anomalies]``)
+TRAJECTORY = "trajectory"  #: a vehicle's position, velocity, attitude (only with ``[trajectory]``)
 CALIBRATION = "calibration"  #: added by ``rlgsim calibrate`` (one row per calibration window)
 
 # ---- dimension names shared by several groups
@@ -106,13 +108,18 @@ VARIABLES: dict[str, tuple[str, ...]] = {
 #: * ``thermal``: ``heater``, ``heater_power`` — the thermal preset has ``[thermal.heaters]``;
 #:   ``boundary``, ``boundary_temperature`` — it has ``[thermal.boundaries]``;
 #: * ``imu``: ``sample_valid`` — the device's ``[anomalies]`` table has IMU frame dropouts;
-#: * ``anomalies`` (the whole group) — the device has an active ``[anomalies]`` table.
+#: * ``anomalies`` (the whole group) — the device has an active ``[anomalies]`` table;
+#: * ``trajectory`` (the whole group, after ``truth``) — the scenario has a
+#:   ``[trajectory]`` (a vehicle instead of the turntable; docs/trajectories.md).
 #:
 #: :mod:`rlgsim.sim.writer.schema` declares exactly these (tests/test_dataset_optional.py).
 OPTIONAL_VARIABLES: dict[str, tuple[str, ...]] = {
     THERMAL: ("heater", "heater_power", "boundary", "boundary_temperature"),
     IMU: ("sample_valid",),
     ANOMALIES: ("event", "time", "end", "channel", "kind", "size", "size_units"),
+    TRAJECTORY: ("sample", "enu", "quaternion", "latitude", "longitude", "height", "velocity",
+                 "attitude", "heading", "pitch", "roll", "gnss_visible", "leg", "leg_t0",
+                 "leg_t1", "leg_label", "leg_kind", "leg_gnss"),
 }
 
 

@@ -91,3 +91,75 @@ def transport_rate_enu(latitude_deg: float, height_m: float, v_enu: np.ndarray) 
     ve, vn = float(v_enu[0]), float(v_enu[1])
     return np.array([-vn / (r_m + height_m), ve / (r_e + height_m),
                      ve * math.tan(latitude_deg * DEG) / (r_e + height_m)])
+
+
+# ------------------------------------------------------------------ a vehicle on the ellipsoid
+#
+# The simulator's vehicle (rlgsim.sim.motion.trajectory) needs the same Earth model along its
+# path at many points at once: the ``_rad`` functions below are the formulas above on numpy
+# arrays of radians (and the ECEF position and C_n^e its tests use; Groves 2013 eqs. 2.112,
+# 2.150).
+
+
+def radii_of_curvature_rad(lat_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Meridian and prime-vertical radii of curvature (R_M, R_N) [m] of the WGS-84 ellipsoid at
+    geodetic latitudes ``lat_rad`` [rad] (Groves 2013 eqs. 2.105, 2.106):
+
+        R_N = a / sqrt(1 − e² sin²L),   R_M = a (1 − e²) / (1 − e² sin²L)^(3/2)
+    """
+    s2 = np.sin(lat_rad) ** 2
+    w = 1.0 - WGS84_E2 * s2
+    rn = WGS84_A / np.sqrt(w)
+    return rn * (1.0 - WGS84_E2) / w, rn
+
+
+def earth_rate_enu_rad(lat_rad: np.ndarray) -> np.ndarray:
+    """ω_ie^n = (0, Ω cos L, Ω sin L) [rad/s] at latitudes ``lat_rad`` [rad], (…, 3)."""
+    lat = np.asarray(lat_rad, dtype=float)
+    return np.stack([np.zeros_like(lat), EARTH_RATE * np.cos(lat), EARTH_RATE * np.sin(lat)],
+                    axis=-1)
+
+
+def transport_rate_enu_rad(lat_rad: np.ndarray, height_m: np.ndarray, v_enu: np.ndarray
+                           ) -> np.ndarray:
+    """Transport rate ω_en^n [rad/s] of the ENU frame carried at ground velocity ``v_enu``
+    (…, 3) [m/s] over the ellipsoid (Titterton & Weston eq. 3.87 in ENU):
+
+        ω_en^n = (−v_N/(R_M + h), v_E/(R_N + h), v_E tan L/(R_N + h))
+    """
+    rm, rn = radii_of_curvature_rad(lat_rad)
+    ve, vn = v_enu[..., 0], v_enu[..., 1]
+    rnh = rn + height_m
+    return np.stack([-vn / (rm + height_m), ve / rnh, ve * np.tan(lat_rad) / rnh], axis=-1)
+
+
+def normal_gravity_rad(lat_rad: np.ndarray, height_m: np.ndarray) -> np.ndarray:
+    """Normal gravity γ(L, h) [m/s²] at arrays of latitudes [rad] and heights [m]: the formula
+    of :func:`normal_gravity` (NIMA TR8350.2 eqs. 4-1, 4-3) on numpy's arrays."""
+    s2 = np.sin(lat_rad) ** 2
+    gamma0 = WGS84_GAMMA_E * (1.0 + WGS84_K * s2) / np.sqrt(1.0 - WGS84_E2 * s2)
+    a = WGS84_A
+    return gamma0 * (1.0 - 2.0 / a * (1.0 + WGS84_F + WGS84_M - 2.0 * WGS84_F * s2) * height_m
+                     + 3.0 * height_m ** 2 / a ** 2)
+
+
+def geodetic_to_ecef(lat_rad: np.ndarray, lon_rad: np.ndarray, height_m: np.ndarray
+                     ) -> np.ndarray:
+    """Earth-centred Earth-fixed position [m], (…, 3), of geodetic coordinates on WGS-84
+    (Groves 2013 eq. 2.112)."""
+    _, rn = radii_of_curvature_rad(lat_rad)
+    cl = np.cos(lat_rad)
+    return np.stack([(rn + height_m) * cl * np.cos(lon_rad),
+                     (rn + height_m) * cl * np.sin(lon_rad),
+                     ((1.0 - WGS84_E2) * rn + height_m) * np.sin(lat_rad)], axis=-1)
+
+
+def enu_to_ecef_matrix(lat_rad: np.ndarray, lon_rad: np.ndarray) -> np.ndarray:
+    """C_n^e (…, 3, 3): ENU components → ECEF components at geodetic (L, λ) (Groves 2013
+    eq. 2.150, written for ENU)."""
+    sl, cl = np.sin(lat_rad), np.cos(lat_rad)
+    so, co = np.sin(lon_rad), np.cos(lon_rad)
+    z = np.zeros_like(sl * so)
+    return np.stack([np.stack([-so + z, -sl * co, cl * co], -1),
+                     np.stack([co + z, -sl * so, cl * so], -1),
+                     np.stack([z, cl + z, sl + z], -1)], -2)

@@ -1,0 +1,236 @@
+"""A scenario's ``[trajectory]`` table: a vehicle's route as segments, or a motion file.
+
+Two forms (docs/trajectories.md lists every key):
+
+* segments from an initial state — ``latitude_deg``, ``longitude_deg``, ``height_m``,
+  ``speed_m_s`` (forward), ``heading_deg``, ``pitch_deg``, ``roll_deg`` — and
+  ``[[trajectory.segment]]`` tables, each with a ``kind``, a duration (``duration_s``,
+  ``duration_min`` or ``duration_h``) and ``gnss`` (the sky visible, default true):
+
+  ========================  ==============================================================
+  kind                      keys and what the vehicle does
+  ========================  ==============================================================
+  ``hold``                  keeps its attitude and body velocity (stands, or drives straight
+                            at constant speed)
+  ``accelerate``            ``accel_m_s2`` constant forward acceleration, or ``speed_m_s``
+                            the forward speed reached smoothly over the segment
+  ``turn``                  ``rate_deg_s`` constant heading rate, or ``by_deg`` the heading
+                            change made smoothly over the segment
+  ``climb``                 ``pitch_deg`` the pitch reached smoothly (then ``hold`` climbs)
+  ``roll``                  ``roll_deg`` the roll reached smoothly
+  ``coordinated_turn``      ``by_deg`` heading change at a constant rate r with the bank
+                            φ = atan(v r / γ) of a turn without side force, rolled in and
+                            out smoothly over ``roll_time_s`` (default 5 s) at either end
+  ========================  ==============================================================
+
+  ("smoothly" = the quintic of :func:`rlgsim.sim.motion.legs.smooth_leg`: rates zero at both
+  ends.)
+* ``file = "route.csv"``: gnss-ins-sim's motion-definition CSV (:mod:`rlgsim.sim.motion.motion_def`,
+  relative to the scenario's folder), with its mobility limits ``max_accel_m_s2``,
+  ``max_angular_accel_deg_s2``, ``max_rate_deg_s``.
+
+Either form: ``gyro_range_deg_s`` (default 400 °/s) and ``accel_range_m_s2`` (default 200 m/s²),
+the sensors' input ranges — a trajectory whose body rates or specific force go past them is
+refused. (A navigation-grade RLG measures several hundred °/s — e.g. ±400 °/s — and its
+accelerometers ±20–40 g: a judgement from typical data sheets; set your device's.)
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.earth import normal_gravity
+from rlgsim.ground.units import DEG
+from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_list,
+                               get_quantity, get_str, unit_keys)
+from rlgsim.sim.motion.legs import Leg, rate_leg, smooth_leg
+from rlgsim.sim.motion.trajectory import InitialState, Trajectory
+
+_DURATION = unit_keys("duration", TIME_UNITS)
+SEGMENT_KEYS: dict[str, tuple[str, ...]] = {
+    "hold": (),
+    "accelerate": ("accel_m_s2", "speed_m_s"),
+    "turn": ("rate_deg_s", "by_deg"),
+    "climb": ("pitch_deg",),
+    "roll": ("roll_deg",),
+    "coordinated_turn": ("by_deg", "roll_time_s"),
+}
+START_KEYS = ("latitude_deg", "longitude_deg", "height_m", "speed_m_s", "heading_deg",
+              "pitch_deg", "roll_deg")
+FILE_KEYS = ("file", "max_accel_m_s2", "max_angular_accel_deg_s2", "max_rate_deg_s")
+RANGE_KEYS = ("gyro_range_deg_s", "accel_range_m_s2")
+#: a judgement (module docstring): typical navigation-grade input ranges
+DEFAULT_GYRO_RANGE_DEG_S = 400.0
+DEFAULT_ACCEL_RANGE_M_S2 = 200.0
+
+
+@dataclass(frozen=True)
+class TrajectoryProgram:
+    """A validated ``[trajectory]``: the start, the legs and the sensors' ranges."""
+
+    initial: InitialState
+    legs: tuple[Leg, ...]
+    gyro_range_rad_s: float
+    accel_range_m_s2: float
+    source: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        return float(sum(leg.duration_s for leg in self.legs))
+
+    def build(self, until_s: float) -> Trajectory:
+        """The kinematics up to ``until_s`` (the run's end), checked against the sensors'
+        ranges (one :class:`UserInputError` line); built once per ``until_s``."""
+        cache = self.__dict__.setdefault("_built", {})
+        if until_s not in cache:
+            cache.clear()
+            cache[until_s] = self._build(until_s)
+        return cache[until_s]
+
+    def _build(self, until_s: float) -> Trajectory:
+        try:
+            traj = Trajectory(self.legs, self.initial, until_s)
+        except ValueError as e:
+            raise UserInputError(f"{self.source}: trajectory: {e}") from None
+        w, f, at = traj.peak_inputs()
+        if w > self.gyro_range_rad_s:
+            raise UserInputError(
+                f"{self.source}: trajectory: body rate {w / DEG:.4g} °/s at t = {at:.6g} s is "
+                f"past the gyros' range gyro_range_deg_s = {self.gyro_range_rad_s / DEG:g}")
+        if f > self.accel_range_m_s2:
+            raise UserInputError(
+                f"{self.source}: trajectory: specific force {f:.4g} m/s² is past the "
+                f"accelerometers' range accel_range_m_s2 = {self.accel_range_m_s2:g}")
+        return traj
+
+    @classmethod
+    def from_config(cls, table: Mapping[str, Any], ctx: Ctx,
+                    base_dir: pathlib.Path | None = None) -> "TrajectoryProgram":
+        """Validate a scenario's ``[trajectory]`` table (module docstring)."""
+        gyro_range = get_float(table, "gyro_range_deg_s", ctx, DEFAULT_GYRO_RANGE_DEG_S,
+                               min=0.0, min_exclusive=True) * DEG
+        accel_range = get_float(table, "accel_range_m_s2", ctx, DEFAULT_ACCEL_RANGE_M_S2,
+                                min=0.0, min_exclusive=True)
+        source = ctx.source or "<scenario>"
+        if "file" in table:
+            check_known_keys(table, (*FILE_KEYS, *RANGE_KEYS), ctx)
+            return cls(*_from_file(table, ctx, base_dir), gyro_range, accel_range, source)
+        check_known_keys(table, (*START_KEYS, "segment", *RANGE_KEYS), ctx)
+        lat = get_float(table, "latitude_deg", ctx, min=-90.0, max=90.0)
+        if abs(lat) >= 89.9:
+            raise ctx.error("latitude_deg", f"value {lat:g} not allowed; the ENU frame is "
+                                            f"singular at the poles: |latitude| < 89.9")
+        lon = get_float(table, "longitude_deg", ctx, 0.0, min=-180.0, max=360.0)
+        height = get_float(table, "height_m", ctx, 0.0, min=-11000.0, max=20000.0)
+        state = np.array([get_float(table, "heading_deg", ctx, 0.0) * DEG,
+                          get_float(table, "pitch_deg", ctx, 0.0, min=-90.0, max=90.0) * DEG,
+                          get_float(table, "roll_deg", ctx, 0.0, min=-180.0, max=180.0) * DEG,
+                          0.0, get_float(table, "speed_m_s", ctx, 0.0), 0.0])
+        segs = get_list(table, "segment", ctx, min_len=1)
+        legs: list[Leg] = []
+        gamma = normal_gravity(lat, height)
+        for i, seg in enumerate(segs):
+            sctx = ctx.child("segment").item(i)
+            if not isinstance(seg, Mapping):
+                raise sctx.error("", f"expected a table, got {seg!r}")
+            for leg in _segment_legs(seg, sctx, state, gamma):
+                legs.append(leg)
+                state = leg.end()
+        if not legs:
+            raise ctx.error("segment", "no segment of positive duration")
+        return cls(InitialState(lat * DEG, lon * DEG, height), tuple(legs), gyro_range,
+                   accel_range, source)
+
+
+def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None
+               ) -> tuple[InitialState, tuple[Leg, ...]]:
+    from rlgsim.sim.motion.motion_def import DEFAULT_MOBILITY, read_motion_def
+    name = get_str(table, "file", ctx)
+    path = pathlib.Path(name)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    if not path.is_file():
+        raise ctx.error("file", f"{name!r} not found (looked for {path})")
+    mob = (get_float(table, "max_accel_m_s2", ctx, DEFAULT_MOBILITY[0], min=0.0,
+                     min_exclusive=True),
+           get_float(table, "max_angular_accel_deg_s2", ctx, DEFAULT_MOBILITY[1] / DEG, min=0.0,
+                     min_exclusive=True) * DEG,
+           get_float(table, "max_rate_deg_s", ctx, DEFAULT_MOBILITY[2] / DEG, min=0.0,
+                     min_exclusive=True) * DEG)
+    md = read_motion_def(path, mobility=mob)
+    return InitialState(md.lat_rad, md.lon_rad, md.height_m), md.legs
+
+
+def _segment_legs(seg: Mapping[str, Any], ctx: Ctx, state: np.ndarray, gamma: float
+                  ) -> list[Leg]:
+    """The legs of one ``[[trajectory.segment]]`` from channel values ``state``."""
+    kind = get_str(seg, "kind", ctx)
+    if kind not in SEGMENT_KEYS:
+        raise ctx.error("kind", f"{kind!r} not allowed; one of {', '.join(SEGMENT_KEYS)}")
+    check_known_keys(seg, ("kind", "gnss", "label", *_DURATION, *SEGMENT_KEYS[kind]), ctx)
+    duration = get_quantity(seg, "duration", ctx, TIME_UNITS)
+    if duration < 0:
+        key = next(k for k in _DURATION if k in seg)
+        raise ctx.error(key, f"value {seg[key]!r} not allowed; a segment's duration must be "
+                             f">= 0")
+    gnss = get_bool(seg, "gnss", ctx, True)
+    label = get_str(seg, "label", ctx, kind)
+    if duration == 0:
+        return []
+    zero = np.zeros(6)
+
+    def one_of(*keys: str) -> str:
+        present = [k for k in keys if k in seg]
+        if len(present) != 1:
+            raise ctx.error(keys[0], f"give exactly one of {', '.join(keys)}")
+        return present[0]
+
+    def smooth(channel: int, value: float) -> Leg:
+        target = state.copy()
+        target[channel] = value
+        return smooth_leg(state, target, duration, label=label, gnss=gnss)
+
+    if kind == "hold":
+        return [rate_leg(state, zero, duration, label=label, gnss=gnss)]
+    if kind == "accelerate":
+        if one_of("accel_m_s2", "speed_m_s") == "accel_m_s2":
+            rates = zero.copy()
+            rates[4] = get_float(seg, "accel_m_s2", ctx)
+            return [rate_leg(state, rates, duration, label=label, gnss=gnss)]
+        return [smooth(4, get_float(seg, "speed_m_s", ctx))]
+    if kind == "turn":
+        if one_of("rate_deg_s", "by_deg") == "rate_deg_s":
+            rates = zero.copy()
+            rates[0] = get_float(seg, "rate_deg_s", ctx) * DEG
+            return [rate_leg(state, rates, duration, label=label, gnss=gnss)]
+        return [smooth(0, state[0] + get_float(seg, "by_deg", ctx) * DEG)]
+    if kind == "climb":
+        return [smooth(1, get_float(seg, "pitch_deg", ctx, min=-89.0, max=89.0) * DEG)]
+    if kind == "roll":
+        return [smooth(2, get_float(seg, "roll_deg", ctx, min=-89.0, max=89.0) * DEG)]
+    # coordinated turn: roll in, turn at a constant rate, roll out
+    by = get_float(seg, "by_deg", ctx) * DEG
+    roll_time = get_float(seg, "roll_time_s", ctx, 5.0, min=0.0, min_exclusive=True)
+    turn_time = duration - 2.0 * roll_time
+    if turn_time <= 0:
+        raise ctx.error("roll_time_s", f"value {roll_time:g} not allowed; rolling in and out "
+                                       f"must leave time to turn (< half of {duration:g} s)")
+    rate = by / turn_time
+    bank = math.atan(state[4] * rate / gamma)
+    roll_in = state.copy()
+    roll_in[2] = state[2] + bank
+    legs = [smooth_leg(state, roll_in, roll_time, label=f"{label} (roll in)", gnss=gnss)]
+    rates = zero.copy()
+    rates[0] = rate
+    legs.append(rate_leg(legs[-1].end(), rates, turn_time, label=label, gnss=gnss))
+    end = legs[-1].end()
+    out = end.copy()
+    out[2] = state[2]
+    legs.append(smooth_leg(end, out, roll_time, label=f"{label} (roll out)", gnss=gnss))
+    return legs
