@@ -87,6 +87,25 @@ EXPECTED = {
     (fmt.ANOMALIES, "kind"): (("event",), None),
     (fmt.ANOMALIES, "size"): (("event",), "see size_units"),
     (fmt.ANOMALIES, "size_units"): (("event",), None),
+    # a run on a vehicle (tests/test_trajectory_runs.py writes it)
+    (fmt.TRAJECTORY, "sample"): (("sample",), None),
+    (fmt.TRAJECTORY, "enu"): (("enu",), None),
+    (fmt.TRAJECTORY, "quaternion"): (("quaternion",), None),
+    (fmt.TRAJECTORY, "latitude"): (("sample",), "degree"),
+    (fmt.TRAJECTORY, "longitude"): (("sample",), "degree"),
+    (fmt.TRAJECTORY, "height"): (("sample",), "m"),
+    (fmt.TRAJECTORY, "velocity"): (("sample", "enu"), "m s-1"),
+    (fmt.TRAJECTORY, "attitude"): (("sample", "quaternion"), "1"),
+    (fmt.TRAJECTORY, "heading"): (("sample",), "degree"),
+    (fmt.TRAJECTORY, "pitch"): (("sample",), "degree"),
+    (fmt.TRAJECTORY, "roll"): (("sample",), "degree"),
+    (fmt.TRAJECTORY, "gnss_visible"): (("sample",), "1"),
+    (fmt.TRAJECTORY, "leg"): (("leg",), "1"),
+    (fmt.TRAJECTORY, "leg_t0"): (("leg",), "s"),
+    (fmt.TRAJECTORY, "leg_t1"): (("leg",), "s"),
+    (fmt.TRAJECTORY, "leg_label"): (("leg",), None),
+    (fmt.TRAJECTORY, "leg_kind"): (("leg",), None),
+    (fmt.TRAJECTORY, "leg_gnss"): (("leg",), "1"),
 }
 
 

@@ -63,6 +63,8 @@ _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(4)
 _RTOL = 1e-13
 _ATOL = (1e-15, 1e-15, 1e-9)
 _TIME_TOL_S = 1e-6
+#: highest |latitude| a route may reach (the ENU frame is singular at the poles) [rad]
+MAX_LATITUDE_RAD = np.radians(89.9)
 #: the WGS-84 constants the compiled kernel needs, in its order (a, e², Ω, γ_e, k, f, m)
 _EARTH = np.array([WGS84_A, WGS84_E2, EARTH_RATE, WGS84_GAMMA_E, WGS84_K, WGS84_F, WGS84_M])
 
@@ -222,13 +224,19 @@ class Trajectory:
             if leg.duration_s <= 0.0:
                 out.append((y.copy(), None))
                 continue
+            def polar(tau: float, p: np.ndarray) -> float:
+                return MAX_LATITUDE_RAD - abs(p[0])
+            polar.terminal = True
             sol = solve_ivp(rhs, (0.0, leg.duration_s), y, method="DOP853", rtol=_RTOL,
-                            atol=_ATOL, dense_output=True)
+                            atol=_ATOL, dense_output=True, events=polar)
+            if sol.status == 1:
+                raise ValueError(f"leg {j} ({leg.label}) reaches latitude "
+                                 f"{np.degrees(sol.y[0, -1]):+.4g}° at t = "
+                                 f"{self._t0[j] + sol.t[-1]:.6g} s: the path crosses a pole, "
+                                 f"where the ENU frame is singular (|latitude| < "
+                                 f"{np.degrees(MAX_LATITUDE_RAD):g}°)")
             if not sol.success:                             # pragma: no cover - smooth inputs
-                raise ValueError(f"trajectory leg {j}: position integration failed "
-                                 f"({sol.message})")
-            if not np.all(np.abs(sol.y[0]) < np.pi / 2):
-                raise ValueError(f"trajectory leg {j} ({leg.label}): the path crosses a pole")
+                raise ValueError(f"leg {j}: position integration failed ({sol.message})")
             out.append((y.copy(), sol.sol))
             y = sol.y[:, -1].copy()
         return out
