@@ -105,6 +105,7 @@ _SIDECAR_TABLES = {
     "orientation": None,            # body axis -> [east, north, up] at table zero
     "noise": None,                  # the device presets' [noise] keys, numbers
     "columns": None,                # file's column name -> standard name
+    "probes": None,                 # recorded probe name -> the thermal template's probe
 }
 
 
@@ -170,6 +171,8 @@ class Sidecar:
     orientation: dict[str, np.ndarray] = field(default_factory=dict)
     noise: dict[str, float] = field(default_factory=dict)
     columns: dict[str, str] = field(default_factory=dict)
+    #: recorded probe name (``probe_<name>_c``) -> probe of the thermal template (identify)
+    probes: dict[str, str] = field(default_factory=dict)
 
 
 def read_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -249,6 +252,11 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             raise _fail(f"{p}: columns.{src}", f"value {dst!r} not allowed; must be a standard "
                                                f"column name ({_ALLOWED_NAMES})")
         sc.columns[src] = dst
+    for src, dst in data.get("probes", {}).items():
+        if not isinstance(dst, str) or not dst:
+            raise _fail(f"{p}: probes.{src}", f"value {dst!r} not allowed; must be the name of "
+                                              f"a probe of the thermal template (a string)")
+        sc.probes[src] = dst
     return sc
 
 

@@ -159,6 +159,8 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                       f"resolution and noise, the quantisation grid at a random offset) carried "
                       f"through the Jacobian; {th.fit.nfev} evaluations of the network over the "
                       f"whole recording in the last fit.")
+    for line in result.probe_lines:
+        rep.paragraph(line[0].upper() + line[1:] + ".")
     rep.table(Table.from_records("Probe residual RMS [°C]", [
         {"probe": n, "template": th.rms_template_c[n], "fitted twin": th.rms_fitted_c[n]}
         for n in th.probe_names]))

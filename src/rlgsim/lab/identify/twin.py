@@ -63,6 +63,8 @@ class Identification:
     name: str
     #: the scale-factor law from the turntable's rate segments (None: a static recording)
     scale_factor: ScaleFactorFit | None = None
+    #: how the recorded probes were placed on the template's (empty: named as the template)
+    probe_lines: tuple[str, ...] = ()
 
 
 def load_templates(source: str, device_template: str | None, thermal_template: str | None
@@ -287,6 +289,8 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
         raise UserInputError(f"{source}: no such file")
     dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
     data = read_recording(source, gyro=gyro)
+    from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
+    data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
     name = name or f"{dev_name}_twin"
     # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
     # slows down on a shared machine (same reason as the thermal integrator)
@@ -314,7 +318,7 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
                                  f"template: {dev_name}; bias and UHFO terms chosen by BIC, "
                                  f"noise from the Allan deviation of the law residual"
                                  + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
-                                    else "") + "\n" + "\n".join(sf_lines))
+                                    else "") + "\n" + "\n".join([*probe_lines, *sf_lines]))
     stext = _scenario_text(data, name)
     for text in (ttext, dtext, stext):
         tomllib.loads(text)                        # never write what cannot be read back
@@ -326,7 +330,7 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     result = Identification(out_dir=out, device_path=dp, thermal_path=tp, scenario_path=sp,
                             report_path=out / "report.md", data=data, thermal=thermal, laws=laws,
                             device=dev, thermal_preset=fitted_thermal, seconds=seconds, name=name,
-                            scale_factor=sf)
+                            scale_factor=sf, probe_lines=tuple(probe_lines))
     from rlgsim.lab.identify.identify_report import build_report
     build_report(result, dev_name, th_name).write(out)
     return result
