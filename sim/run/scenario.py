@@ -61,7 +61,7 @@ DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
 #: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
 SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device",
                  *unit_keys("duration", TIME_UNITS), "site", "acquisition", "power", "chamber",
-                 "turntable", "trajectory")
+                 "turntable", "trajectory", "vehicle_bay")
 
 _TOLERANCE = 1e-9
 
@@ -221,6 +221,8 @@ class Scenario:
     #: a vehicle's route instead of the turntable (rlgsim.sim.motion.trajectory_config; None:
     #: the turntable)
     trajectory: Any = None
+    #: the airflow of the vehicle's bay (rlgsim.sim.thermal.vehicle_bay; None: still air)
+    vehicle_bay: Any = None
 
     @property
     def realisation_seed(self) -> int:
@@ -278,7 +280,14 @@ def parse_scenario(text: str, source: str = "<string>", *,
     device_seed = get_int(data, "device_seed", ctx, None, min=0, max=2**63 - 1)
     device = load_device(get_str(data, "device", ctx), base_dir=base_dir,
                          context=f"{source}: device")
-    trajectory = None
+    trajectory = vehicle_bay = None
+    if "vehicle_bay" in data:
+        if "trajectory" not in data:
+            raise ctx.error("vehicle_bay", "only with [trajectory]: the bay's airflow follows "
+                                           "the vehicle's speed")
+        from rlgsim.sim.thermal.vehicle_bay import VehicleBay
+        vehicle_bay = VehicleBay.from_config(get_table(data, "vehicle_bay", ctx),
+                                             ctx.child("vehicle_bay"))
     if "trajectory" in data:
         trajectory = _parse_trajectory(data, ctx, base_dir)
         site = Site(latitude_deg=math.degrees(trajectory.initial.lat_rad),
@@ -308,7 +317,7 @@ def parse_scenario(text: str, source: str = "<string>", *,
     return Scenario(name=name, description=description, source=source, text=text, seed=seed,
                     device=device, site=site, acquisition=acquisition, power=power,
                     chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data,
-                    device_seed=device_seed, trajectory=trajectory)
+                    device_seed=device_seed, trajectory=trajectory, vehicle_bay=vehicle_bay)
 
 
 def load_scenario(ref: str) -> Scenario:

@@ -119,6 +119,12 @@ class ThermalPart:
         self.network = realised_network(scenario)
         self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s,
                                             controller=scenario.chamber.controller)
+        #: a vehicle's bay (sim/thermal/vehicle_bay.py) and its route: the airflow scales the
+        #: ambient conductances with the ground speed (None: still air, as in a chamber)
+        self.bay = None
+        if getattr(scenario, "vehicle_bay", None) is not None:
+            self.bay = (scenario.vehicle_bay,
+                        scenario.trajectory.build(float(timeline.duration_s)))
 
     @property
     def node_names(self) -> tuple[str, ...]:
@@ -138,7 +144,11 @@ class ThermalPart:
         t = k * self.step
         setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
         power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
-        states, new_state = self.integrator.propagate(state, setpoint, power)
+        film = None
+        if self.bay is not None:             # φ − 1 at each step's start (held over the step)
+            bay, route = self.bay
+            film = bay.factor(np.linalg.norm(route.states(t[:-1]).v_n, axis=1)) - 1.0
+        states, new_state = self.integrator.propagate(state, setpoint, power, film_factor=film)
         self._extra_rows = self.integrator.extra_rows()
         trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
                              air_c=np.asarray(states[:, 0]), power=power,

@@ -9,6 +9,8 @@ segments (docs/thermal.md, "Chamber"):
 ``step``    jump to ``to_c`` at once (the rate limit turns it into a ramp at the chamber's
             maximum rate);
 ``repeat``  run the nested ``segments`` ``count`` times (alias ``cycle``);
+``profile`` a table of ``time_s|_min|_h`` (from the segment's start) and ``temperature_c``
+            joined linearly (e.g. the air of a vehicle's bay, docs/trajectories.md);
 ``random``  ``legs`` random ramp-and-hold legs: target uniform in ``[min_c, max_c]``, rate
             uniform in ``[min_rate_c_per_min, max_rate_c_per_min]``, hold uniform in
             ``[min_hold_*, max_hold_*]``, all drawn from the generator handed to
@@ -34,8 +36,8 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_int, get_list,
-                        get_quantity, get_str, unit_keys, get_table)
+from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_float, get_float_list,
+                               get_int, get_list, get_quantity, get_str, unit_keys, get_table)
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import MINUTE
 
@@ -168,7 +170,7 @@ class RandomProfile:
 
 Segment = Union[Hold, Ramp, Step, Repeat, RandomProfile]
 
-SEGMENT_TYPES = ("hold", "ramp", "step", "repeat", "cycle", "random")
+SEGMENT_TYPES = ("hold", "ramp", "step", "repeat", "cycle", "random", "profile")
 _DURATION_KEYS = tuple(unit_keys("duration", TIME_UNITS))
 
 
@@ -205,6 +207,8 @@ def _parse_segments(items: Any, ctx: Ctx, depth: int = 0) -> tuple[Segment, ...]
         elif kind == "step":
             check_known_keys(seg, ("type", "to_c"), sctx)
             out.append(Step(_temperature(seg, "to_c", sctx)))
+        elif kind == "profile":
+            out.extend(_profile(seg, sctx))
         elif kind in ("repeat", "cycle"):
             check_known_keys(seg, ("type", "count", "segments"), sctx)
             count = get_int(seg, "count", sctx, min=1, max=100_000)
@@ -226,6 +230,31 @@ def _parse_segments(items: Any, ctx: Ctx, depth: int = 0) -> tuple[Segment, ...]
             change = get_float(seg, "min_change_c", sctx, 0.0, min=0.0, max=(hi - lo) / 2)
             out.append(RandomProfile(legs, lo, hi, rmin, rmax, hmin, hmax, change))
     return tuple(out)
+
+
+def _profile(seg: Mapping[str, Any], ctx: Ctx) -> list[Segment]:
+    """A ``profile`` segment — a table of times from the segment's start (``time_s``,
+    ``time_min`` or ``time_h``: increasing, the first 0) and ``temperature_c`` — as the steps,
+    ramps and holds that join its points linearly (a vehicle bay's recorded or planned air
+    temperature; the first point is jumped to, then rate-limited like any step)."""
+    time_keys = unit_keys("time", TIME_UNITS)
+    check_known_keys(seg, ("type", "temperature_c", *time_keys), ctx)
+    present = [k for k in time_keys if k in seg]
+    if len(present) != 1:
+        raise ctx.error("time_s", f"give exactly one of {', '.join(time_keys)}")
+    key = present[0]
+    times = np.array(get_float_list(seg, key, ctx)) * TIME_UNITS[key[len("time_"):]]
+    temps = get_float_list(seg, "temperature_c", ctx, length=len(times))
+    if len(times) < 2 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
+        raise ctx.error(key, "needs at least two times, the first 0, strictly increasing")
+    for v in temps:
+        if not MIN_TEMPERATURE_C <= v <= MAX_TEMPERATURE_C:
+            raise ctx.error("temperature_c", f"value {v:g} not allowed; must be in "
+                                             f"[{MIN_TEMPERATURE_C:g}, {MAX_TEMPERATURE_C:g}]")
+    out: list[Segment] = [Step(temps[0])]
+    for dt, a, b in zip(np.diff(times).tolist(), temps[:-1], temps[1:]):
+        out.append(Hold(dt) if a == b else Ramp(b, duration_s=dt))
+    return out
 
 
 def _table_error(ctx: Ctx, message: str) -> UserInputError:

@@ -269,6 +269,14 @@ class ThermalIntegrator:
             self._nl_ends = [(inv.index(ln.a), inv.index(ln.b) if ln.b >= 0 else ln.b, ln)
                              for ln in self.nonlinear_links]
             self._nl_n = len(inv)
+        # airflow over the ambient links (a vehicle's bay, sim/thermal/vehicle_bay.py): the
+        # ambient conductances scaled by φ(t) through the residual heat (φ − 1)·g·(T_air − T),
+        # evaluated at each grid point and held over the step (exponential Euler, as above)
+        g_amb = np.asarray(network.ambient_conductance_w_per_k, dtype=float)
+        inv_f = np.flatnonzero(g_amb > 0)
+        self._film_rows = (d[:, None] * V)[inv_f]                            # (nf, n)
+        self._film_cols = (V.T[:, inv_f] * d[inv_f][None, :]) * E[:, 0, 4][:, None]  # (n, nf)
+        self._film_g = g_amb[inv_f]
         #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
         self.last_heater_power_w = np.zeros((0, len(self.heaters)))
         #: further boundaries' temperatures [°C] (m, nb) at the ends of the last call's steps
@@ -359,8 +367,8 @@ class ThermalIntegrator:
 
     # ----------------------------------------------------------------- propagation
 
-    def propagate(self, state: Any, setpoint_c: Any, power_on: Any, t0_s: float | None = None
-                  ) -> tuple[np.ndarray, ThermalState]:
+    def propagate(self, state: Any, setpoint_c: Any, power_on: Any, t0_s: float | None = None,
+                  film_factor: Any = None) -> tuple[np.ndarray, ThermalState]:
         """Advance ``m`` steps exactly.
 
         ``state``: ``[T_air, T_nodes]`` at ``t0`` (from :meth:`initial_state` or a previous
@@ -369,7 +377,8 @@ class ThermalIntegrator:
         fraction). Returns ``states`` (m, 1+n) at ``t0 + h … t0 + m·h`` (column 0 chamber air)
         and the last state (a :class:`ThermalState`). ``t0_s``: run time at the state [s],
         needed only by further boundaries with a periodic temperature (default: the time the
-        state carries, 0 for a plain array).
+        state carries, 0 for a plain array). ``film_factor`` (m,): φ − 1 per step, the airflow's
+        scaling of every ambient conductance held over the step (a vehicle's bay; None: none).
         """
         s = np.asarray(setpoint_c, dtype=float).reshape(-1)
         u = np.asarray(power_on, dtype=float).reshape(-1)
@@ -408,6 +417,11 @@ class ThermalIntegrator:
                                                       hstate)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(u))):
             raise ValueError("setpoint and power must be finite")
+        film = None
+        if film_factor is not None:
+            film = np.asarray(film_factor, dtype=float).reshape(-1)
+            if film.size != m or not np.all(np.isfinite(film)) or np.any(film < -1.0):
+                raise ValueError(f"film_factor needs {m} finite values >= -1")
         states = np.empty((m, 1 + n))
         air, w = float(x0[0]), w0
         # long calls run in fixed chunks (bounded temporaries; bit-identical by construction)
@@ -424,13 +438,15 @@ class ThermalIntegrator:
                 bk = self.network.boundary_temperatures_c(tk)          # (len, nb)
                 self.last_boundary_c[k0:k1] = bk[1:]
             air, w, hstate = self._advance(air, w, sk, u[k0:k1], states[k0:k1], bk, hstate,
-                                           self.last_heater_power_w[k0:k1])
+                                           self.last_heater_power_w[k0:k1],
+                                           None if film is None else film[k0:k1])
         return states, ThermalState(states[-1], w, chamber, (k_start + m) * self.step_s,
                                     hstate)
 
     def _advance(self, air0: float, w0: np.ndarray, s: np.ndarray, u: np.ndarray,
                  out: np.ndarray, b: np.ndarray | None = None, hstate: Any = None,
-                 hpower: Any = None) -> tuple[float, np.ndarray, Any]:
+                 hpower: Any = None, film: np.ndarray | None = None
+                 ) -> tuple[float, np.ndarray, Any]:
         """Propagate ``len(u)`` steps from chamber air ``air0`` and modal state ``w0`` into
         ``out`` (m, 1+n); return the final air temperature and modal state."""
         n = self.n_nodes
@@ -458,7 +474,7 @@ class ThermalIntegrator:
         # modal rows by step (m, n): the stepwise loop writes one contiguous row per step
         W = np.empty((m, n)).T
         done = None
-        if self.heaters and not self.nonlinear_links:
+        if self.heaters and not self.nonlinear_links and film is None:
             done = self._compiled_heater_loop(w0, terms, u, W, hstate, hpower)
         if done is not None:
             hstate = done
@@ -466,9 +482,9 @@ class ThermalIntegrator:
             g = np.multiply.outer(*terms[0])
             for c, x in terms[1:]:
                 g += np.multiply.outer(c, x)
-            if self.heaters or self.nonlinear_links:
+            if self.heaters or self.nonlinear_links or film is not None:
                 hstate = self._stepwise_loop(w0, g, u, W, hstate, hpower, air_k,
-                                             None if b is None else b[:-1])
+                                             None if b is None else b[:-1], film)
             else:
                 for i in range(n):
                     W[i], _ = scipy.signal.lfilter([1.0], [1.0, -self._mu[i]], g[i],
@@ -528,12 +544,13 @@ class ThermalIntegrator:
 
     def _stepwise_loop(self, w0: np.ndarray, g: np.ndarray, u: np.ndarray, W: np.ndarray,
                        integ: Any, power_out: Any, air_k: np.ndarray,
-                       b_k: np.ndarray | None) -> np.ndarray:
+                       b_k: np.ndarray | None, film: np.ndarray | None = None) -> np.ndarray:
         """The modal recurrence step by step, for inputs that depend on the state
         (docs/thermal.md §1.2b-c): at each grid point the heaters' PI controllers read their
         sensors and set powers limited to [0, max], and the nonlinear link parts give their
         residual heat; both are held over the step (exact ZOH propagation of a constant input;
-        for the nonlinear residual this is the exponential Euler method)."""
+        for the nonlinear residual this is the exponential Euler method). ``film`` (m,) φ − 1
+        per step: the airflow's residual heat over the ambient links, held likewise."""
         mu = self._mu
         H = len(self.heaters)
         if H:
@@ -558,6 +575,8 @@ class ThermalIntegrator:
         # of W.T (no copies), the powered flags are read as Python values, and a heater's
         # heat vector cols[j]·P is recomputed only when P changes (a saturated or idle heater
         # holds it for hours) — the same floating-point operations in the same order.
+        film_k = None if film is None else np.asarray(film).tolist()
+        film_rows, film_cols, film_g = self._film_rows, self._film_cols, self._film_g
         WT = W.T
         gT = np.ascontiguousarray(g.T)
         on = (np.asarray(u) > 0).tolist()
@@ -594,6 +613,9 @@ class ThermalIntegrator:
             w += gT[k]
             if dq is not None:
                 w += dq
+            if film_k is not None and film_k[k] != 0.0:     # the airflow over ambient links
+                tf = film_rows @ wr
+                w += film_cols @ ((film_k[k] * film_g) * (float(air_k[k]) - tf))
             if H:
                 if powered:
                     for j in range(H):
