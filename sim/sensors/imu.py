@@ -722,10 +722,10 @@ class ImuStage:
         return self.sim.block(state, b, trace)
 
 
-def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample true (Δθ (n, 3) [rad], Δv (n, 3) [m/s]) of ``n`` samples from ``t0_s``,
-    recomputed from a dataset's timeline (turntable track) and site — bit for bit what the run
-    used (:class:`rlgsim.sim.motion.kinematics.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
+def dataset_motion(dataset):
+    """The run's turntable kinematics (:class:`rlgsim.sim.motion.kinematics.Motion`) rebuilt
+    from a dataset's timeline (turntable track) and site. ``dataset``: an open
+    :class:`h5py.File` of a run."""
     from rlgsim.sim.motion.site import Site
     from rlgsim.sim.motion.kinematics import Motion, TurntableSegment
 
@@ -738,5 +738,12 @@ def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarra
                                          tl["label"][...], details[...])
             if text(tr) == "turntable"]
     site = Site(float(dataset.attrs["latitude_deg"]), float(dataset.attrs["height_m"]))
-    mb = Motion(segs, site).increments(t0_s, n, float(dataset.attrs["sample_rate_hz"]))
+    return Motion(segs, site)
+
+
+def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample true (Δθ (n, 3) [rad], Δv (n, 3) [m/s]) of ``n`` samples from ``t0_s``,
+    recomputed from a dataset's timeline (turntable track) and site — bit for bit what the run
+    used (:class:`rlgsim.sim.motion.kinematics.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
+    mb = dataset_motion(dataset).increments(t0_s, n, float(dataset.attrs["sample_rate_hz"]))
     return mb.dtheta_rad, mb.dv_m_per_s

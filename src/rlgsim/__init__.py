@@ -40,6 +40,7 @@ _PUBLIC = {
     "window_table": "rlgsim.lab.api:window_table",
     "score": "rlgsim.lab.api:score",
     "calibrate": "rlgsim.lab.api:calibrate",
+    "navigate": "rlgsim.lab.api:navigate",
     # recordings (docs/recordings.md)
     "load_recording": "rlgsim.ground.recording:load_recording",
     "export": "rlgsim.ground.recording_export:export",

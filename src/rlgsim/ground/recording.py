@@ -164,6 +164,7 @@ class Sidecar:
     source: str = ""
     latitude_deg: float = 34.0
     height_m: float = 0.0
+    site_given: bool = False          # the sidecar has [site] latitude_deg (navigation needs it)
     gyro_axes: list[str] | None = None
     accel_axes: list[str] | None = None
     gyro_sf_pulse_per_arcsec: float | None = None
@@ -228,6 +229,7 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
     site = data.get("site", {})
     sc.latitude_deg = _number(site, "latitude_deg", f"{p}: site", 34.0, lo=-90, hi=90)
     sc.height_m = _number(site, "height_m", f"{p}: site", 0.0, lo=-1000, hi=1e5)
+    sc.site_given = isinstance(site, Mapping) and "latitude_deg" in site
     gyro = data.get("gyro", {})
     sc.gyro_axes = _axes(gyro, f"{p}: gyro")
     sc.gyro_sf_pulse_per_arcsec = _number(gyro, "scale_factor_pulses_per_arcsec", f"{p}: gyro",

@@ -109,3 +109,5 @@ def hours_to_s(x):
 
 def minutes_to_s(x):
     return x * MINUTE
+
+NAUTICAL_MILE = 1852.0             # m per international nautical mile (the INS industry's nmi)

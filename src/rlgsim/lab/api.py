@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["load_scenario", "with_changes", "run", "open_tree", "window_table", "score",
-           "calibrate", "load_study", "run_study"]
+           "calibrate", "load_study", "run_study", "navigate"]
 
 _DEG_PER_H = math.pi / 180.0 / 3600.0          # rad/s per °/h
 _ARCSEC = math.pi / 180.0 / 3600.0             # rad per arcsec
@@ -278,3 +278,19 @@ def run_study(study, out_dir: str | os.PathLike, *, progress: bool = False) -> p
     if isinstance(study, (str, os.PathLike)):
         study = load_study(os.fspath(study))
     return _run(study, out_dir, progress=progress)
+
+
+def navigate(source: str | os.PathLike, *, models=None, span_s: float | None = None,
+             align_s: float = 600.0, output_s: float = 1.0):
+    """Align on the first static segment and navigate free-inertially (docs/navigation.md).
+
+    ``source``: a dataset or a recording (whose sidecar names the site). ``models``: variant
+    name → gyro-bias prediction [rad/s] — an array (steps, 3) on the dataset's thermal grid or
+    a function of time [s] returning (m, 3); exported compensator JSON files become such
+    functions with :func:`rlgsim.lab.navigation_models.load_models`. Returns an
+    :class:`xarray.Dataset`: error series (dims ``variant``, ``time``: position North/East and
+    horizontal [m], velocity [m/s], heading [′]) and the scores per variant (error at 1 h and at
+    the end [m], radial error rate [nmi/h], velocity RMS [m/s], heading after alignment, its
+    bound and at the end [′])."""
+    from rlgsim.lab.navigation import navigate as _navigate
+    return _navigate(source, models=models, span_s=span_s, align_s=align_s, output_s=output_s)

@@ -8,6 +8,7 @@
     rlgsim montecarlo STUDY --units N [--workers K | --scheduler ADDR] [-o DIR]
                                                              a study over N drawn units
     rlgsim identify RECORDING [--device-template P] -o DIR   a digital twin of the recorded device
+    rlgsim navigate DATASET|RECORDING [--models ...] [-o DIR] align and navigate free-inertially
 
 Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its
@@ -82,6 +83,8 @@ def _parser() -> argparse.ArgumentParser:
     add_export(sub)                        # rlgsim export (src/rlgsim/lab/cli/export.py)
     from rlgsim.lab.cli.identify import add_subparser as add_identify
     add_identify(sub)                      # rlgsim identify (src/rlgsim/lab/cli/identify.py)
+    from rlgsim.lab.cli.navigate import add_subparser as add_navigate
+    add_navigate(sub)                      # rlgsim navigate (src/rlgsim/lab/cli/navigate.py)
     return p
 
 
@@ -181,7 +184,7 @@ def _main(argv: Sequence[str] | None) -> int:
             return args.handler(args)
         elif args.command == "list":
             _list()
-        elif args.command in ("calibrate", "study", "export", "identify"):
+        elif args.command in ("calibrate", "study", "export", "identify", "navigate"):
             return args.handler(args)
         return 0
     except UserInputError as exc:

@@ -1,0 +1,64 @@
+"""``rlgsim navigate DATASET|RECORDING [--models FILE.json|DIR ...] [--span-h H] [-o DIR]`` —
+align on the first static segment and navigate free-inertially (docs/navigation.md;
+:mod:`rlgsim.lab.navigation`): solution with errors, summary, figure and report.
+
+Registered in :mod:`rlgsim.lab.cli` by :func:`add_subparser`; the dispatch calls :func:`run`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+
+__all__ = ["add_subparser", "run"]
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"value {text!r} not allowed; must be a number > 0")
+    return v
+
+
+def add_subparser(sub) -> None:
+    """Add the ``navigate`` subcommand to the ``rlgsim`` subparsers."""
+    n = sub.add_parser("navigate", help="align and navigate a dataset or recording "
+                                        "free-inertially: position, velocity, heading errors")
+    n.add_argument("source", metavar="DATASET|RECORDING")
+    n.add_argument("--models", nargs="+", metavar="FILE.json|DIR", default=[],
+                   help="exported compensators (rlgsim study --export-models), one per gyro "
+                        "axis: files named *_x.json, *_y.json, *_z.json, or a folder of them")
+    n.add_argument("--temperature-probe", metavar="PROBE",
+                   help="the probe behind the models' inputs T and dT/dt")
+    n.add_argument("--span-h", type=_positive, metavar="H",
+                   help="hours to navigate after the alignment (default: the rest of the run)")
+    n.add_argument("--align-s", type=_positive, default=600.0, metavar="S",
+                   help="longest alignment on the first static segment (default 600 s)")
+    n.add_argument("--format", choices=("csv", "parquet"), default="csv",
+                   help="solution table format (default csv)")
+    n.add_argument("-o", "--output", metavar="DIR",
+                   help="output folder (default ./<source stem>-navigation/)")
+    n.add_argument("-q", "--quiet", action="store_true", help="print nothing")
+    n.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Navigate for parsed ``args``; returns the exit code."""
+    from rlgsim.lab.navigation import navigate
+    from rlgsim.lab.navigation_models import load_models
+    from rlgsim.lab.navigation_report import markdown_table, write
+    src = pathlib.Path(args.source)
+    models = (load_models(args.models, src, temperature_probe=args.temperature_probe)
+              if args.models else None)
+    ds = navigate(src, models=models, span_s=None if args.span_h is None else args.span_h * 3600,
+                  align_s=args.align_s)
+    out = pathlib.Path(args.output) if args.output else pathlib.Path(f"{src.stem}-navigation")
+    paths = write(ds, out, args.format)
+    if not args.quiet:
+        print(markdown_table(ds))
+        print(f"report: {paths['report']}")
+    return 0

@@ -1,0 +1,170 @@
+"""What the navigation scores read from a dataset or a recording (:mod:`rlgsim.lab.navigation`).
+
+A :class:`NavSource` hands out, chunk by chunk, the IMU's pulse counts and (for a simulated
+dataset) the true per-sample increments and the true temperature laws of the biases, plus the
+site, the nominal pulse weights, the alignment segment and the true attitude. The datasets'
+layout is docs/dataset.md; recordings docs/recordings.md (a recording must name its site).
+
+Alignment segment: the first static turntable motion after power-on (a recording: the start of
+the data, the sidecar's orientation), at most ``align_s`` long; navigation starts where it ends.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from rlgsim.ground.errors import UserInputError
+
+
+@dataclass
+class NavSource:
+    """Inputs of a navigation run. ``gyro_weight`` [rad/pulse] and ``accel_weight``
+    [(m/s)/pulse] (3,) nominal pulse weights; ``start`` the first powered sample; ``law_gyro``
+    / ``law_accel`` (steps, 3) the true temperature laws of the biases [rad/s, m/s²] on the
+    thermal grid of ``step_s`` (None for a recording)."""
+
+    name: str
+    rate_hz: float
+    latitude_deg: float
+    height_m: float
+    n: int
+    gyro_weight: np.ndarray
+    accel_weight: np.ndarray
+    start: int
+    static_end: int
+    read: Callable[[int, int], tuple[np.ndarray, np.ndarray]]
+    attitude: Callable[[np.ndarray], np.ndarray]
+    truth: Callable[[int, int], tuple[np.ndarray, np.ndarray]] | None = None
+    step_s: float = 0.0
+    law_gyro: np.ndarray | None = None
+    law_accel: np.ndarray | None = None
+    closers: list = field(default_factory=list)
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.rate_hz
+
+    def step_index(self, k0: int, k1: int) -> np.ndarray:
+        """Thermal-step row of samples k0..k1−1 (the row whose step holds the sample middle)."""
+        mid = (np.arange(k0, k1) + 0.5) / self.rate_hz
+        return np.minimum((mid // self.step_s).astype(np.intp), len(self.law_gyro) - 1)
+
+    def close(self) -> None:
+        for c in self.closers:
+            c()
+
+
+def _text(v: Any) -> str:
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def _weight(coef: dict, key: str, unit: str, path: pathlib.Path) -> float:
+    """A nominal scale factor of the truth's coefficient table, in ``unit``."""
+    if key not in coef or coef[key][1] != unit:
+        raise UserInputError(f"{path}: truth coefficient {key} missing or not in {unit} "
+                             f"(got {coef.get(key)!r})")
+    return coef[key][0]
+
+
+def _from_dataset(path: pathlib.Path) -> NavSource:
+    import h5py
+
+    from rlgsim.ground import dataset_format as fmt
+    from rlgsim.sim.sensors.imu import dataset_motion
+    with fmt.open_dataset(path):                      # the format checks, one line on failure
+        pass
+    f = h5py.File(path, "r")
+    try:
+        imu = f["imu"]
+        gyros = [_text(a) for a in imu["gyro"][...]]
+        if len(gyros) < 3:
+            raise UserInputError(f"{path}: imu/gyro has {len(gyros)} gyro(s) ({', '.join(gyros)});"
+                                 " navigation needs three (x, y, z)")
+        if "accel_pulses" not in imu:
+            raise UserInputError(f"{path}: imu/accel_pulses missing; navigation needs three "
+                                 "accelerometers")
+        rate = float(f.attrs["sample_rate_hz"])
+        tr = f["truth"]
+        coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
+            tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
+        k_g = np.array([_weight(coef, f"gyro.k0[{a}]", "pulses/rad", path) for a in "xyz"])
+        k_a = np.array([_weight(coef, f"accel.k0[{a}]", "pulses/(m/s)", path) for a in "xyz"])
+        motion = dataset_motion(f)
+        step = float(f.attrs["thermal_step_s"])
+        power = np.asarray(f["thermal/power_on"][...])
+        on = np.nonzero(power >= 1)[0]
+        if on.size == 0:
+            raise UserInputError(f"{path}: the IMU is never powered (thermal/power_on)")
+        start = int(math.ceil(on[0] * step * rate))
+        t_start = start / rate
+        static_end = start
+        for a, b, track, details in zip(f["timeline/t0"][...], f["timeline/t1"][...],
+                                        f["timeline/track"][...], f["timeline/details"][...]):
+            if _text(track) != "turntable" or b <= t_start:
+                continue
+            import json
+            if json.loads(_text(details)).get("kind") == "static" and a <= t_start + 1e-9:
+                static_end = int(math.floor(b * rate + 1e-6))
+            break
+        n = int(imu["gyro_pulses"].shape[0])
+
+        def read(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+            return (np.asarray(imu["gyro_pulses"][k0:k1], dtype=float),
+                    np.asarray(imu["accel_pulses"][k0:k1], dtype=float))
+
+        def truth(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+            mb = motion.increments(k0 / rate, k1 - k0, rate, angles=False)
+            return mb.dtheta_rad, mb.dv_m_per_s
+
+        law_g = np.asarray(tr["gyro_bias"][...]) - np.asarray(tr["gyro_bias_random"][...])
+        law_a = np.asarray(tr["accel_bias"][...]) - np.asarray(tr["accel_bias_random"][...])
+        return NavSource(path.name, rate, float(f.attrs["latitude_deg"]),
+                         float(f.attrs["height_m"]), n, 1.0 / k_g, 1.0 / k_a, start,
+                         max(static_end, start), read, motion.attitude, truth, step, law_g,
+                         law_a, [f.close])
+    except BaseException:
+        f.close()
+        raise
+
+
+def _from_recording(path: pathlib.Path) -> NavSource:
+    from rlgsim.ground.recording import load_recording
+    rec = load_recording(path)
+    sc = rec.sidecar
+    if not sc.site_given:
+        raise UserInputError(f"{sc.path}: [site] latitude_deg missing; navigation needs the "
+                             "site's latitude and height in the sidecar")
+    if len(rec.gyro_axes) < 3:
+        raise UserInputError(f"{sc.path}: {len(rec.gyro_axes)} gyro column(s); navigation needs "
+                             "three gyros (x, y, z)")
+    if len(rec.accel_axes) < 3:
+        raise UserInputError(f"{sc.path}: {len(rec.accel_axes)} accelerometer column(s); "
+                             "navigation needs three accelerometers (x, y, z)")
+    k_g = rec._need_sf("gyro")
+    k_a = rec._need_sf("accel")
+    g, a = rec.gyro_pulses()[:, :3], rec.accel_pulses()[:, :3]
+    default = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
+    c_nb = np.array([sc.orientation.get(ax, default.get(ax)) for ax in rec.gyro_axes[:3]],
+                    dtype=float)                        # rows: body axes in ENU → C_n^b
+
+    def attitude(t: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(c_nb.T, (len(t), 3, 3))
+
+    return NavSource(path.name, rec.sample_rate_hz, sc.latitude_deg, sc.height_m,
+                     rec.n_samples, np.full(3, 1.0 / k_g), np.full(3, 1.0 / k_a), 0,
+                     rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude)
+
+
+def open_source(path: str | os.PathLike) -> NavSource:
+    """A dataset (HDF5) or a recording (CSV/Parquet + sidecar) as a :class:`NavSource`."""
+    from rlgsim.ground.recording import is_recording
+    p = pathlib.Path(path)
+    if not p.exists():
+        raise UserInputError(f"{p}: no such file")
+    return _from_recording(p) if is_recording(p) else _from_dataset(p)
