@@ -243,3 +243,19 @@ def test_one_worker_gives_the_same_results(run, tmp_path):
     one = recipe.run(study, recipe.check(study), tmp_path, unit=0, progress=False)
     assert one.details.reused
     assert one.rows == result.rows
+
+
+def test_navigation_section(run):
+    """The report's navigation table: raw, both compensated runs, the oracles and the truth
+    floor, with a reason per ranking (docs/navigation.md)."""
+    out = run[0]
+    rows = _read_csv(out / "navigation.csv")
+    assert [r["variant"] for r in rows] == ["raw", "HHO-RVR (to 50 °C)", "LSM (to 50 °C)",
+                                             "oracle (gyros)", "oracle", "truth"]
+    floor = rows[-1]
+    assert float(floor["error at end [m]"]) < 0.05
+    assert all(float(r["radial rate [nmi/h]"]) > 100 * float(floor["radial rate [nmi/h]"])
+               for r in rows[:-1])
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert text.count("ranks before") == len(rows) - 1
+    assert (out / "navigation.png").stat().st_size > 10000

@@ -10,7 +10,9 @@ The WGS-84 constants and the Earth rate come from :mod:`rlgsim.ground.earth` and
 State vector (float64, :data:`STATE_SIZE`): q_b^n [w, x, y, z] (0–3), v^n ENU [m/s] (4–6),
 latitude [rad] (7), longitude [rad] (8), height [m] (9), the previous sample's Δθ (10–12) and
 Δv (13–15), the velocity one sample before the current one (16–18), and a flag (19) that the
-three "previous" slots hold data (0 at the start of a run: no coning/sculling reach-back).
+three "previous" slots hold data (0 at the start of a run: no coning/sculling reach-back),
+and the latitude [rad] and height [m] at which the Earth quantities were last evaluated
+(20–21), so that a run continued from the state equals one long run bit for bit.
 """
 
 from __future__ import annotations
@@ -24,7 +26,12 @@ from rlgsim.ground.earth import (WGS84_A, WGS84_E2, WGS84_F, WGS84_GAMMA_E, WGS8
                                  WGS84_M)
 from rlgsim.ground.units import EARTH_RATE
 
-STATE_SIZE = 20
+STATE_SIZE = 22
+#: the Earth quantities (radii, gravity, Earth rate, tan L) are re-evaluated when the latitude
+#: has moved by more than this since their last evaluation (1e-9 rad ≈ 6 mm: the Earth rate
+#: then differs by Ω·1e-9 = 7e-14 rad/s, gravity by 5e-11 m/s² — far below any IMU's errors)
+EARTH_REFRESH_RAD = 1e-9
+EARTH_REFRESH_M = 1e-3
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -33,6 +40,19 @@ def _gravity(s2, h):  # pragma: no cover - compiled; tested through the navigato
     g0 = WGS84_GAMMA_E * (1.0 + WGS84_K * s2) / math.sqrt(1.0 - WGS84_E2 * s2)
     return g0 * (1.0 - 2.0 / WGS84_A * (1.0 + WGS84_F + WGS84_M - 2.0 * WGS84_F * s2) * h
                  + 3.0 * h * h / (WGS84_A * WGS84_A))
+
+
+@njit(cache=True, nogil=True)
+def _earth(lat, h):  # pragma: no cover - compiled
+    """sin L, cos L, 1/(R_M + h), 1/(R_E + h), tan L/(R_E + h), γ(L, h) (Groves eqs.
+    2.105–2.106; NIMA TR8350.2 4-1, 4-3)."""
+    sl, cl = math.sin(lat), math.cos(lat)
+    s2 = sl * sl
+    d = 1.0 - WGS84_E2 * s2
+    sd = math.sqrt(d)
+    rm_i = 1.0 / (WGS84_A * (1.0 - WGS84_E2) / (d * sd) + h)
+    re_i = 1.0 / (WGS84_A / sd + h)
+    return sl, cl, rm_i, re_i, sl / cl * re_i, _gravity(s2, h)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -66,23 +86,27 @@ def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - co
     if not have:
         oe, on, ou = ve, vn, vu
     j = 0
+    count = 0
+    if have:
+        lat_c, h_c = state[20], state[21]
+    else:
+        lat_c, h_c = lat, h
+    sl, cl, rm_i, re_i, tl_re, grav = _earth(lat_c, h_c)
     for k in range(n):
         tx, ty, tz = dtheta[k, 0], dtheta[k, 1], dtheta[k, 2]
         ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
         if not have:
             ptx, pty, ptz, pvx, pvy, pvz = tx, ty, tz, ux, uy, uz
             have = True
-        # --- Earth quantities at the sample start (Groves eqs. 2.105-2.106, T&W 3.87)
-        sl, cl = math.sin(lat), math.cos(lat)
-        s2 = sl * sl
-        d = 1.0 - WGS84_E2 * s2
-        sd = math.sqrt(d)
-        rm = WGS84_A * (1.0 - WGS84_E2) / (d * sd) + h
-        re = WGS84_A / sd + h
+        # --- Earth quantities (Groves eqs. 2.105-2.106, T&W 3.87), refreshed when the position
+        # has moved by more than EARTH_REFRESH_RAD / EARTH_REFRESH_M since the last evaluation
+        if abs(lat - lat_c) > EARTH_REFRESH_RAD or abs(h - h_c) > EARTH_REFRESH_M:
+            lat_c, h_c = lat, h
+            sl, cl, rm_i, re_i, tl_re, grav = _earth(lat, h)
         # velocity extrapolated to the sample middle for Coriolis and the frame rotation
         me, mn, mu = 1.5 * ve - 0.5 * oe, 1.5 * vn - 0.5 * on, 1.5 * vu - 0.5 * ou
         wie_n, wie_u = EARTH_RATE * cl, EARTH_RATE * sl
-        wen_e, wen_n, wen_u = -mn / rm, me / re, me * sl / (cl * re)
+        wen_e, wen_n, wen_u = -mn * rm_i, me * re_i, me * tl_re
         zx, zy, zz = wen_e * dt, (wie_n + wen_n) * dt, (wie_u + wen_u) * dt   # ζ = ω_in Δt
         # --- specific-force increment: rotation + two-sample sculling (Savage 2007 §7.2.2.2)
         cx, cy, cz = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux
@@ -108,15 +132,14 @@ def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - co
         cor_e = an * mu - au * mn
         cor_n = au * me - ae * mu
         cor_u = ae * mn - an * me
-        grav = _gravity(s2, h)
         oe, on, ou = ve, vn, vu
         ve = ve + gx - cor_e * dt
         vn = vn + gy - cor_n * dt
         vu = vu + gz - (grav + cor_u) * dt
         # --- position: trapezoidal velocity, radii at the sample start
-        lat_new = lat + 0.5 * (on + vn) / rm * dt
-        clm = math.cos(0.5 * (lat + lat_new))
-        lon = lon + 0.5 * (oe + ve) / ((re) * clm) * dt
+        lat_new = lat + 0.5 * (on + vn) * rm_i * dt
+        # 1/cos of the mid latitude: 1/cos L (1 + tan L · ΔL/2), exact to O(ΔL²)
+        lon = lon + 0.5 * (oe + ve) * re_i / cl * (1.0 + sl / cl * 0.5 * (lat_new - lat)) * dt
         lat = lat_new
         if hold:
             hn = href[k]
@@ -140,10 +163,13 @@ def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - co
         qx = ew * nx + ex * nw + ey * nz - ez * ny
         qy = ew * ny - ex * nz + ey * nw + ez * nx
         qz = ew * nz + ex * ny - ey * nx + ez * nw
-        norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        # renormalise: 1/√s ≈ (3 − s)/2 near s = 1, error O((s − 1)²) ~ 1e-30
+        norm = 0.5 * (3.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
         qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
         ptx, pty, ptz, pvx, pvy, pvz = tx, ty, tz, ux, uy, uz
-        if (k + 1) % every == 0 and j < m:
+        count += 1
+        if count == every and j < m:
+            count = 0
             q_out[j, 0], q_out[j, 1], q_out[j, 2], q_out[j, 3] = qw, qx, qy, qz
             v_out[j, 0], v_out[j, 1], v_out[j, 2] = ve, vn, vu
             p_out[j, 0], p_out[j, 1], p_out[j, 2] = lat, lon, h
@@ -155,4 +181,5 @@ def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - co
     state[13], state[14], state[15] = pvx, pvy, pvz
     state[16], state[17], state[18] = oe, on, ou
     state[19] = 1.0 if have else 0.0
+    state[20], state[21] = lat_c, h_c
     return q_out, v_out, p_out

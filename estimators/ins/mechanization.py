@@ -66,7 +66,7 @@ class InsState:
     lat: float
     lon: float
     h: float
-    _memory: np.ndarray = field(default_factory=lambda: np.zeros(10), repr=False)
+    _memory: np.ndarray = field(default_factory=lambda: np.zeros(12), repr=False)
 
     @classmethod
     def at_rest(cls, c_bn: np.ndarray, latitude_deg: float, longitude_deg: float = 0.0,
@@ -97,13 +97,13 @@ class InsState:
         s = np.zeros(STATE_SIZE)
         s[0:4], s[4:7] = self.q, self.v
         s[7], s[8], s[9] = self.lat, self.lon, self.h
-        s[10:20] = self._memory
+        s[10:22] = self._memory
         return s
 
     @classmethod
     def unpack(cls, s: np.ndarray) -> "InsState":
         return cls(s[0:4].copy(), s[4:7].copy(), float(s[7]), float(s[8]), float(s[9]),
-                   s[10:20].copy())
+                   s[10:22].copy())
 
 
 @dataclass

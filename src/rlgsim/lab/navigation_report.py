@@ -1,11 +1,12 @@
 """Tables, figure, ranking reasons and files of a navigation run (:mod:`rlgsim.lab.navigation`).
 
 The ranking text states, for every pair of neighbours in the order of the radial error rate,
-the reason visible in the data: the residual gyro and accelerometer bias each variant leaves
-against the truth over the navigation span (100-s means, RMS of the vector). Where the order of
-the residual biases and the order of the errors disagree it says so: a free INS integrates the
-bias through the Schuler and Earth-rate loops, so a bias that changes sign or sits along the
-vertical costs less position than a smaller constant horizontal one.
+the reason visible in the data: the residual gyro and accelerometer error each variant leaves
+against the truth over the navigation span (100-s means, RMS of the vector: bias, and on a
+turning table also scale factor and misalignment times the rate). Where the order of the
+residual errors and the order of the position errors disagree it says so: a free INS integrates
+the errors through the Schuler and Earth-rate loops, so an error that changes sign or sits along
+the vertical costs less position than a smaller constant horizontal one.
 """
 
 from __future__ import annotations
@@ -60,22 +61,23 @@ def ranking_reasons(ds) -> list[str]:
         ga, gb = ra["residual_gyro_error_deg_h"], rb["residual_gyro_error_deg_h"]
         aa, ab = ra["residual_accel_error_ug"], rb["residual_accel_error_ug"]
         why = (f"{a} ({ra['radial_error_rate_nmi_per_h']:.3g} nmi/h) ranks before {b} "
-               f"({rb['radial_error_rate_nmi_per_h']:.3g} nmi/h): residual gyro bias "
+               f"({rb['radial_error_rate_nmi_per_h']:.3g} nmi/h): residual gyro error "
                f"{ga:.3g} vs {gb:.3g} °/h, accelerometer {aa:.3g} vs {ab:.3g} µg")
         if a == "truth":
             why += " — the exact increments: what is left is the mechanization's own error"
         elif ga <= gb and aa <= ab:
-            why += " — it leaves less of both"
+            why += " — it leaves no more of either"
         elif ga <= gb:
-            why += (" — less gyro bias; the gyro bias drives the error growth (the "
+            why += (" — less gyro error; the gyro error drives the error growth (the "
                     "accelerometer's is Schuler-bounded)")
         elif aa < ab:
-            why += (" — more gyro bias but less accelerometer bias; over this span the "
+            why += (" — more gyro error but less accelerometer error; over this span the "
                     "accelerometer's share dominates")
         else:
-            why += (" — although it leaves more of both: the error integrates the bias's time "
-                    "history through the Schuler and Earth-rate loops (a bias that changes "
-                    "sign, or lies along the vertical, costs less position)")
+            why += (" — although it leaves more of both: the position error integrates the "
+                    "errors' time history and direction through the Schuler and Earth-rate "
+                    "loops (an error that changes sign, or lies along the vertical, costs "
+                    "less position), which one RMS figure does not hold")
         out.append(why + ".")
     return out
 

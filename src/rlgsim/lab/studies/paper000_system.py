@@ -641,6 +641,11 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
                    "Residuals after system-level compensation (re-calibrated parameter minus "
                    "the model's value at the desired temperature), HHO-RVR and LSM.")
 
+    if comp_tables:
+        from rlgsim.lab.studies.navigation_section import paper000_navigation
+        paper000_navigation(rep, data_path, desired, cfg.desired_c,
+                            {"hho_rvr": "HHO-RVR", "lsm": "LSM"})
+
     rep.heading("Timing", 2)
     rep.table(Table("Wall time", ["step", "s"], [[k, v] for k, v in clock.items()],
                     csv_name="timing.csv"))
