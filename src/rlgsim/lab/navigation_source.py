@@ -95,6 +95,10 @@ def _from_dataset(path: pathlib.Path) -> NavSource:
             tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
         k_g = np.array([_weight(coef, f"gyro.k0[{a}]", "pulses/rad", path) for a in "xyz"])
         k_a = np.array([_weight(coef, f"accel.k0[{a}]", "pulses/(m/s)", path) for a in "xyz"])
+        tracks = {_text(t) for t in f["timeline/track"][...]}
+        if "turntable" not in tracks:
+            raise UserInputError(f"{path}: no turntable track in the timeline (a vehicle run?);"
+                                 " the navigation scores cover runs at a fixed site")
         motion = dataset_motion(f)
         step = float(f.attrs["thermal_step_s"])
         power = np.asarray(f["thermal/power_on"][...])
