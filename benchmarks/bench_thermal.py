@@ -37,7 +37,8 @@ def main(argv: list[str]) -> None:
     import h5py
     import rlgsim.sim.run.simulate
     from rlgsim.sim.run.scenario import load_scenario
-    from rlgsim.sim.run.simulate import ProbeStage, simulate
+    from rlgsim.sim.run.simulate import simulate
+    from rlgsim.sim.stages.probes import ProbeStage
 
     if not args.all_stages:            # the thermal benchmark: chamber, network, probes
         rlgsim.sim.run.simulate.STAGES = [ProbeStage.create]

@@ -104,6 +104,7 @@ def simulate(params: dict[str, float], tmp: pathlib.Path, scenario: pathlib.Path
 
     import rlgsim.sim.run.simulate as S
     from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.stages.probes import ProbeStage
 
     thermal = THERMAL.read_text()
     for name, value in params.items():
@@ -117,7 +118,7 @@ def simulate(params: dict[str, float], tmp: pathlib.Path, scenario: pathlib.Path
     (tmp / "scenario.toml").write_text(sc_text)
     sc = load_scenario(str(tmp / "scenario.toml"))
     stages = S.STAGES
-    S.STAGES = [S.ProbeStage.create]
+    S.STAGES = [ProbeStage.create]
     try:
         S.simulate(sc, tmp / "run.h5", progress=False)
     finally:

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rlgsim.sim.motion.site import Site
-from rlgsim.sim.sensors.imu import ImuModel, ImuSimulator
+from rlgsim.sim.sensors.imu import ImuSimulator
+from rlgsim.sim.sensors.imu_model import ImuModel
 from rlgsim.sim.motion.kinematics import Motion, segments_from_program
 from rlgsim.sim.rng import generator
 
@@ -22,7 +23,7 @@ SITE = Site(34.0, 0.0)
 
 @dataclass
 class Trace:
-    """Stand-in for rlgsim.sim.run.simulate.ThermalTrace (the fields the sensor stage reads)."""
+    """Stand-in for rlgsim.sim.stages.base.ThermalTrace (the fields the sensor stage reads)."""
 
     t_s: np.ndarray
     step_s: float

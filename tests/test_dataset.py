@@ -21,6 +21,7 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.writer import dataset
 from rlgsim.sim.run.scenario import load_scenario, parse_scenario
 import rlgsim.sim.run.simulate as simulate_module
+from rlgsim.sim.stages.base import Stage
 from rlgsim.sim.run.simulate import BLOCK_S, simulate
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -215,7 +216,7 @@ def test_killed_run_leaves_no_file_at_the_output_path(tmp_path, sig):
         assert not list(tmp_path.glob("long.h5.tmp-*"))
 
 
-class _CountingStage(simulate_module.Stage):
+class _CountingStage(Stage):
     """A minimal extra stage (the shape the sensor stages take): 10 Hz samples of a seeded
     random walk plus the exact table rate increments, on its own time axis."""
 

@@ -15,7 +15,8 @@ from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground import units
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.sim import presets
-from rlgsim.sim.sensors.imu import ImuModel, true_increments
+from rlgsim.sim.motion.recorded import true_increments
+from rlgsim.sim.sensors.imu_model import ImuModel
 from rlgsim.sim.rng import generator
 from rlgsim.sim.writer.schema import DESCRIPTIONS
 from rlgsim.sim.run.scenario import load_device, parse_scenario
@@ -177,7 +178,7 @@ def test_truth_reproduces_the_pulses(short_run):
         n = imu["gyro_pulses"].shape[0]
         dth, dv = tr["dtheta"][...], tr["dv"][...]
         # the per-sample truth is what the timeline's programme gives, bit for bit
-        dth2, dv2 = true_increments(f, 0.0, n)
+        dth2, dv2 = true_increments(short_run, 0.0, n)
         np.testing.assert_array_equal(dth, dth2)
         np.testing.assert_array_equal(dv, dv2)
         # summed per thermal step too

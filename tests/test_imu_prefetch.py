@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from _imu_helpers import SITE, Trace, temperatures
-from rlgsim.sim.sensors.imu import ImuModel, ImuSimulator, _held_steps, _step_sums
+from rlgsim.sim.sensors.imu import ImuSimulator, _held_steps, _step_sums
+from rlgsim.sim.sensors.imu_model import ImuModel
 from rlgsim.sim.motion.kinematics import Motion, segments_from_program
 from rlgsim.sim.rng import generator
 from rlgsim.sim.run.scenario import load_device

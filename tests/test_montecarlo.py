@@ -140,7 +140,8 @@ def test_a_failing_unit_is_recorded_and_the_others_finish(tmp_path):
 
 def test_thermal_realisation_keyed_by_device_seed_and_unit(tmp_path):
     from rlgsim.sim.run.scenario import parse_scenario
-    from rlgsim.sim.run.simulate import realised_network, simulate
+    from rlgsim.sim.run.simulate import simulate
+    from rlgsim.sim.stages.thermal import realised_network
 
     sc = parse_scenario(TINY_SCENARIO, "tiny_cycle.toml")
     nominal = sc.device.thermal.network

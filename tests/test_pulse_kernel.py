@@ -126,13 +126,15 @@ def test_the_counter_is_chosen_by_run_length_when_numba_is_not_loaded(monkeypatc
     import rlgsim.sim.sensors.imu as imu
     from rlgsim.sim.run.scenario import load_scenario
     from rlgsim.sim.run.schedule import build_timeline
+    from rlgsim.sim.sensors.imu_model import ImuModel
+    from rlgsim.sim.stages.imu import ImuStage
 
     sc = load_scenario("quickstart")                      # 2 h at 100 Hz: 720 000 epochs
     tl = build_timeline(sc)
     monkeypatch.delitem(sys.modules, "numba", raising=False)
-    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is False
+    assert ImuStage(sc, tl, ImuModel.from_device(sc.device)).sim.compiled is False
     monkeypatch.setattr(imu, "COMPILED_MIN_EPOCHS", 700_000)
-    assert imu.ImuStage(sc, tl, imu.ImuModel.from_device(sc.device)).sim.compiled is True
+    assert ImuStage(sc, tl, ImuModel.from_device(sc.device)).sim.compiled is True
 
 
 def test_the_kernel_has_no_fused_multiply_add():

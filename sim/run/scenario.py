@@ -28,7 +28,7 @@ from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_
                                get_quantity, get_str, get_table, unit_keys)
 from rlgsim.sim.motion.site import Site
 from rlgsim.sim.sensors.gyro import GyroModel
-from rlgsim.sim.sensors.imu import Tolerance
+from rlgsim.sim.sensors.imu_model import Tolerance
 from rlgsim.sim.sensors.noise import NoiseModel
 from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.thermal.network import ThermalNetwork

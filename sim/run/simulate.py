@@ -5,9 +5,9 @@ thermal steps and of IMU samples, checked by the scenario loader). For block ``b
 
 1. the *thermal* part samples the timeline (rate-limited chamber setpoint on the grid points,
    power state over each step) and propagates the thermal network exactly
-   (:class:`rlgsim.sim.thermal.integrator.ThermalIntegrator`), giving a :class:`ThermalTrace`;
-2. every *stage* (:data:`STAGES`: the probes now, the sensors later) turns the trace into its
-   arrays: ``stage.block(state, b, trace, motion) -> (arrays, state)``.
+   (:class:`rlgsim.sim.thermal.integrator.ThermalIntegrator`), giving a :class:`rlgsim.sim.stages.base.ThermalTrace`;
+2. every *stage* (:data:`rlgsim.sim.stages.registry.STAGES`: probes, sensors, anomalies) turns
+   the trace into its arrays: ``stage.block(state, b, trace, motion) -> (arrays, state)``.
 
 Every carried state (thermal state, probe lags, later pulse remainders and noise-filter states)
 goes from block to block, and every random draw of block ``b`` comes from
@@ -16,30 +16,9 @@ thread (:class:`_Appender`) that appends them in block order while the next bloc
 the user's ``chunk_s`` only bounds how many blocks may wait for it (memory stays bounded), so
 the stored arrays — and the file — are the same whatever the chunk size.
 
-Adding a stage (issue 3: the IMU) — write a class with
-
-* ``group`` (dataset group name), ``description`` and ``needs_motion`` (True to receive the
-  turntable kinematics, a :class:`rlgsim.sim.motion.kinematics.Motion` — ``motion.increments(t0_s, n, rate_hz)``
-  gives the exact angle/velocity increments of ``n`` samples);
-* ``declare(group_writer)`` — create coordinates/variables (see :mod:`rlgsim.sim.writer.dataset`); the growing
-  dimension is usually ``time`` (``coordinate("time", growing=True, ...)``; a group may declare
-  more than one growing dimension);
-* ``initial_state()`` — the state before block 0 (or ``None`` and build it from the first
-  block's ``trace.start_c``, as the probes do);
-* ``block(state, b, trace, motion) -> (rows, state)`` — ``rows`` maps each growing dimension to
-  ``{variable: array}`` holding every variable along it (the coordinate included), for this
-  block only: block ``b`` covers ``[b·BLOCK_S, b·BLOCK_S + len(trace.t_s)·trace.step_s)``;
-  random draws from ``generator(seed, scenario.unit, purpose, channel, b)``;
-
-and a factory ``f(scenario, timeline) -> stage | None`` appended to :data:`STAGES`. The
-shipped groups are declared in one room, :mod:`rlgsim.sim.writer.schema` (a new group goes
-there, its names into :data:`rlgsim.ground.dataset_format.VARIABLES` — or
-:data:`~rlgsim.ground.dataset_format.OPTIONAL_VARIABLES` for a part a scenario switches on —
-and its prose into docs/dataset.md). :class:`ProbeStage` is the worked example. A stage that
-writes several groups (the IMU: ``imu``, ``turntable``, ``truth``) sets
-``groups = {name: description}``
-instead of ``group``/``description``; its ``declare`` then receives ``{name: group_writer}`` and
-its ``block`` returns ``{name: rows}``.
+The thermal part and the stages — where each model meets the dataset schema — live in
+:mod:`rlgsim.sim.stages` (:mod:`~rlgsim.sim.stages.base` says how to add one,
+:data:`rlgsim.sim.stages.registry.STAGES` lists them in order); this module is only the loop.
 """
 
 from __future__ import annotations
@@ -49,207 +28,20 @@ import gc
 import math
 import pathlib
 import threading
-from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 
-from rlgsim.ground.dataset_format import PROBES, THERMAL
+from rlgsim.sim.rng import BLOCK_S
 from rlgsim.sim.run._heap import keep_freed_memory
+from rlgsim.sim.run.schedule import build_timeline
+from rlgsim.sim.stages.registry import STAGES
+from rlgsim.sim.stages.thermal import ThermalPart
+from rlgsim.sim.thermal.integrator import one_blas_thread
 from rlgsim.sim.writer.dataset import DatasetWriter, GroupWriter, check_writable
-from rlgsim.sim.writer.schema import (DESCRIPTIONS, declare_probes, declare_thermal,
-                                       declare_thermal_parts, write_timeline)
-from rlgsim.sim.rng import BLOCK_S, generator
-from rlgsim.sim.run.schedule import Timeline, build_timeline
-from rlgsim.sim.thermal.integrator import ThermalIntegrator, one_blas_thread
+from rlgsim.sim.writer.schema import write_timeline
 
-__all__ = ["BLOCK_S", "STAGES", "ThermalTrace", "Stage", "ThermalPart", "realised_network",
-           "thermal_summary", "ProbeStage", "default_output", "simulate"]
-
-
-
-@dataclass(frozen=True)
-class ThermalTrace:
-    """The thermal state over one block, on the thermal grid.
-
-    Row ``j`` belongs to the step ``[t_s[j] - step_s, t_s[j])``: temperatures are the values at
-    its end, ``power`` the state held over it.
-    """
-
-    t_s: np.ndarray          # (m,) end of each step [s]
-    step_s: float
-    setpoint_c: np.ndarray   # (m,) rate-limited chamber setpoint [°C]
-    air_c: np.ndarray        # (m,) chamber air [°C]
-    power: np.ndarray        # (m,) 0/1
-    nodes_c: np.ndarray      # (m, n) true node temperatures [°C]
-    start_c: np.ndarray      # (n,) node temperatures at the block start (row -1)
-
-
-class Stage:
-    """Interface of a simulation stage (see the module docstring)."""
-
-    group: str
-    description: str
-    needs_motion: bool = False     # True: block() receives a rlgsim.sim.motion.kinematics.Motion (else None)
-
-    def declare(self, g: GroupWriter) -> None:
-        raise NotImplementedError
-
-    def initial_state(self) -> Any:
-        raise NotImplementedError
-
-    def block(self, state: Any, b: int, trace: ThermalTrace, motion: Any
-              ) -> tuple[dict[str, dict[str, np.ndarray]], Any]:
-        raise NotImplementedError
-
-
-# --------------------------------------------------------------------------- thermal part
-
-
-class ThermalPart:
-    """Samples the timeline and propagates the thermal network block by block."""
-
-    group = THERMAL
-    description = DESCRIPTIONS[THERMAL]
-
-    def __init__(self, scenario, timeline: Timeline) -> None:
-        self.timeline = timeline
-        self.step = timeline.step_s
-        self.nominal = scenario.device.thermal.network
-        self.network = realised_network(scenario)
-        self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s,
-                                            controller=scenario.chamber.controller)
-        #: a vehicle's bay (sim/thermal/vehicle_bay.py) and its route: the airflow scales the
-        #: ambient conductances with the ground speed (None: still air, as in a chamber)
-        self.bay = None
-        if getattr(scenario, "vehicle_bay", None) is not None:
-            self.bay = (scenario.vehicle_bay,
-                        scenario.trajectory.build(float(timeline.duration_s)))
-
-    @property
-    def node_names(self) -> tuple[str, ...]:
-        return tuple(self.network.node_names)
-
-    def declare(self, g: GroupWriter) -> None:
-        declare_thermal(g, self.nominal, self.network)
-        declare_thermal_parts(g, self.network)   # heaters, boundaries: only when it has them
-
-    def initial_state(self) -> Any:
-        ambient = float(self.timeline.setpoint(np.array([0.0]))[0])
-        powered = bool(self.timeline.power(np.array([0.0]))[0])
-        return self.integrator.initial_state(ambient, powered)      # keeps its modal state
-
-    def block(self, state: Any, b: int, k0: int, m: int) -> tuple[ThermalTrace, Any]:
-        k = np.arange(k0, k0 + m + 1, dtype=np.int64)
-        t = k * self.step
-        setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
-        power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
-        film = None
-        if self.bay is not None:             # φ − 1 at each step's start (held over the step)
-            bay, route = self.bay
-            film = bay.factor(np.linalg.norm(route.states(t[:-1]).v_n, axis=1)) - 1.0
-        states, new_state = self.integrator.propagate(state, setpoint, power, film_factor=film)
-        self._extra_rows = self.integrator.extra_rows()
-        trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
-                             air_c=np.asarray(states[:, 0]), power=power,
-                             nodes_c=np.asarray(states[:, 1:]), start_c=np.asarray(state[1:]))
-        return trace, new_state
-
-    def rows(self, trace: ThermalTrace) -> dict[str, dict[str, np.ndarray]]:
-        return {"time": {"time": trace.t_s, "chamber_setpoint": trace.setpoint_c,
-                         "chamber_air": trace.air_c, "power_on": trace.power.astype(np.int8),
-                         "node_temperature": trace.nodes_c,
-                         **getattr(self, "_extra_rows", {})}}
-
-
-def realised_network(scenario):
-    """The thermal network of the simulated unit.
-
-    Monte Carlo units ``unit >= 1`` draw their network from the preset's tolerances with
-    ``generator(realisation_seed, unit, "realisation", "thermal", 0)``
-    (:meth:`rlgsim.sim.thermal.network.ThermalNetwork.realise`). Unit 0 — every plain ``rlgsim run`` and a
-    study's own run — simulates the *nominal* design: the presets' bias-stability figures were
-    tuned against papers 000-003 on it (tests/test_imu.py), and a drawn network breaks the
-    left/right symmetry of the gyro block, which switches on the anode-arm Langmuir term (on
-    paper 003's random test the raw stability of drawn units spreads from 0.009 to 0.068 °/h
-    against the paper's 0.028). docs/montecarlo.md discusses the choice."""
-    network = scenario.device.thermal.network
-    if scenario.unit == 0:
-        return network
-    return network.realise(generator(scenario.realisation_seed, scenario.unit, "realisation",
-                                     "thermal", 0))
-
-
-def thermal_summary(network) -> dict[str, float]:
-    """A few numbers that characterise a (realised) network, for Monte Carlo unit tables:
-    longest time constant [s], total heat [W], total conductance to the air [W/K] and the mean
-    steady-state self-heating of the nodes when powered [K]."""
-    rise = network.steady_state(0.0, True) - network.steady_state(0.0, False)
-    return {"thermal.tau_max_s": float(network.time_constants_s()[0]),
-            "thermal.power_w": float(network.power_w.sum()),
-            "thermal.ambient_conductance_w_per_k":
-                float(network.ambient_conductance_w_per_k.sum()),
-            "thermal.self_heating_mean_k": float(np.mean(rise))}
-
-
-# --------------------------------------------------------------------------- stages
-
-
-class ProbeStage(Stage):
-    """Thermometer probes on the network nodes (lag, noise, resolution): what the compensators
-    see. Random draws: ``generator(seed, unit, "probes", "noise", b)``."""
-
-    group = PROBES
-    description = DESCRIPTIONS[PROBES]
-
-    def __init__(self, scenario, timeline: Timeline) -> None:
-        self.probes = scenario.device.thermal.probes
-        self.network = scenario.device.thermal.network
-        self.seed = scenario.seed
-        self.unit = scenario.unit
-        self.step = timeline.step_s
-        from rlgsim.sim.sensors.anomalies import AnomalyRun
-        self.anomalies = AnomalyRun.of(scenario, timeline)     # None unless [anomalies]
-
-    @classmethod
-    def create(cls, scenario, timeline: Timeline) -> "ProbeStage | None":
-        if not scenario.device.thermal.probes.n_probes:
-            return None
-        return cls(scenario, timeline)
-
-    def declare(self, g: GroupWriter) -> None:
-        declare_probes(g, self.probes, self.network)
-
-    def initial_state(self) -> Any:
-        return None          # built from the first block's start temperatures
-
-    def block(self, state, b, trace, motion):
-        if state is None:
-            state = self.probes.initial_state(trace.start_c)
-        rng = generator(self.seed, self.unit, "probes", "noise", b)
-        readings, state = self.probes.read(state, trace.nodes_c, trace.step_s, rng)
-        if self.anomalies is not None:                         # glitches, stuck, dropouts
-            readings = self.anomalies.probe_readings(b, trace, readings)
-        return {"time": {"time": trace.t_s, "temperature": readings}}, state
-
-
-#: Stage factories run by :func:`simulate`, in order: ``f(scenario, timeline) -> Stage | None``.
-def _imu_stage(scenario, timeline: Timeline) -> Stage | None:
-    """The sensor stage (:class:`rlgsim.sim.sensors.imu.ImuStage`: groups imu, turntable, truth)."""
-    from rlgsim.sim.sensors.imu import ImuStage
-    return ImuStage.create(scenario, timeline)
-
-
-def _anomaly_stage(scenario, timeline: Timeline) -> Stage | None:
-    """The event record of the sensor anomalies (:class:`rlgsim.sim.sensors.anomalies.AnomalyStage`;
-    None unless the device preset has an active ``[anomalies]`` table). Last: it writes the
-    events the stages before it produced in the block."""
-    from rlgsim.sim.sensors.anomalies import AnomalyStage
-    return AnomalyStage.create(scenario, timeline)
-
-
-STAGES: list[Callable[[Any, Timeline], Stage | None]] = [ProbeStage.create, _imu_stage,
-                                                         _anomaly_stage]
+__all__ = ["BLOCK_S", "STAGES", "default_output", "simulate"]
 
 
 # --------------------------------------------------------------------------- the run

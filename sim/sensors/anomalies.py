@@ -58,11 +58,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from rlgsim.ground.dataset_format import ANOMALIES
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
 from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_list, get_str,
                                get_table)
-from rlgsim.sim.writer.schema import DESCRIPTIONS, declare_anomalies
 from rlgsim.sim.rng import generator
 
 KINDS = ("mode_hop", "pulse_spikes", "imu_dropouts", "probe_glitches", "probe_stuck",
@@ -556,7 +554,7 @@ class Anomalies:
 
 class AnomalyRun:
     """The anomalies of one simulated run, shared by the stages that apply them (probes, IMU)
-    and :class:`AnomalyStage`, which writes the event record. One per timeline (the simulator
+    and :class:`rlgsim.sim.stages.anomalies.AnomalyStage`, which writes the event record. One per timeline (the simulator
     builds one timeline per run); the stages run in a fixed order within every block, so the
     shared state and the event order are deterministic. Built by :meth:`of`."""
 
@@ -632,40 +630,3 @@ class AnomalyRun:
     def take_events(self) -> Events:
         ev, self.pending = self.pending, Events()
         return ev
-
-
-class AnomalyStage:
-    """Writes the event record (group ``anomalies``); the last stage of a block, so it sees
-    every event the probe and IMU stages produced in that block. Dimension ``event``: time of
-    the event [s], end [s], channel, kind, size and its units (docs/sensors.md)."""
-
-    group = ANOMALIES
-    description = DESCRIPTIONS[ANOMALIES]
-    needs_motion = False
-
-    def __init__(self, run: AnomalyRun) -> None:
-        self.run = run
-
-    @classmethod
-    def create(cls, scenario, timeline) -> "AnomalyStage | None":
-        run = AnomalyRun.of(scenario, timeline)
-        return None if run is None else cls(run)
-
-    def declare(self, g) -> None:
-        declare_anomalies(g)                      # the schema room (sim/writer/schema.py)
-
-    def initial_state(self) -> int:
-        return 0                                  # events written so far
-
-    def block(self, state: int, b: int, trace, motion) -> tuple[dict, int]:
-        ev = self.run.take_events().arrays()
-        n = len(ev["time_s"])
-        if n == 0:
-            return {}, state
-        rows = {"event": {"event": np.arange(state, state + n, dtype=np.int64),
-                          "time": ev["time_s"], "end": ev["end_s"],
-                          "channel": np.asarray(ev["channel"], dtype=object),
-                          "kind": np.asarray(ev["kind"], dtype=object), "size": ev["size"],
-                          "size_units": np.asarray(ev["units"], dtype=object)}}
-        return rows, state + n
-

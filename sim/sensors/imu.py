@@ -1,15 +1,8 @@
-"""The IMU: a *model* (nominal values + tolerances of a device preset) versus one drawn
-*realisation* (the truth of one unit), and the simulation stage that turns thermal state and
-motion into pulses, UHFO and ground truth.
+"""The IMU stage's engine: one drawn unit (:class:`rlgsim.sim.sensors.imu_model.ImuRealisation`)
+turned, block by block, into pulses, UHFO and ground truth from thermal state and motion.
 
-Model and realisation (as in pyins' ``sim`` or any Monte Carlo of a sensor lot): the device
-preset's ``[gyro]``, ``[accelerometer]``, ``[uhfo]`` and ``[noise]`` tables give nominal laws and
-noise levels; ``[tolerance]`` gives the unit-to-unit spread (1σ). :meth:`ImuModel.realise` draws
-one unit: every coefficient of every law of every axis, and the noise levels, from keyed
-sub-streams of the given generator (adding a coefficient never changes the others). The
-realisation is the truth of that unit — stored in the dataset's ``truth`` group as a table.
-
-The stage (:class:`ImuSimulator`) runs block by block inside :func:`rlgsim.sim.run.simulate.simulate`:
+:class:`ImuSimulator` runs block by block inside :func:`rlgsim.sim.run.simulate.simulate` (through
+the stage :class:`rlgsim.sim.stages.imu.ImuStage`, which declares its groups):
 
 1. UHFO on the thermal grid (:mod:`rlgsim.sim.sensors.uhfo`): the true excitation and its reading;
 2. gyro and accelerometer parameters on the thermal grid (:mod:`rlgsim.sim.sensors.gyro`,
@@ -43,7 +36,7 @@ What truth is stored at the sample rate: the pulses are reproducible from the tr
 per-step parameters, the exact increments and the documented white-noise draws. The increments
 are a deterministic function of the turntable programme (stored in the ``timeline`` group) and
 the site, so by default the truth group stores them summed per thermal step (float64) and
-:func:`true_increments` recomputes the per-sample values bit for bit; ``truth_samples=True``
+:func:`rlgsim.sim.motion.recorded.true_increments` recomputes the per-sample values bit for bit; ``truth_samples=True``
 stores them per sample as well (48 bytes per epoch — at 100 Hz over paper 000's 121 h
 programme that is 2 GB, several times the rest of the file, which is why it is not the
 default; see benchmarks/bench_sim.py).
@@ -51,31 +44,20 @@ default; see benchmarks/bench_sim.py).
 
 from __future__ import annotations
 
-import json
 import math
 import sys
-import zlib
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from rlgsim.sim.sensors.accelerometer import AccelerometerModel, Accelerometers
-from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_table
-from rlgsim.sim.writer.schema import (DESCRIPTIONS, declare_imu, declare_sample_valid,
-                                       declare_trajectory, declare_truth, declare_turntable,
-                                       trajectory_rows)
-from rlgsim.ground.dataset_format import IMU, TRAJECTORY, TRUTH, TURNTABLE
-from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.sensors.gyro import BODY_AXES, GyroModel, Gyros, sample_step_index
-from rlgsim.sim.sensors.noise import NOISE_LEVELS, NoiseModel, SlowNoise
 from rlgsim.sim.rng import generator
+from rlgsim.sim.sensors.gyro import sample_step_index
+from rlgsim.sim.sensors.imu_model import ImuRealisation
+from rlgsim.sim.sensors.noise import SlowNoise
 from rlgsim.sim.sensors.sensor_triad import count_pulses, step_inputs
-from rlgsim.sim.sensors.uhfo import Uhfo, UhfoModel
-
-_NOISE_REL_KEYS = tuple(f"{k}_rel" for k in NOISE_LEVELS)
 
 #: A run of at least this many IMU epochs counts its pulses with the compiled kernel even when
 #: numba is not loaded yet: importing numba and loading the cached kernel cost ~0.4-0.7 s once
@@ -90,197 +72,6 @@ COMPILED_MIN_EPOCHS = 5_000_000
 #: 100 Hz, alternating runs at load ~1.5: two, three and four blocks ahead all 2.88-2.93 s
 #: median wall; each block's normals hold 1.4 MB).
 PREFETCH_BLOCKS = 2
-
-
-@dataclass(frozen=True)
-class Tolerance:
-    """The ``[tolerance]`` preset table: unit-to-unit spreads (1σ).
-
-    Sub-tables ``gyro`` / ``accelerometer`` (one sub-table per law, same keys as the law),
-    ``uhfo`` (law keys, ``wander_rel``, ``noise_rel``) and ``noise`` (relative spreads
-    ``gyro_arw_rel``, ``gyro_bi_rel``, ``gyro_rrw_rel``, ``accel_vrw_rel``, ``accel_bi_rel``,
-    ``accel_rrw_rel``). Law sub-tables are checked against their laws when the model is built.
-    """
-
-    gyro: Mapping | None
-    accelerometer: Mapping | None
-    uhfo: Mapping | None
-    noise: Mapping[str, float]
-    ctx: Ctx
-
-    @classmethod
-    def from_config(cls, table: Mapping, ctx: Ctx) -> "Tolerance":
-        check_known_keys(table, ("gyro", "accelerometer", "uhfo", "noise"), ctx)
-        noise = get_table(table, "noise", ctx, {})
-        nctx = ctx.child("noise")
-        check_known_keys(noise, _NOISE_REL_KEYS, nctx)
-        rel = {k[:-4]: get_float(noise, k, nctx, 0.0, min=0.0, max=1.0) for k in _NOISE_REL_KEYS}
-        return cls(gyro=get_table(table, "gyro", ctx, None),
-                   accelerometer=get_table(table, "accelerometer", ctx, None),
-                   uhfo=get_table(table, "uhfo", ctx, None), noise=rel, ctx=ctx)
-
-
-def _keyed_draw(rng: np.random.Generator):
-    """``draw(name, shape)``: standard normals from a sub-stream keyed by ``name``."""
-    base = int(rng.integers(0, 2**63 - 1))
-
-    def draw(name: str, shape: tuple[int, ...]) -> np.ndarray:
-        sub = np.random.Generator(np.random.PCG64(
-            np.random.SeedSequence(entropy=base, spawn_key=(zlib.crc32(name.encode()),))))
-        return sub.standard_normal(shape)
-    return draw
-
-
-@dataclass(frozen=True)
-class ImuModel:
-    """A device's sensors: nominal laws + tolerances (the *model*, not a unit).
-
-    ``gyro`` always; ``accel`` and ``uhfo`` optional; ``noise`` levels; ``noise_rel`` relative
-    1σ spreads of the noise levels; ``source`` the preset file (for messages).
-    """
-
-    gyro: GyroModel
-    accel: AccelerometerModel | None
-    uhfo: UhfoModel | None
-    noise: NoiseModel
-    noise_rel: Mapping[str, float]
-    source: str = ""
-
-    @classmethod
-    def from_device(cls, device) -> "ImuModel | None":
-        """The model of a :class:`rlgsim.sim.run.scenario.Device` (None when it has no ``[gyro]``)."""
-        parts = dict(getattr(device, "parts", {}) or {})
-        tables = dict(getattr(device, "tables", {}) or {})
-        return cls.from_tables(tables, device.source, parts=parts)
-
-    @classmethod
-    def from_tables(cls, tables: Mapping[str, Mapping], source: str = "",
-                    parts: Mapping[str, Any] | None = None) -> "ImuModel | None":
-        """Build from raw preset tables (``gyro``, ``accelerometer``, ``uhfo``, ``noise``,
-        ``tolerance``); already validated ``parts`` are reused. Raises UserInputError."""
-        parts = dict(parts or {})
-        ctx = Ctx(source)
-
-        def part(name: str, cls_):
-            if name in parts:
-                return parts[name]
-            if name in tables:
-                return cls_.from_config(tables[name], ctx.child(name))
-            return None
-        gyro = part("gyro", GyroModel)
-        if gyro is None:
-            for other in ("accelerometer", "uhfo", "noise", "tolerance"):
-                if other in tables:
-                    raise ctx.error(other, "needs a [gyro] table in the same device preset")
-            return None
-        accel = part("accelerometer", AccelerometerModel)
-        uhfo = part("uhfo", UhfoModel)
-        noise = part("noise", NoiseModel) or NoiseModel()
-        tol = part("tolerance", Tolerance) or Tolerance(None, None, None, {}, ctx)
-        tctx = ctx.child("tolerance")
-        gyro = gyro.with_tolerance(tol.gyro, tctx.child("gyro"))
-        if tol.accelerometer is not None:
-            if accel is None:
-                raise tctx.error("accelerometer", "there is no [accelerometer] table to spread")
-            accel = accel.with_tolerance(tol.accelerometer, tctx.child("accelerometer"))
-        if uhfo is not None:
-            uhfo = uhfo.for_axes(len(gyro.axes)).with_tolerance(tol.uhfo, tctx.child("uhfo"))
-        elif tol.uhfo is not None:
-            raise tctx.error("uhfo", "there is no [uhfo] table to spread")
-        if gyro.bias.nominal["uhfo"].any() and uhfo is None:
-            raise ctx.child("gyro").child("bias").error(
-                "uhfo_deg_per_h_per_v", "the bias depends on UHFO but the device has no [uhfo]")
-        return cls(gyro=gyro, accel=accel, uhfo=uhfo, noise=noise,
-                   noise_rel=dict(tol.noise), source=source)
-
-    def realise(self, rng: np.random.Generator) -> "ImuRealisation":
-        """Draw one unit from ``rng`` (see the module docstring)."""
-        draw = _keyed_draw(rng)
-        gyros = self.gyro.realise(draw)
-        accels = self.accel.realise(draw) if self.accel is not None else None
-        uhfo = (self.uhfo.realise(draw, gyros.axes, gyros.blocks)
-                if self.uhfo is not None else None)
-        levels = {}
-        for key in NOISE_LEVELS:
-            n = gyros.n if key.startswith("gyro") else (accels.n if accels else 0)
-            rel = self.noise_rel.get(key, 0.0)
-            z = draw(f"noise.{key}", (n,)) if rel > 0 else np.zeros(n)
-            levels[key] = getattr(self.noise, key) * np.abs(1.0 + rel * z)
-        return ImuRealisation(gyros=gyros, accels=accels, uhfo=uhfo, noise=self.noise,
-                              levels=levels)
-
-
-@dataclass
-class ImuRealisation:
-    """One unit: realised gyros, accelerometers, UHFO and per-axis noise levels (SI)."""
-
-    gyros: Gyros
-    accels: Accelerometers | None
-    uhfo: Uhfo | None
-    noise: NoiseModel
-    levels: dict[str, np.ndarray]
-
-    def bind(self, node_names: Sequence[str], source: str = "") -> None:
-        """Resolve every law's nodes in the thermal network; a missing node is a
-        UserInputError naming the preset and the node."""
-        try:
-            self.gyros.bind(node_names)
-            if self.accels is not None:
-                self.accels.bind(node_names)
-            if self.uhfo is not None:
-                self.uhfo.bind(node_names)
-        except KeyError as exc:
-            raise UserInputError(
-                f"{source + ': ' if source else ''}sensor laws refer to thermal node "
-                f"{exc.args[0]!r}, which the device's thermal network does not have; nodes: "
-                f"{', '.join(node_names)}") from None
-
-    def coefficient_table(self) -> tuple[list[str], np.ndarray, list[str]]:
-        """(names, values, units) of every drawn coefficient, one row per component."""
-        names, values, unit_list = [], [], []
-
-        def add(law, comps: Sequence[str]):
-            for name, vals, unit in law.table():
-                for comp, v in zip(comps, vals):
-                    names.append(f"{name}[{comp}]")
-                    values.append(float(v))
-                    unit_list.append(unit)
-        g = self.gyros
-        gm = [f"{a}{o}" for a in g.axes for o in BODY_AXES if o != a]
-        add(g.bias, g.axes)
-        add(g.scale_factor, g.axes)
-        add(g.misalignment, gm)
-        for a in g.axes:
-            names.append(f"gyro.k0[{a}]")
-            values.append(g.k0)
-            unit_list.append("pulses/rad")
-        if self.accels is not None:
-            acc = self.accels
-            am = [f"{a}{o}" for a in acc.axes for o in BODY_AXES if o != a]
-            for law in acc.laws():
-                add(law, am if law is acc.misalignment else acc.axes)
-            for a in acc.axes:
-                names.append(f"accel.k0[{a}]")
-                values.append(acc.k0)
-                unit_list.append("pulses/(m/s)")
-        if self.uhfo is not None:
-            add(self.uhfo.law, self.uhfo.axes)
-            for a, w, e in zip(self.uhfo.axes, self.uhfo.wander_v, self.uhfo.noise_v):
-                names += [f"uhfo.wander_v[{a}]", f"uhfo.noise_v[{a}]"]
-                values += [float(w), float(e)]
-                unit_list += ["V", "V"]
-        si = {"gyro_arw": "rad/s^0.5", "gyro_bi": "rad/s", "gyro_rrw": "rad/s^1.5",
-              "accel_vrw": "m/s^1.5", "accel_bi": "m/s^2", "accel_rrw": "m/s^2.5"}
-        for key, vals in self.levels.items():
-            axes = g.axes if key.startswith("gyro") else (self.accels.axes if self.accels else ())
-            for a, v in zip(axes, vals):
-                names.append(f"noise.{key}[{a}]")
-                values.append(float(v))
-                unit_list.append(si[key])
-        return names, np.array(values), unit_list
-
-
-# --------------------------------------------------------------------------- the stage
 
 
 @dataclass
@@ -332,6 +123,8 @@ class ImuSimulator:
         self.compiled = (bool(compiled) if compiled is not None
                          else "numba" in sys.modules or epochs >= COMPILED_MIN_EPOCHS)
         self.anomalies = None                   # rlgsim.sim.sensors.anomalies.AnomalyRun (optional)
+        #: the last block's motion (a rlgsim.sim.motion.kinematics.MotionBlock or a vehicle's)
+        self.last_motion_block: Any = None
         self._pool = None
         #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
         self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
@@ -489,7 +282,7 @@ class ImuSimulator:
               ) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], ImuState]:
         """Rows of the ``imu``, ``turntable`` and ``truth`` groups for block ``b``.
 
-        ``trace`` a :class:`rlgsim.sim.run.simulate.ThermalTrace` (thermal steps of the block); the
+        ``trace`` a :class:`rlgsim.sim.stages.base.ThermalTrace` (thermal steps of the block); the
         turntable kinematics come from ``motion``.
         """
         dt = self.step_s
@@ -578,8 +371,7 @@ class ImuSimulator:
         rows["turntable"] = {"time": {
             "time": trace.t_s, "outer_angle": outer, "inner_angle": inner,
             "motion_index": segment}}
-        if getattr(self.motion, "kind", "turntable") == "trajectory":   # a vehicle's states
-            rows[TRAJECTORY] = {"sample": trajectory_rows(self.motion, motion_block.t_s)}
+        self.last_motion_block = motion_block     # the stage reads a vehicle's states from it
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
@@ -638,112 +430,3 @@ def _last_sample_of_step(idx: np.ndarray | int, m: int, n: int) -> np.ndarray:
         return np.arange(1, m + 1) * idx - 1
     last = np.searchsorted(idx, np.arange(m), side="right") - 1
     return np.clip(last, 0, n - 1)
-
-
-# --------------------------------------------------------------------------- simulate stage
-
-
-class ImuStage:
-    """The sensor stage of :func:`rlgsim.sim.run.simulate.simulate`: groups ``imu`` (pulses, UHFO),
-    ``turntable`` (table angles, motion labels) and ``truth`` (true parameters, inputs and the
-    drawn unit). docs/dataset.md describes every variable."""
-
-    needs_motion = True
-
-    groups = {name: DESCRIPTIONS[name] for name in (IMU, TURNTABLE, TRUTH)}
-
-    def __init__(self, scenario, timeline, model: ImuModel, *, unit: int = 0) -> None:
-        network = scenario.device.thermal.network
-        if network is None:
-            raise UserInputError(f"{scenario.device.source}: the device has sensor tables but "
-                                 f"no thermal network; sensors need node temperatures")
-        self.scenario = scenario
-        self.timeline = timeline
-        self.model = model
-        self.unit = int(unit)
-        self.realisation = model.realise(generator(scenario.realisation_seed, self.unit,
-                                                   "realisation", "imu", 0))
-        self.turntable_segments = [s for s in timeline.segments if s.track == "turntable"]
-        #: a vehicle's route (rlgsim.sim.motion.trajectory_config.TrajectoryProgram) or None
-        self.trajectory = getattr(scenario, "trajectory", None)
-        if self.trajectory is not None:
-            self.groups = {**type(self).groups, TRAJECTORY: DESCRIPTIONS[TRAJECTORY]}
-        self.truth_samples = bool(getattr(scenario.acquisition, "truth_samples", False))
-        self.sim = ImuSimulator(self.realisation, network.node_names, seed=scenario.seed,
-                                unit=self.unit, rate_hz=scenario.acquisition.sample_rate_hz,
-                                step_s=timeline.step_s, motion=None,
-                                truth_samples=self.truth_samples,
-                                source=scenario.device.source, n_steps=timeline.n_steps)
-        from rlgsim.sim.sensors.anomalies import AnomalyRun
-        self.sim.anomalies = AnomalyRun.of(scenario, timeline)   # None unless [anomalies]
-
-    @classmethod
-    def create(cls, scenario, timeline) -> "ImuStage | None":
-        """The stage for ``scenario`` (None when its device has no ``[gyro]`` table)."""
-        model = ImuModel.from_device(scenario.device)
-        if model is None:
-            return None
-        return cls(scenario, timeline, model, unit=scenario.unit)
-
-    # ---- dataset layout -------------------------------------------------------------------
-    def declare(self, writers: Mapping[str, Any]) -> None:
-        """Declare the three groups' dimensions and variables (:mod:`rlgsim.sim.writer.schema`,
-        docs/dataset.md)."""
-        r, sim = self.realisation, self.sim
-        declare_imu(writers[IMU], r, rate_hz=sim.rate_hz, step_s=sim.step_s)
-        if sim.anomalies is not None and sim.anomalies.model.imu_dropout_rate_per_h > 0:
-            declare_sample_valid(writers[IMU])           # frame dropouts on
-        declare_turntable(writers[TURNTABLE], self.turntable_segments)
-        if self.trajectory is not None:
-            declare_trajectory(writers[TRAJECTORY],
-                               self.trajectory.build(float(self.timeline.duration_s)))
-        declare_truth(writers[TRUTH], r, seed=self.scenario.seed, unit=self.unit,
-                      rate_hz=sim.rate_hz, step_s=sim.step_s,
-                      gyro_white_sigma=sim.gyro_white_sigma,
-                      accel_white_sigma=sim.accel_white_sigma, truth_samples=self.truth_samples)
-
-    # ---- running --------------------------------------------------------------------------
-    def initial_state(self) -> ImuState:
-        return self.sim.initial_state()
-
-    def close(self) -> None:
-        """Stop the simulator's worker thread (:meth:`ImuSimulator.close`)."""
-        self.sim.close()
-
-    def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
-        """Rows ``{group: {dim: {variable: array}}}`` of block ``b``; ``motion`` the run's
-        :class:`rlgsim.sim.motion.kinematics.Motion` (the stage's own when None)."""
-        if self.sim.motion is None:                 # first block: adopt the run's kinematics
-            from rlgsim.sim.motion.kinematics import Motion
-            if motion is None and self.trajectory is not None:
-                motion = self.trajectory.build(float(self.timeline.duration_s))
-            self.sim.motion = (motion if motion is not None
-                               else Motion(self.turntable_segments, self.scenario.site))
-        return self.sim.block(state, b, trace)
-
-
-def dataset_motion(dataset):
-    """The run's turntable kinematics (:class:`rlgsim.sim.motion.kinematics.Motion`) rebuilt
-    from a dataset's timeline (turntable track) and site. ``dataset``: an open
-    :class:`h5py.File` of a run."""
-    from rlgsim.sim.motion.site import Site
-    from rlgsim.sim.motion.kinematics import Motion, TurntableSegment
-
-    def text(v):
-        return v.decode() if isinstance(v, bytes) else str(v)
-    tl = dataset["timeline"]
-    details = tl["details"] if "details" in tl else tl["attrs"]      # format version 1: attrs
-    segs = [TurntableSegment(float(a), float(b), "turntable", text(lab), json.loads(text(at)))
-            for a, b, tr, lab, at in zip(tl["t0"][...], tl["t1"][...], tl["track"][...],
-                                         tl["label"][...], details[...])
-            if text(tr) == "turntable"]
-    site = Site(float(dataset.attrs["latitude_deg"]), float(dataset.attrs["height_m"]))
-    return Motion(segs, site)
-
-
-def true_increments(dataset, t0_s: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample true (Δθ (n, 3) [rad], Δv (n, 3) [m/s]) of ``n`` samples from ``t0_s``,
-    recomputed from a dataset's timeline (turntable track) and site — bit for bit what the run
-    used (:class:`rlgsim.sim.motion.kinematics.Motion`). ``dataset``: an open :class:`h5py.File` of a run."""
-    mb = dataset_motion(dataset).increments(t0_s, n, float(dataset.attrs["sample_rate_hz"]))
-    return mb.dtheta_rad, mb.dv_m_per_s

@@ -1,7 +1,7 @@
 """The dataset schema: every group, dimension, variable, unit and description the simulator
 writes, declared in this one room (docs/dataset.md is its prose).
 
-:mod:`rlgsim.sim.run.simulate` (the block loop) and :mod:`rlgsim.sim.sensors.imu` (the sensor model) call
+The stages (:mod:`rlgsim.sim.stages`: where each model meets this schema) call
 these functions once, before the first block, and then only append rows; the names are those
 of :mod:`rlgsim.ground.dataset_format` (:data:`~rlgsim.ground.dataset_format.VARIABLES`,
 checked by tests/test_imu.py), the one reader every module reads them with.
@@ -25,7 +25,7 @@ Optional variables — parts a scenario switches on, named in
 so runs without it keep their layout: the ``thermal`` group's heaters and further boundaries
 (:func:`declare_thermal_parts`), the ``imu`` group's frame-validity flag
 (:func:`declare_sample_valid`, IMU frame dropouts on) and the whole ``anomalies`` group
-(:func:`declare_anomalies`, written by :class:`rlgsim.sim.sensors.anomalies.AnomalyStage`).
+(:func:`declare_anomalies`, written by :class:`rlgsim.sim.stages.anomalies.AnomalyStage`).
 
 Units are UDUNITS spellings ("1" for dimensionless and flags, none for strings); times are s
 since the start of the run at the end of each thermal step (or IMU sample), absolute
@@ -196,7 +196,7 @@ def _pulses_storage(n: int) -> dict:
 
 
 def declare_imu(g: GroupWriter, realisation, *, rate_hz: float, step_s: float) -> None:
-    """The ``imu`` group of a drawn unit (:class:`rlgsim.sim.sensors.imu.ImuRealisation`): pulses along
+    """The ``imu`` group of a drawn unit (:class:`rlgsim.sim.sensors.imu_model.ImuRealisation`): pulses along
     ``sample`` (no stored coordinate), UHFO along ``time``; accelerometer and UHFO variables
     only when the unit has them."""
     gy, acc, uh = realisation.gyros, realisation.accels, realisation.uhfo
@@ -353,7 +353,7 @@ def declare_truth(g: GroupWriter, realisation, *, seed: int, unit: int, rate_hz:
 
 def declare_anomalies(g: GroupWriter) -> None:
     """The ``anomalies`` group (only with an active ``[anomalies]`` device table; written by
-    :class:`rlgsim.sim.sensors.anomalies.AnomalyStage`): one row per event along the growing
+    :class:`rlgsim.sim.stages.anomalies.AnomalyStage`): one row per event along the growing
     dimension ``event`` — start and end [s], channel, kind, size and the unit of the size
     (docs/sensors.md)."""
     g.coordinate("event", growing=True, dtype=np.int64, units="1",

@@ -76,7 +76,7 @@ def _from_dataset(path: pathlib.Path) -> NavSource:
     import h5py
 
     from rlgsim.ground import dataset_format as fmt
-    from rlgsim.sim.sensors.imu import dataset_motion
+    from rlgsim.sim.motion.recorded import dataset_motion
     with fmt.open_dataset(path):                      # the format checks, one line on failure
         pass
     f = h5py.File(path, "r")
@@ -99,7 +99,7 @@ def _from_dataset(path: pathlib.Path) -> NavSource:
         if "turntable" not in tracks:
             raise UserInputError(f"{path}: no turntable track in the timeline (a vehicle run?);"
                                  " the navigation scores cover runs at a fixed site")
-        motion = dataset_motion(f)
+        motion = dataset_motion(path)
         step = float(f.attrs["thermal_step_s"])
         power = np.asarray(f["thermal/power_on"][...])
         on = np.nonzero(power >= 1)[0]

@@ -52,10 +52,10 @@ def _is_timing(metric: str) -> bool:
 
 
 def thermal_params(study, unit: int) -> dict[str, float]:
-    """Summary of unit ``unit``'s drawn thermal network (:func:`rlgsim.sim.run.simulate.thermal_summary`)
+    """Summary of unit ``unit``'s drawn thermal network (:func:`rlgsim.sim.stages.thermal.thermal_summary`)
     when every scenario of the study simulates the same physical unit (the study sets
     ``device_seed``, or all its scenarios share device preset and realisation seed); else {}."""
-    from rlgsim.sim.run.simulate import realised_network, thermal_summary
+    from rlgsim.sim.stages.thermal import realised_network, thermal_summary
     from rlgsim.lab.study import scenario_for, scenario_refs
 
     keys = set()
