@@ -28,6 +28,10 @@ def add_subparser(sub) -> None:
     p.add_argument("-o", "--output", metavar="DIR", required=True,
                    help="folder for device.toml, thermal.toml, the replay scenario and the "
                         "report")
+    p.add_argument("--suggest-programme", action="store_true",
+                   help="also write <name>_next.toml: a chamber programme (a scenario on the "
+                        "twin) that would separate the bias-law terms this recording could "
+                        "not, with the predicted shrinkage of each standard error")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     p.set_defaults(handler=run)
 
@@ -38,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     from rlgsim.lab.identify import identify
     src = input_file(args.recording, "a recording or an rlgsim dataset")
     r = identify(src, args.output, device_template=args.device_template,
-                 thermal_template=args.thermal_template, name=args.name, gyro=args.gyro)
+                 thermal_template=args.thermal_template, name=args.name, gyro=args.gyro,
+                 suggest_programme=args.suggest_programme)
     if not args.quiet:
         th = r.thermal
         print(f"identified {r.name} from {args.recording} in {r.seconds:.1f} s")
@@ -53,6 +58,16 @@ def run(args: argparse.Namespace) -> int:
         if r.scale_factor is not None:
             for line in r.scale_factor.lines:
                 print(line)
-        for f in (r.device_path, r.thermal_path, r.scenario_path, r.report_path):
-            print(f"wrote {f}")
+        if args.suggest_programme:
+            if r.suggestion is None:
+                print("next experiment: none suggested — the recording separates every "
+                      "candidate term of the bias law (or gave no noise model to predict with)")
+            else:
+                print(f"next experiment ({r.suggestion.duration_s / 3600:.1f} h), predicted "
+                      f"standard errors:")
+                for line in r.suggestion.lines():
+                    print(f"  {line}")
+        for f in (r.device_path, r.thermal_path, r.scenario_path, r.report_path, r.next_path):
+            if f is not None:
+                print(f"wrote {f}")
     return 0

@@ -65,6 +65,9 @@ class Identification:
     scale_factor: ScaleFactorFit | None = None
     #: how the recorded probes were placed on the template's (empty: named as the template)
     probe_lines: tuple[str, ...] = ()
+    #: the next experiment (``suggest_programme``; None: not asked, or nothing to separate)
+    suggestion: object = None
+    next_path: pathlib.Path | None = None
 
 
 def load_templates(source: str, device_template: str | None, thermal_template: str | None
@@ -279,10 +282,13 @@ def _scenario_text(data: RecordingData, name: str) -> str:
 
 def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
              device_template: str | None = None, thermal_template: str | None = None,
-             name: str | None = None, gyro: str | None = None) -> Identification:
+             name: str | None = None, gyro: str | None = None,
+             suggest_programme: bool = False) -> Identification:
     """Identify a twin of the device in ``recording`` (a recording or an rlgsim dataset) and
     write ``thermal.toml``, ``device.toml``, ``replay.toml`` and ``report.md``/``.html`` into
-    ``out_dir`` (module docstring, docs/identify.md)."""
+    ``out_dir`` (module docstring, docs/identify.md). ``suggest_programme``: also write
+    ``<name>_next.toml``, a chamber programme that would separate the terms this recording
+    could not (:mod:`.next_experiment`)."""
     t0 = time.perf_counter()
     source = os.fspath(recording)
     if not pathlib.Path(source).is_file():
@@ -320,17 +326,29 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
                                  + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
                                     else "") + "\n" + "\n".join([*probe_lines, *sf_lines]))
     stext = _scenario_text(data, name)
-    for text in (ttext, dtext, stext):
+    suggestion, ntext = None, None
+    if suggest_programme:
+        from rlgsim.lab.identify.next_experiment import scenario_text, suggest_programme as suggest
+        with threadpool_limits(limits=1, user_api="blas"):
+            suggestion = suggest(data, thermal, laws, dev_t)
+        if suggestion is not None:
+            ntext = scenario_text(suggestion, data, name)
+    for text in (ttext, dtext, stext, ntext or ""):
         tomllib.loads(text)                        # never write what cannot be read back
     tp, dp, sp = out / "thermal.toml", out / "device.toml", out / f"{name}_replay.toml"
     write_atomic(tp, ttext)
     write_atomic(dp, dtext)
     write_atomic(sp, stext)
+    next_path = None
+    if ntext is not None:
+        next_path = out / f"{name}_next.toml"
+        write_atomic(next_path, ntext)
     seconds = time.perf_counter() - t0
     result = Identification(out_dir=out, device_path=dp, thermal_path=tp, scenario_path=sp,
                             report_path=out / "report.md", data=data, thermal=thermal, laws=laws,
                             device=dev, thermal_preset=fitted_thermal, seconds=seconds, name=name,
-                            scale_factor=sf, probe_lines=tuple(probe_lines))
+                            scale_factor=sf, probe_lines=tuple(probe_lines),
+                            suggestion=suggestion, next_path=next_path)
     from rlgsim.lab.identify.identify_report import build_report
     build_report(result, dev_name, th_name).write(out)
     return result
