@@ -30,7 +30,9 @@ the file must be the same bytes) and measures the compiled counter's cost in a f
 process, with an empty numba cache (it compiles) and then cached.
 
 Usage: ``python benchmarks/bench_sim.py [--hours H] [--truth-samples] [--chunk-s S]
-[--out PATH] [--keep] [--compare REV] [--rounds N] [--repeat N] [--counters]``.
+[--out PATH] [--keep] [--compare REV] [--rounds N] [--repeat N] [--counters]``;
+``--trajectory`` instead prints the throughput on a vehicle's route beside a static run's
+(``benchmarks/bench_sim_trajectory.py``, issue 26: within 25 %).
 """
 
 from __future__ import annotations
@@ -195,7 +197,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--counters", action="store_true",
                     help="also time the run with the NumPy pulse counter (same bytes) and the "
                          "compiled kernel's cold cost (a fresh numba cache)")
+    ap.add_argument("--trajectory", action="store_true",
+                    help="instead: the throughput on a vehicle's route beside a static run's "
+                         "(benchmarks/bench_sim_trajectory.py; --hours default 1)")
     args = ap.parse_args(argv)
+    if args.trajectory:
+        from bench_sim_trajectory import main as trajectory_main
+        trajectory_main(["--hours", str(args.hours or 1.0), "--repeat", str(args.repeat)])
+        return
 
     sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
     epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))

@@ -183,6 +183,24 @@ def test_at_rest_the_vehicle_senses_earth_rate_and_gravity():
     assert s.lat[0] == START.lat_rad and s.height[0] == START.height_m
 
 
+def test_standing_still_samples_are_one_increment():
+    """A stop (a smooth leg to speed 0, then a hold) is told to the IMU stage as a run of
+    samples holding one increment — the numbers every sample has anyway."""
+    legs = manoeuvres()[:2]
+    x = legs[-1].end()
+    legs.append(smooth_leg(x, x * np.array([1, 1, 1, 0, 0, 0]), 10.0))
+    legs.append(rate_leg(legs[-1].end(), np.zeros(6), 30.0))
+    traj = Trajectory(legs, START, until_s=80.0)
+    mb = traj.increments(20.0, 5000, 100.0)
+    start = math.ceil((traj.leg_starts[3] - 20.0) * 100)          # the first whole sample
+    assert mb.constant == ((start, 5000),)
+    single = traj.increments(45.0, 1, 100.0)
+    assert single.constant == ()
+    assert np.array_equal(mb.dtheta_rad[2500], single.dtheta_rad[0])
+    assert np.array_equal(mb.dv_m_per_s[2500], single.dv_m_per_s[0])
+    assert np.all(mb.dv_m_per_s[start:] == mb.dv_m_per_s[start])
+
+
 def test_same_numbers_whatever_block_asks():
     """A sample's increments do not depend on which call computes it."""
     traj = Trajectory(manoeuvres(), START, until_s=120.0)

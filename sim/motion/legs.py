@@ -15,8 +15,9 @@ the ground velocity in body axes v^b [m/s]. Body axes of a vehicle: x right, y f
 (heading about Up, then pitch about the new right axis, then roll about the forward axis — the
 physical angles of the usual yaw–pitch–roll sequence, written for ENU and right–forward–up;
 Titterton & Weston 2004 §3.6.3 for the construction). Every leg starts where the previous one
-ended: its constant terms are the previous leg's values at its end, so the channels, and with
-them attitude and velocity, are continuous; their rates may jump between legs (a rate leg after
+ended: its constant terms are the previous leg's values at its end (a smooth leg's target, which
+its polynomial meets to a few ulps), so the channels, and with them attitude and velocity, are
+continuous; their rates may jump between legs (a rate leg after
 a hold), as in gnss-ins-sim's type-1 commands, and the kinematics split a sample at such a
 boundary.
 
@@ -55,14 +56,22 @@ SMOOTH_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 @dataclass(frozen=True)
 class Leg:
     """One leg: ``duration_s`` T [s], ``coef`` (6, DEGREE + 1) ascending powers of τ [rad or
-    m/s per s^k], ``kind`` ("rate" or "smooth"), ``label``, ``gnss`` whether a GNSS receiver
-    sees the sky during the leg (gnss-ins-sim's visibility column; true by default)."""
+    m/s per s^k], ``kind`` ("rate", "smooth" or "table"), ``label``, ``gnss`` whether a GNSS
+    receiver sees the sky during the leg (gnss-ins-sim's visibility column; true by default),
+    ``frame`` what the last three channels hold."""
 
     duration_s: float
     coef: np.ndarray
     kind: str
     label: str = ""
     gnss: bool = True
+    #: what channels 3-5 hold: "body" the body-frame ground velocity [m/s], "geodetic" the
+    #: position itself — latitude, longitude [rad], height [m] (a table of positions,
+    #: :mod:`rlgsim.sim.motion.position_table`)
+    frame: str = "body"
+    #: the values the next leg starts from (a smooth leg: its target exactly, which its
+    #: polynomial meets to a few ulps); None: the polynomial's values at T
+    target: np.ndarray | None = None
 
     def values(self, tau: np.ndarray) -> np.ndarray:
         """Channel values x(τ) (6, k) at leg times ``tau`` (k,) [s] (Horner)."""
@@ -73,7 +82,10 @@ class Leg:
         return _horner(self.coef[:, 1:] * np.arange(1, DEGREE + 1), tau)
 
     def end(self) -> np.ndarray:
-        """Channel values at τ = T, (6,)."""
+        """Channel values at τ = T, (6,) (a smooth leg: its target, so a stop is a speed of
+        exactly 0 and the next leg stands still bit for bit)."""
+        if self.target is not None:
+            return self.target.copy()
         return self.values(np.array([self.duration_s]))[:, 0]
 
     def peak_rates(self) -> np.ndarray:
@@ -112,7 +124,7 @@ def smooth_leg(start: np.ndarray, target: np.ndarray, duration_s: float, *, labe
     coef[:, 3] = 10.0 * d / t ** 3
     coef[:, 4] = -15.0 * d / t ** 4
     coef[:, 5] = 6.0 * d / t ** 5
-    return Leg(t, coef, "smooth", label, gnss)
+    return Leg(t, coef, "smooth", label, gnss, target=np.array(target, dtype=float))
 
 
 def smooth_time(delta: np.ndarray, max_rate: np.ndarray, max_accel: np.ndarray) -> float:

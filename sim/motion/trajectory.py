@@ -1,5 +1,9 @@
 """Exact sensor inputs of an IMU on a moving vehicle over the WGS-84 ellipsoid.
 
+(Over 400 lines because one object holds the route's three views that must agree to the last
+bit — the increments, the truth states and the standing-still runs — with the NumPy forms of
+the formulas the compiled kernel is tested against.)
+
 The motion is a sequence of legs (:mod:`rlgsim.sim.motion.legs`: heading, pitch, roll and the
 body-frame ground velocity as polynomials of time) from an initial geodetic position. Navigation
 frame ENU at the vehicle (the project's convention), body frame right–forward–up.
@@ -154,6 +158,9 @@ class Trajectory:
         if not legs:
             raise ValueError("a trajectory needs at least one leg")
         t = np.concatenate([[0.0], np.cumsum([leg.duration_s for leg in legs])])
+        if until_s > t[-1] + _TIME_TOL_S and legs[-1].frame == "geodetic":
+            raise ValueError(f"the run ({until_s:g} s) lasts longer than the position table "
+                             f"({t[-1]:g} s); shorten the run or extend the table")
         if until_s > t[-1] + _TIME_TOL_S:
             last = legs[-1]
             legs.append(rate_leg(last.end(), np.zeros(6), until_s - t[-1], label="hold (end)",
@@ -166,6 +173,14 @@ class Trajectory:
         self._end_s = float(t[-1])
         self._coef = np.stack([leg.coef for leg in legs])           # (m, 6, 6)
         self._dcoef = self._coef[:, :, 1:] * np.arange(1, self._coef.shape[2])
+        self._d2coef = self._dcoef[:, :, 1:] * np.arange(1, self._dcoef.shape[2])
+        #: 1 where a leg's channels 3-5 are the geodetic position (a table), 0: body velocity
+        self._geodetic = np.array([leg.frame == "geodetic" for leg in legs], dtype=np.int64)
+        #: legs in which the vehicle stands still (body frame, no rates, no velocity): every
+        #: whole sample inside one has the same increments, bit for bit (its channels are
+        #: their constant terms exactly and its position the leg's start)
+        self._still = np.array([leg.frame == "body" and not np.any(leg.coef[:, 1:])
+                                and not np.any(leg.coef[3:, 0]) for leg in legs])
         self._position = self._integrate_positions()
 
     # ---- the legs ---------------------------------------------------------------------
@@ -198,16 +213,46 @@ class Trajectory:
                                                           np.ndarray, np.ndarray]:
         """C_b^n (k, 3, 3), ω_nb^b (k, 3), v^n, v̇^n (k, 3) and the channels (6, k) of leg ``j``."""
         x, xd = self._channels(j, tau)
-        rz, rx, ry = _rot_z_neg(x[0]), _rot_x(x[1]), _rot_y(x[2])
-        c = rz @ rx @ ry
-        zero = np.zeros(tau.size)
+        if self._geodetic[j]:
+            return self._table_velocity(j, tau, x, xd)
+        c, w = self._attitude_rates(x, xd)
+        vb, vbd = x[3:].T, xd[3:].T
+        v_n = np.einsum("kij,kj->ki", c, vb)
+        vdot_n = np.einsum("kij,kj->ki", c, vbd + cross_rows(w, vb))
+        return c, w, v_n, vdot_n, x
+
+    def _attitude_rates(self, x: np.ndarray, xd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """C_b^n (k, 3, 3) and ω_nb^b (k, 3) from the Euler channels and their rates."""
+        rx, ry = _rot_x(x[1]), _rot_y(x[2])
+        c = _rot_z_neg(x[0]) @ rx @ ry
+        zero = np.zeros(x.shape[1])
         yaw = np.stack([zero, zero, -xd[0]], -1)
         pitch = np.stack([xd[1], zero, zero], -1)
         w = (np.einsum("kji,kj->ki", ry, np.einsum("kji,kj->ki", rx, yaw) + pitch)
              + np.stack([zero, xd[2], zero], -1))
-        vb, vbd = x[3:].T, xd[3:].T
-        v_n = np.einsum("kij,kj->ki", c, vb)
-        vdot_n = np.einsum("kij,kj->ki", c, vbd + cross_rows(w, vb))
+        return c, w
+
+    def _table_velocity(self, j: int, tau: np.ndarray, x: np.ndarray, xd: np.ndarray):
+        """:meth:`_velocity` of a leg whose channels 3-5 are the geodetic position (L, λ, h):
+        v^n from its rates and v̇^n by differentiating (Titterton & Weston eqs. 3.85-3.87
+        solved for the velocity; R_M, R_N differentiated along L)."""
+        c, w = self._attitude_rates(x, xd)
+        xdd = self._d2coef[j][:, -1:] * np.ones(tau.size)
+        for k in range(self._d2coef.shape[2] - 2, -1, -1):
+            xdd = xdd * tau + self._d2coef[j][:, k:k + 1]
+        lat, h = x[3], x[5]
+        ld, od, hd = xd[3], xd[4], xd[5]
+        ldd, odd, hdd = xdd[3], xdd[4], xdd[5]
+        sl, cl = np.sin(lat), np.cos(lat)
+        wgt = 1.0 - WGS84_E2 * sl * sl
+        rn = WGS84_A / np.sqrt(wgt)
+        rm = rn * (1.0 - WGS84_E2) / wgt
+        drn = rn * WGS84_E2 * sl * cl / wgt                    # dR_N/dL
+        drm = 3.0 * rm * WGS84_E2 * sl * cl / wgt              # dR_M/dL
+        v_n = np.stack([(rn + h) * cl * od, (rm + h) * ld, hd], -1)
+        vdot_n = np.stack([(drn * ld + hd) * cl * od - (rn + h) * sl * ld * od
+                           + (rn + h) * cl * odd,
+                           (drm * ld + hd) * ld + (rm + h) * ldd, hdd], -1)
         return c, w, v_n, vdot_n, x
 
     # ---- position ---------------------------------------------------------------------
@@ -223,6 +268,10 @@ class Trajectory:
                 return np.array([v[1] / (rm + p[2]), v[0] / ((rn + p[2]) * np.cos(p[0])), v[2]])
             if leg.duration_s <= 0.0:
                 out.append((y.copy(), None))
+                continue
+            if leg.frame == "geodetic":                     # the position is the table's
+                out.append((None, None))
+                y = leg.end()[3:].copy()
                 continue
             def polar(tau: float, p: np.ndarray) -> float:
                 return MAX_LATITUDE_RAD - abs(p[0])
@@ -244,9 +293,11 @@ class Trajectory:
     def _positions(self, j: int, tau: np.ndarray) -> np.ndarray:
         """(L, λ, h) (3, k) of leg ``j`` at leg times ``tau``."""
         y0, sol = self._position[j]
+        if self._geodetic[j]:
+            return self._channels(j, np.asarray(tau, dtype=float))[0][3:]
         if sol is None or tau.size == 0:
             return np.repeat(y0[:, None], tau.size, axis=1)
-        return sol(np.clip(tau, 0.0, self.legs[j].duration_s))
+        return _dense(sol, np.clip(tau, 0.0, self.legs[j].duration_s))
 
     # ---- evaluations ------------------------------------------------------------------
     def _inputs(self, j: int, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,6 +342,27 @@ class Trajectory:
             out.euler[:, sel] = x[:3]
         return out
 
+    def truth(self, t_s: np.ndarray) -> dict[str, np.ndarray]:
+        """The truth at sample end times ``t_s`` (k,) (the dataset's ``trajectory`` rows, in
+        SI): ``lat``, ``lon`` [rad], ``height`` [m], ``v_n`` (k, 3) [m/s], ``q_bn`` (k, 4),
+        ``euler`` (k, 3) heading, pitch, roll [rad] — :meth:`states`' numbers, the velocity and
+        attitude computed by the compiled kernel (the same formulas)."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        k = t.size
+        j = self.leg_of(t, side="left")
+        tau = t - self._t0[j]
+        v, q, e, p = np.empty((k, 3)), np.empty((k, 4)), np.empty((k, 3)), np.empty((k, 3))
+        _kernel().sample_states(tau, j.astype(np.int64), self._coef,
+                                np.ascontiguousarray(self._dcoef),
+                                np.ascontiguousarray(self._d2coef), self._geodetic, _EARTH,
+                                v, q, e, p)
+        for leg in np.unique(j):
+            if not self._geodetic[leg]:
+                sel = np.flatnonzero(j == leg)
+                p[sel] = self._positions(int(leg), tau[sel]).T
+        return {"lat": p[:, 0], "lon": p[:, 1], "height": p[:, 2], "v_n": v, "q_bn": q,
+                "euler": e}
+
     def gnss_visible(self, t_s: np.ndarray) -> np.ndarray:
         """Whether a GNSS receiver sees the sky at times ``t_s`` (the leg's flag)."""
         flags = np.array([leg.gnss for leg in self.legs])
@@ -315,6 +387,7 @@ class Trajectory:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
         edges = _edges(k0, np.arange(n + 1), rate_hz)
         dth, dv = np.zeros((n, 3)), np.zeros((n, 3))
+        constant: tuple[tuple[int, int], ...] = ()
         if n:
             inside = self._t0[(self._t0 > edges[0]) & (self._t0 < edges[-1])]
             pts = np.union1d(edges, inside) if inside.size else edges
@@ -327,28 +400,48 @@ class Trajectory:
             else:
                 sample = None
                 delta[:] = 1.0 / rate_hz
-            sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
             leg = self.leg_of(a)                                         # piece → leg
-            # positions at the ends of every sub-interval of every piece
-            frac = np.arange(sub + 1) / sub
-            pos = np.empty((a.size, sub + 1, 3))
-            for j in np.unique(leg):
-                sel = np.flatnonzero(leg == j)
-                tau = (a[sel, None] - self._t0[j]) + delta[sel, None] * frac[None, :]
-                pos[sel] = self._positions(int(j), tau.ravel()).T.reshape(sel.size, sub + 1, 3)
-            w_out, f_out = np.empty((a.size, 3)), np.empty((a.size, 3))
-            _kernel().piece_integrals(a, delta, sub, leg.astype(np.int64), self._t0,
-                                      self._coef, np.ascontiguousarray(self._dcoef), pos,
-                                      _NODES, _WEIGHTS, _EARTH, w_out, f_out)
+            # a run of whole samples standing still in one leg: its first one computed, the
+            # others hold it (the same numbers), and the run is told to the IMU stage
+            still = self._still[leg] if sample is None else self._still[leg] & whole
+            first = np.ones(a.size, dtype=bool)
+            first[1:] = ~(still[1:] & still[:-1] & (leg[1:] == leg[:-1]))
+            need = np.flatnonzero(first)
+            w_out, f_out = self._piece_integrals(a[need], delta[need], leg[need], rate_hz)
+            if need.size < a.size:
+                held = np.maximum.accumulate(np.where(first, np.arange(a.size), 0))
+                w_out, f_out = w_out[np.searchsorted(need, held)], f_out[np.searchsorted(need,
+                                                                                       held)]
+                constant = _still_runs(still, leg, sample)
             if sample is None:
                 dth, dv = w_out, f_out
             else:
                 np.add.at(dth, sample, w_out)
                 np.add.at(dv, sample, f_out)
-        block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, ())
+        block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, constant)
         if angles:
             block.outer_deg, block.inner_deg, block.segment = self.angles(block.t_s)
         return block
+
+    def _piece_integrals(self, a: np.ndarray, delta: np.ndarray, leg: np.ndarray,
+                         rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """∫ω_ib^b and ∫f^b (p, 3) over pieces [a, a + delta) of legs ``leg`` (the compiled
+        quadrature; the positions at the ends of every sub-interval from the legs)."""
+        sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
+        frac = np.arange(sub + 1) / sub
+        pos = np.empty((a.size, sub + 1, 3))
+        for j in np.unique(leg):
+            sel = np.flatnonzero(leg == j)
+            tau = (a[sel, None] - self._t0[j]) + delta[sel, None] * frac[None, :]
+            # the sub-interval ends, evaluated once each in time order
+            u, inv = np.unique(tau.ravel(), return_inverse=True)
+            pos[sel] = self._positions(int(j), u)[:, inv].T.reshape(sel.size, sub + 1, 3)
+        w_out, f_out = np.empty((a.size, 3)), np.empty((a.size, 3))
+        _kernel().piece_integrals(a, delta, sub, leg.astype(np.int64), self._t0, self._coef,
+                                  np.ascontiguousarray(self._dcoef),
+                                  np.ascontiguousarray(self._d2coef), self._geodetic, pos,
+                                  _NODES, _WEIGHTS, _EARTH, w_out, f_out)
+        return w_out, f_out
 
     # ---- checks -------------------------------------------------------------------------
     def peak_inputs(self, step_s: float = 0.5) -> tuple[float, float, float]:
@@ -364,3 +457,32 @@ class Trajectory:
                 best_w, at = float(np.max(np.abs(w[iw]))), float(self._t0[j] + tau[iw])
             best_f = max(best_f, float(np.max(np.abs(f))))
         return best_w, best_f, at
+
+
+def _dense(sol, tau: np.ndarray) -> np.ndarray:
+    """``sol(tau)`` of an :class:`scipy.integrate.OdeSolution` for sorted ``tau``, one call of
+    each step's interpolant on its run of times (``OdeSolution.__call__`` groups element by
+    element in Python); the same interpolants on the same times, so the same numbers."""
+    tau = np.asarray(tau, dtype=float).reshape(-1)
+    if tau.size < 64 or np.any(tau[1:] < tau[:-1]):
+        return sol(tau)
+    seg = np.searchsorted(sol.ts_sorted, tau, side=sol.side) - 1
+    np.clip(seg, 0, sol.n_segments - 1, out=seg)
+    cut = np.flatnonzero(np.diff(seg)) + 1
+    out = np.empty((sol.interpolants[0].y_old.size, tau.size))
+    for lo, hi in zip(np.r_[0, cut], np.r_[cut, tau.size]):
+        out[:, lo:hi] = sol.interpolants[seg[lo]](tau[lo:hi])
+    return out
+
+
+def _still_runs(still: np.ndarray, leg: np.ndarray, sample: np.ndarray | None
+                ) -> tuple[tuple[int, int], ...]:
+    """The runs (lo, hi) of whole samples standing still in one leg (pieces ``still`` of legs
+    ``leg``; ``sample`` the piece → sample map, None when pieces are samples)."""
+    idx = np.arange(still.size) if sample is None else sample
+    change = np.flatnonzero(np.diff(still.astype(np.int8)) | (np.diff(leg) != 0)) + 1
+    out = []
+    for lo, hi in zip(np.r_[0, change], np.r_[change, still.size]):
+        if still[lo] and hi - lo > 1:
+            out.append((int(idx[lo]), int(idx[hi - 1]) + 1))
+    return tuple(out)

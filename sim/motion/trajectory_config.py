@@ -1,6 +1,6 @@
 """A scenario's ``[trajectory]`` table: a vehicle's route as segments, or a motion file.
 
-Two forms (docs/trajectories.md lists every key):
+Three forms (docs/trajectories.md lists every key):
 
 * segments from an initial state — ``latitude_deg``, ``longitude_deg``, ``height_m``,
   ``speed_m_s`` (forward), ``heading_deg``, ``pitch_deg``, ``roll_deg`` — and
@@ -27,7 +27,10 @@ Two forms (docs/trajectories.md lists every key):
   ends.)
 * ``file = "route.csv"``: gnss-ins-sim's motion-definition CSV (:mod:`rlgsim.sim.motion.motion_def`,
   relative to the scenario's folder), with its mobility limits ``max_accel_m_s2``,
-  ``max_angular_accel_deg_s2``, ``max_rate_deg_s``.
+  ``max_angular_accel_deg_s2``, ``max_rate_deg_s``;
+* ``table = "route.parquet"``: a table of timed positions and attitudes (CSV or Parquet,
+  :mod:`rlgsim.sim.motion.position_table`), cubic splines, with ``max_speed_m_s`` (default
+  1000) above which two rows are a discontinuity.
 
 Either form: ``gyro_range_deg_s`` (default 400 °/s) and ``accel_range_m_s2`` (default 200 m/s²),
 the sensors' input ranges — a trajectory whose body rates or specific force go past them is
@@ -118,6 +121,10 @@ class TrajectoryProgram:
         accel_range = get_float(table, "accel_range_m_s2", ctx, DEFAULT_ACCEL_RANGE_M_S2,
                                 min=0.0, min_exclusive=True)
         source = ctx.source or "<scenario>"
+        if "table" in table:
+            check_known_keys(table, ("table", "max_speed_m_s", *RANGE_KEYS), ctx)
+            return cls(*_from_table(table, ctx, base_dir, gyro_range), gyro_range, accel_range,
+                       source)
         if "file" in table:
             check_known_keys(table, (*FILE_KEYS, *RANGE_KEYS), ctx)
             return cls(*_from_file(table, ctx, base_dir), gyro_range, accel_range, source)
@@ -165,6 +172,22 @@ def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None
                      min_exclusive=True) * DEG)
     md = read_motion_def(path, mobility=mob)
     return InitialState(md.lat_rad, md.lon_rad, md.height_m), md.legs
+
+
+def _from_table(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None,
+                gyro_range: float) -> tuple[InitialState, tuple[Leg, ...]]:
+    from rlgsim.sim.motion.position_table import DEFAULT_MAX_SPEED_M_S, read_position_table
+    name = get_str(table, "table", ctx)
+    path = pathlib.Path(name)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    if not path.is_file():
+        raise ctx.error("table", f"{name!r} not found (looked for {path})")
+    speed = get_float(table, "max_speed_m_s", ctx, DEFAULT_MAX_SPEED_M_S, min=0.0,
+                      min_exclusive=True)
+    (lat, lon, h), legs, _ = read_position_table(path, max_speed_m_s=speed,
+                                                 max_rate_rad_s=gyro_range)
+    return InitialState(lat, lon, h), legs
 
 
 def _segment_legs(seg: Mapping[str, Any], ctx: Ctx, state: np.ndarray, gamma: float

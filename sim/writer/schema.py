@@ -421,12 +421,10 @@ def declare_trajectory(g: GroupWriter, trajectory) -> None:
 
 def trajectory_rows(trajectory, t_s: np.ndarray) -> dict[str, np.ndarray]:
     """The ``trajectory`` group's rows along ``sample`` at sample end times ``t_s``."""
-    from rlgsim.sim.motion.trajectory import quaternion_from_euler
-    st = trajectory.states(t_s)
-    heading, pitch, roll = st.euler
-    return {"latitude": np.degrees(st.lat), "longitude": np.degrees(st.lon),
-            "height": st.height, "velocity": st.v_n,
-            "attitude": quaternion_from_euler(heading, pitch, roll),
+    st = trajectory.truth(t_s)
+    heading, pitch, roll = st["euler"].T
+    return {"latitude": np.degrees(st["lat"]), "longitude": np.degrees(st["lon"]),
+            "height": st["height"], "velocity": st["v_n"], "attitude": st["q_bn"],
             "heading": np.degrees(heading) % 360.0, "pitch": np.degrees(pitch),
             "roll": np.degrees(roll),
             "gnss_visible": trajectory.gnss_visible(t_s).astype(np.int8)}

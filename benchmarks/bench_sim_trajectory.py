@@ -1,0 +1,94 @@
+"""The simulator's throughput on a vehicle's route beside a static run's (issue 26's target:
+the trajectory run within 25 % of the static one, i.e. a throughput ratio >= 0.75).
+
+Both runs are the RLG-IMU (rlg_imu_000: three gyros, three accelerometers, UHFO, probes, truth)
+at 100 Hz for ``--hours`` (default 1) in a bay/chamber held at 20 °C, written to HDF5:
+
+* static — the turntable at rest (the simulator's fastest path: every sample of a thermal step
+  holds one increment);
+* trajectory — the same, riding the shipped ``vehicle_land_cold`` route from its start (city
+  driving: corners, stops, accelerations), its increments by the compiled Gauss–Legendre
+  quadrature (sim/motion/_trajectory_kernel.py) and its ``trajectory`` truth group (13 float64
+  states per sample) written too.
+
+Pairs alternate their order (static first, then trajectory first, …) so a changing load hits
+both alike; the median ratio and its spread are printed beside the target, with the machine
+line and the load average before and after. ``python benchmarks/bench_sim.py --trajectory``
+runs it too. Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import statistics
+import sys
+import tempfile
+import time
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _machine import alternate, load_text, machine, spread  # noqa: E402
+
+TARGET = 0.75
+STATIC = """
+name = "static"
+device = "rlg_imu_000"
+seed = 5
+duration_h = {hours}
+[acquisition]
+sample_rate_hz = 100
+[chamber]
+start_c = 20.0
+"""
+
+
+def scenarios(hours: float):
+    """(static, trajectory) scenarios of ``hours``."""
+    from rlgsim.sim import presets
+    from rlgsim.sim.run.scenario import parse_scenario
+    static = parse_scenario(STATIC.format(hours=hours), "static.toml")
+    land = presets.load_scenario_file("vehicle_land_cold").text
+    route = land[land.index("[trajectory]"):]
+    moving = parse_scenario(STATIC.format(hours=hours) + route, "trajectory.toml")
+    return static, moving
+
+
+def run_once(sc, out: pathlib.Path) -> float:
+    from rlgsim.sim.run.simulate import simulate
+    t0 = time.perf_counter()
+    simulate(sc, out, progress=False)
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--hours", type=float, default=1.0)
+    ap.add_argument("--repeat", type=int, default=4, help="alternating pairs (default 4)")
+    args = ap.parse_args(argv)
+    static, moving = scenarios(args.hours)
+    epochs = int(round(static.duration_s * 100))
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="rlgsim-bench-traj-"))
+    print(f"machine: {machine()}")
+    print(f"load average before: {load_text()}", flush=True)
+    run_once(static, tmp / "warm.h5")          # imports, numba caches: outside the pairs
+    run_once(moving, tmp / "warm.h5")
+
+    def report(i: int, s: float, m: float) -> None:
+        print(f"  pair {i}: static {s:.2f} s ({epochs / s / 1e6:.2f} M epochs/s), trajectory "
+              f"{m:.2f} s ({epochs / m / 1e6:.2f} M epochs/s), ratio {s / m:.2f}; load "
+              f"{load_text()}", flush=True)
+    ws, wm = alternate(lambda: run_once(static, tmp / "s.h5"),
+                       lambda: run_once(moving, tmp / "m.h5"), max(1, args.repeat), report)
+    ratios = [s / m for s, m in zip(ws, wm)]
+    print(f"{args.hours:g} h at 100 Hz = {epochs:,} epochs; static {spread(ws, unit=' s')}, "
+          f"trajectory {spread(wm, unit=' s')}")
+    print(f"trajectory / static throughput: {spread(ratios)}  (target >= {TARGET:.2f}: "
+          f"{'met' if statistics.median(ratios) >= TARGET else 'NOT met'})")
+    print(f"load average after: {load_text()}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
