@@ -10,7 +10,8 @@ import pytest
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import deg_per_h_to_rad_per_s
-from rlgsim.sim.sensors.anomalies import AnomalyModel, Anomalies, Events
+from rlgsim.sim.sensors.anomalies import Anomalies
+from rlgsim.sim.sensors.anomaly_model import AnomalyModel, Events
 from rlgsim.sim.config import Ctx
 
 CTX = Ctx("dev.toml", "anomalies")

@@ -207,3 +207,28 @@ def test_cooling_capacity_falls_towards_the_lowest_temperature():
     # cooling slows down as the capacity falls: the rate at −20 °C exceeds the rate at −55 °C
     rate = -np.gradient(air) * 60.0
     assert rate[np.argmin(np.abs(air + 20))] > 1.5 * rate[np.argmin(np.abs(air + 55))]
+
+
+def test_a_controller_is_chosen_by_kind_from_the_registry():
+    """``[chamber.controller] kind`` picks the class from the registry (default "pid"); an
+    unknown kind is one line naming the key and the allowed kinds; every registered class
+    names its own kind and builds its loop."""
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.sim.config import Ctx
+    from rlgsim.sim.thermal.chamber_controllers import (CONTROLLERS, DEFAULT_KIND,
+                                                        controller_from_config)
+
+    ctx = Ctx("s.toml", "chamber.controller")
+    plain = controller_from_config({"ripple_amplitude_c": 0.2}, ctx)
+    named = controller_from_config({"kind": "pid", "ripple_amplitude_c": 0.2}, ctx)
+    assert type(plain) is CONTROLLERS[DEFAULT_KIND] and plain == named
+    with pytest.raises(UserInputError, match=r"s\.toml.*kind.*'bang_bang'.*allowed: pid"):
+        controller_from_config({"kind": "bang_bang"}, ctx)
+    for kind, cls in CONTROLLERS.items():
+        assert cls.kind == kind
+        loop = cls.from_config({}, ctx).loop(1.0)
+        state = loop.initial_state(20.0)         # a tuple of floats, the chamber air first
+        assert isinstance(state, tuple) and all(isinstance(v, float) for v in state)
+        air, after = loop.run(state, np.full(11, 20.0))
+        assert air.shape == (10,) and len(after) == len(state)
+        assert np.all(np.isfinite(air))

@@ -18,7 +18,8 @@ from scipy.optimize import curve_fit
 
 from rlgsim.sim.config import Ctx
 from rlgsim.ground.errors import UserInputError
-from rlgsim.sim.thermal.network import CHAMBER_AIR, STEFAN_BOLTZMANN, ThermalNetwork
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.network_parts import CHAMBER_AIR, STEFAN_BOLTZMANN
 from rlgsim.sim.thermal.integrator import ThermalIntegrator, ThermalState
 
 PRESETS = pathlib.Path(__file__).resolve().parents[1] / "scenarios" / "thermal"

@@ -12,7 +12,8 @@ from scipy.integrate import simpson, solve_ivp
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
-from rlgsim.sim.thermal.network import STEFAN_BOLTZMANN, ThermalNetwork
+from rlgsim.sim.thermal.network import ThermalNetwork
+from rlgsim.sim.thermal.network_parts import STEFAN_BOLTZMANN
 from rlgsim.sim.thermal.integrator import ThermalIntegrator
 
 

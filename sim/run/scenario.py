@@ -22,7 +22,7 @@ import numpy as np
 
 from rlgsim.sim import presets
 from rlgsim.sim.sensors.accelerometer import AccelerometerModel
-from rlgsim.sim.sensors.anomalies import AnomalyModel
+from rlgsim.sim.sensors.anomaly_model import AnomalyModel
 from rlgsim.sim.thermal.chamber import ChamberProgram
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_int,
                                get_quantity, get_str, get_table, unit_keys)

@@ -279,7 +279,8 @@ class ChamberProgram:
     segments: list[Segment] = field(default_factory=list)
     max_rate_c_per_min: float = DEFAULT_MAX_RATE_C_PER_MIN
     air_tau_s: float = DEFAULT_AIR_TAU_S
-    #: the chamber's own air loop (``[chamber.controller]``, rlgsim.sim.thermal.chamber_controller);
+    #: the chamber's own air loop (``[chamber.controller]``, a controller of the ``kind`` it names:
+    #: rlgsim.sim.thermal.chamber_controllers);
     #: None: the air is the rate-limited setpoint through the ``air_tau_s`` lag
     controller: Any = None
 
@@ -301,9 +302,9 @@ class ChamberProgram:
             if "air_tau_s" in table:
                 raise ctx.error("air_tau_s", "not used with [chamber.controller] (the "
                                              "controller's air loop replaces the air lag)")
-            from rlgsim.sim.thermal.chamber_controller import ChamberController
-            controller = ChamberController.from_config(get_table(table, "controller", ctx),
-                                                       ctx.child("controller"))
+            from rlgsim.sim.thermal.chamber_controllers import controller_from_config
+            controller = controller_from_config(get_table(table, "controller", ctx),
+                                                ctx.child("controller"))
         program = cls(start_c=start, segments=list(segments), max_rate_c_per_min=max_rate,
                       air_tau_s=tau, controller=controller)
         n = program._count_breakpoints(program.segments)

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 import scipy.linalg
@@ -95,7 +95,10 @@ DEFAULTS = {
 
 @dataclass(frozen=True)
 class ChamberController:
-    """Parameters of the chamber's air loop (SI inside; see the module docstring)."""
+    """Parameters of the chamber's air loop (SI inside; see the module docstring): the
+    controller ``kind = "pid"`` of :data:`rlgsim.sim.thermal.chamber_controllers.CONTROLLERS`."""
+
+    kind: ClassVar[str] = "pid"
 
     sensor_tau_s: float = DEFAULTS["sensor_tau_s"]
     sample_s: float = DEFAULTS["sample_s"]
@@ -149,6 +152,10 @@ class ChamberController:
                             f"the insulation loss (loss_tau_s), more than "
                             f"max_cooling_c_per_min = {c.max_cooling_c_per_min:g}")
         return c
+
+    def loop(self, step_s: float) -> "ChamberLoop":
+        """The controller discretised on a thermal grid of ``step_s`` [s]."""
+        return ChamberLoop(self, step_s)
 
 
 class ChamberLoop:

@@ -176,9 +176,8 @@ class ThermalIntegrator:
         self._kernel_args: Any = None
         self._kernel_coef: np.ndarray | None = None
         self.chamber_loop = None
-        if controller is not None:
-            from rlgsim.sim.thermal.chamber_controller import ChamberLoop
-            self.chamber_loop = ChamberLoop(controller, self.step_s)
+        if controller is not None:                 # any kind (chamber_controllers.CONTROLLERS)
+            self.chamber_loop = controller.loop(self.step_s)
 
     def _setup(self, network: ThermalNetwork, step_s: float, air_tau_s: float) -> None:
         if not (np.isfinite(step_s) and step_s > 0):
@@ -567,7 +566,7 @@ class ThermalIntegrator:
             I = []
         nl = bool(self.nonlinear_links)
         if nl:
-            from rlgsim.sim.thermal.network import nonlinear_flow_w
+            from rlgsim.sim.thermal.network_parts import nonlinear_flow_w
             rows, ncols, ends = self._nl_rows, self._nl_cols, self._nl_ends
             q = np.zeros(self._nl_n)
         # The per-step Python overhead is the cost here (hundreds of thousands of steps in a

@@ -287,7 +287,8 @@ def _simulated_hops(mh: dict, nodes: tuple[str, ...], t_s: np.ndarray, nodes_c: 
                     node_names: tuple[str, ...], block: str) -> tuple[tuple[float, int], ...]:
     """The hops the simulator's own model ``mh`` (simulator keys) makes on the twin's node
     temperatures (:meth:`rlgsim.sim.sensors.anomalies.Anomalies.mode_hops`)."""
-    from rlgsim.sim.sensors.anomalies import Anomalies, AnomalyModel, ModeHop
+    from rlgsim.sim.sensors.anomalies import Anomalies
+    from rlgsim.sim.sensors.anomaly_model import AnomalyModel, ModeHop
     model = AnomalyModel(mode_hop=ModeHop(
         nodes=tuple(nodes), modes_per_k=float(mh["modes_per_k"]),
         range_modes=float(mh["range_modes"]), reference_c=float(mh.get("reference_c", 20.0)),
