@@ -53,20 +53,23 @@ class Route:
 
 
 def sample_route(trajectory, duration_s: float, rate_hz: float = 50.0,
-                 update_every: int = 50) -> Route:
-    """The exact increments and truths of ``trajectory`` over ``duration_s``."""
+                 update_every: int = 50, start_s: float = 0.0) -> Route:
+    """The exact increments and truths of ``trajectory`` over ``duration_s`` from ``start_s``
+    (on the sample grid; the route's times count from ``start_s``)."""
     n = int(round(duration_s * rate_hz))
+    k_start = int(round(start_s * rate_hz))
     per = int(round(600 * rate_hz))
-    parts = [trajectory.increments(k / rate_hz, min(per, n - k), rate_hz, angles=False)
-             for k in range(0, n, per)]
-    t_end = (np.arange(n) + 1) / rate_hz
+    parts = [trajectory.increments((k_start + k) / rate_hz, min(per, n - k), rate_hz,
+                                   angles=False) for k in range(0, n, per)]
+    t_end = (k_start + np.arange(n) + 1) / rate_hz
     speed = np.linalg.norm(trajectory.truth(t_end)["v_n"], axis=1)
     epoch_t = t_end[update_every - 1::update_every]
     truth = trajectory.states(epoch_t)
     visible = trajectory.gnss_visible(epoch_t)
     return Route(np.concatenate([p.dtheta_rad for p in parts]),
-                 np.concatenate([p.dv_m_per_s for p in parts]), rate_hz, update_every, epoch_t,
-                 truth, trajectory.states(np.array([0.0])), speed == 0.0, visible, truth)
+                 np.concatenate([p.dv_m_per_s for p in parts]), rate_hz, update_every,
+                 epoch_t - k_start / rate_hz, truth,
+                 trajectory.states(np.array([k_start / rate_hz])), speed == 0.0, visible, truth)
 
 
 def run_unit(route: Route, seed: int, model: AidingModel = NAV_GRADE,
