@@ -68,8 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"heading error at the end: median {np.median(heading):.1f}″, 95th percentile "
           f"{np.percentile(heading, 95):.1f}″")
     g = err[:, -1, 9:12] / (NAV_GRADE.gyro_bias_sigma)
-    print(f"gyro bias: true − estimated at the end, RMS over units per axis (E-frame body axes "
-          f"x, y, z) in units of the prior σ {NAV_GRADE.gyro_bias_sigma / DEG * 3600:.4g} °/h: "
+    print(f"gyro bias: true − estimated at the end, RMS over units per body axis (x, y, z) "
+          f"in units of the prior σ {NAV_GRADE.gyro_bias_sigma / DEG * 3600:.4g} °/h: "
           f"{np.sqrt(np.mean(g ** 2, axis=0)).round(2)} (1 = not learnt)")
     print(f"load average after: {load_text()}")
     return 0
