@@ -75,3 +75,15 @@ def test_a_turntable_run_is_refused(tmp_path):
     out = simulate(sc, tmp_path / "t.h5", progress=False)
     with pytest.raises(UserInputError, match="no trajectory group"):
         score_mission(out)
+
+
+def test_mission_figure(tmp_path):
+    """The figure of a (tiny) mission is written: route, temperatures, errors."""
+    from rlgsim.lab.mission_report import mission_figure
+    text = MISSION.replace("duration_s = 1200", "duration_s = 120").replace(
+        "duration_s = 400", "duration_s = 60")
+    sc = parse_scenario(text, str(tmp_path / "f.toml"))
+    out = simulate(sc, tmp_path / "f.h5", progress=False)
+    scores = {"raw": {"t_s": np.array([60.0, 120.0]), "horizontal_m": np.array([1.0, 2.0])}}
+    png = mission_figure(out, scores, tmp_path / "mission.png")
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
