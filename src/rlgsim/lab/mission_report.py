@@ -18,6 +18,16 @@ def mission_figure(dataset: str | pathlib.Path, scores: Mapping[str, dict],
                    path: str | pathlib.Path) -> pathlib.Path:
     """Write the mission's figure for ``scores`` (of ``score_mission(dataset)``) to ``path``
     (PNG); returns the path."""
+    import matplotlib.pyplot as plt
+    fig = mission_plot(dataset, scores)
+    out = pathlib.Path(path)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def mission_plot(dataset: str | pathlib.Path, scores: Mapping[str, dict]):
+    """The mission's figure (a matplotlib Figure; module docstring)."""
     import h5py
     import matplotlib
     matplotlib.use("Agg")
@@ -57,7 +67,4 @@ def mission_figure(dataset: str | pathlib.Path, scores: Mapping[str, dict],
               title="aided navigation (outages shaded)")
     ax[2].legend(fontsize=8)
     fig.tight_layout()
-    out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return fig

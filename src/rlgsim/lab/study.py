@@ -54,7 +54,8 @@ __all__ = ["Study", "StudyResult", "parse_study", "load_study", "list_studies", 
 
 STUDY_KEYS = ("name", "description", "paper", "recipe", "device_seed", "export_models")
 #: The recipes, each a module ``rlgsim.lab.studies.<name>`` (a new recipe adds its name here).
-RECIPES = ("bias_compensation", "environments", "gradient_selection", "paper000_system")
+RECIPES = ("bias_compensation", "environments", "gradient_selection", "paper000_system",
+           "vehicle")
 
 
 @dataclass(frozen=True)

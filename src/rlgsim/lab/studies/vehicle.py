@@ -1,0 +1,161 @@
+"""Recipe ``vehicle``: compensators trained in the chamber, scored on a vehicle's mission by the
+coasting error they leave through its GNSS outages (issue 26; docs/trajectories.md).
+
+A study with ``recipe = "vehicle"`` has these tables::
+
+    [train]                          # the chamber run the compensators learn from
+    scenario = "vehicle_train_ramp"
+    window_s = 100                   # averaging window [s]
+
+    [mission]                        # the vehicle run they are scored on
+    scenario = "vehicle_land_cold"
+    duration_h = 0.85                # optional: cut the mission (here: to its first outage)
+    sample_rate_hz = 20              # optional: another IMU rate for the mission
+
+    [[compensator]]                  # one per model; inputs "T" (the gyro's cathode probe
+    name = "LS cubic T"              # g<axis>.A, window mean) and "dT/dt" (its slope)
+    inputs = ["T"]
+    degree = 3
+
+For each gyro axis a :class:`rlgsim.estimators.polynomial.PolynomialRegressor` is fitted on the
+train run's windows (:func:`rlgsim.lab.api.window_table`: measured bias against the probe's
+mean and slope) and predicts the mission's gyro biases window by window; the mission's variants
+``raw``, each compensator, ``oracle`` and ``truth`` go through the aided navigator
+(:func:`rlgsim.lab.mission.score_mission`). Rows: the coasting error of every outage and the
+heading error RMS per variant; the report adds the mission's figure.
+"""
+
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rlgsim.ground.units import DEG, HOUR
+from rlgsim.lab.report import Report, Table
+from rlgsim.lab.study import Study, StudyResult, scenario_for
+from rlgsim.sim.config import (check_known_keys, get_float, get_int, get_list, get_str,
+                               get_table)
+
+INPUTS = ("T", "dT/dt")
+
+
+@dataclass(frozen=True)
+class Compensator:
+    name: str
+    inputs: tuple[str, ...]
+    degree: int
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    train: str
+    window_s: float
+    mission: str
+    mission_changes: dict
+    compensators: tuple[Compensator, ...]
+
+
+def check(study: Study) -> VehicleConfig:
+    """Validate the recipe's tables (module docstring)."""
+    t = study.tables
+    check_known_keys(t, ("study", "train", "mission", "compensator"), study.ctx())
+    tr = get_table(t, "train", study.ctx())
+    check_known_keys(tr, ("scenario", "window_s"), study.ctx("train"))
+    mi = get_table(t, "mission", study.ctx())
+    check_known_keys(mi, ("scenario", "duration_h", "sample_rate_hz"), study.ctx("mission"))
+    changes = {}
+    if "duration_h" in mi:
+        changes["duration_h"] = get_float(mi, "duration_h", study.ctx("mission"), min=0.0,
+                                          min_exclusive=True)
+    if "sample_rate_hz" in mi:
+        changes["acquisition.sample_rate_hz"] = get_float(mi, "sample_rate_hz",
+                                                          study.ctx("mission"), min=0.0,
+                                                          min_exclusive=True)
+    comps = []
+    for i, c in enumerate(get_list(t, "compensator", study.ctx(), [])):
+        ctx = study.ctx("compensator").item(i)
+        check_known_keys(c, ("name", "inputs", "degree"), ctx)
+        inputs = tuple(get_list(c, "inputs", ctx, ["T"], min_len=1))
+        for x in inputs:
+            if x not in INPUTS:
+                raise ctx.error("inputs", f"{x!r} not allowed; one of {', '.join(INPUTS)}")
+        comps.append(Compensator(get_str(c, "name", ctx), inputs,
+                                 get_int(c, "degree", ctx, 3, min=1, max=5)))
+    return VehicleConfig(get_str(tr, "scenario", study.ctx("train")),
+                         get_float(tr, "window_s", study.ctx("train"), 100.0, min=1.0),
+                         get_str(mi, "scenario", study.ctx("mission")), changes, tuple(comps))
+
+
+def _features(df, axis: str, inputs: tuple[str, ...]) -> np.ndarray:
+    cols = {"T": f"probe_g{axis}.A_c", "dT/dt": f"dTdt_g{axis}.A_k_per_s"}
+    return np.column_stack([df[cols[x]].to_numpy() for x in inputs])
+
+
+def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int = 0,
+        progress: bool = True) -> StudyResult:
+    """Simulate the train and mission runs, fit, score (module docstring)."""
+    from rlgsim.estimators.polynomial import PolynomialRegressor
+    from rlgsim.lab.api import window_table
+    from rlgsim.lab.mission import score_mission
+    from rlgsim.sim.run.simulate import simulate
+    data = workdir / "data"
+    data.mkdir(parents=True, exist_ok=True)
+    train = simulate(scenario_for(study, config.train, unit=unit), data / "train.h5",
+                     progress=progress)
+    mission_sc = scenario_for(study, config.mission, unit=unit).with_changes(
+        config.mission_changes)
+    mission = simulate(mission_sc, data / "mission.h5", progress=progress)
+    w = config.window_s
+    models = {}
+    for comp in config.compensators:
+        ends, preds = [], []
+        for axis in "xyz":
+            tdf, mdf = window_table(train, w, gyro=axis), window_table(mission, w, gyro=axis)
+            model = PolynomialRegressor(degree=comp.degree).fit(
+                _features(tdf, axis, comp.inputs), tdf["bias_deg_per_h"].to_numpy())
+            ends.append(mdf["time_s"].to_numpy())
+            preds.append(model.predict(_features(mdf, axis, comp.inputs)) * DEG / HOUR)
+        models[comp.name] = _window_function(ends, preds, w)
+    scores = score_mission(mission, models=models)
+    rows = []
+    for name, s in scores.items():
+        for i, e in enumerate(s["outage_error_m"]):
+            rows.append((name, f"coasting_error_outage{i + 1}_m", float(e)))
+        rows.append((name, "heading_rms_arcsec", s["heading_rms_arcsec"]))
+    return StudyResult(rows, details={"scores": scores, "mission": mission})
+
+
+def _window_function(ends: list, preds: list, window_s: float):
+    """f(t) → the window prediction holding t (0 outside every window), (k, 3) [rad/s]."""
+    def predict(t: np.ndarray) -> np.ndarray:
+        cols = []
+        for e, p in zip(ends, preds):
+            i = np.searchsorted(e, t, side="left")
+            j = np.minimum(i, e.size - 1)
+            ok = (i < e.size) & (t >= e[j] - window_s)
+            cols.append(np.where(ok, p[j], 0.0))
+        return np.column_stack(cols)
+    return predict
+
+
+def report(study: Study, config: VehicleConfig, result: StudyResult) -> Report:
+    """Scores table and the mission's figure."""
+    from rlgsim.lab.mission_report import mission_plot
+    rep = Report(study.title)
+    if study.description:
+        rep.paragraph(study.description)
+    rep.paragraph(f"Compensators fitted on {config.train} (windows of {config.window_s:g} s), "
+                  f"scored on {config.mission} through the aided navigator "
+                  f"(rlgsim.lab.mission; docs/trajectories.md): raw, each compensator, the "
+                  f"oracle (the true temperature laws removed) and the floor (exact "
+                  f"increments).")
+    rep.table(Table("Scores", ["variant", "metric", "value"],
+                    [[a, b, f"{c:.4g}"] for a, b, c in result.rows], csv_name="scores.csv"))
+    details: dict[str, Any] = result.details
+    rep.figure(mission_plot(details["mission"], details["scores"]), "mission.png",
+               "the route with its GNSS outages, the bay's air and the unit's coldest and "
+               "warmest nodes, each variant's horizontal error (outages shaded)")
+    return rep
