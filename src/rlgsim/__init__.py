@@ -51,7 +51,14 @@ _PUBLIC = {
 __all__ = ["__version__", *_PUBLIC]
 
 
+#: subpackages reachable as attributes of the root without their own import (``rlgsim.api.run``
+#: after a plain ``import rlgsim``, as docs/api.md writes it), imported on first use
+_SUBPACKAGES = ("api", "ground", "sim", "estimators", "lab", "scenarios")
+
+
 def __getattr__(name: str):
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f"rlgsim.{name}")
     try:
         module, attr = _PUBLIC[name].split(":")
     except KeyError:
