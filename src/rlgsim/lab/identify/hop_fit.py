@@ -14,6 +14,11 @@ scan runs again given the new law, until the set of steps no longer changes (at 
 :data:`MAX_ROUNDS` rounds). Each hop's size and standard error are its coefficient in the final
 generalised-least-squares law.
 
+With a template mode-hop model, two more searches at level α/4 each (:func:`find_hops`): each
+hop the template predicts, near where it predicts it; and the template's whole pattern as one
+column over its lock point and κ (:func:`_pattern_search`), which finds hops at two mode levels
+whose staircase the law's c1 term would otherwise absorb.
+
 Where and how (:func:`describe_hops`): the hop's time is the boundary between the two windows
 the step falls between (it happened in the window before or the one after: standard error the
 two windows' span / √12); its temperature is the twin's ``T_c`` there — the mean of the mode-hop
@@ -193,6 +198,11 @@ def find_hops(y: np.ndarray, cands: list[Term], cov: np.ndarray, sel: SelectedLa
     t = np.asarray(t_s, dtype=float)
     pred = ([p for p in _simulated_hops(template, nodes, t, nodes_c, node_names, block)]
             if template else [])
+    if template:                        # the template's whole pattern, its lock point free
+        pat = _pattern_search(y, lin, sel_lin, idx, cov, template, nodes, t, nodes_c,
+                              node_names, block, te - window_s, alpha / 4.0)
+        if pat:
+            idx = tuple(sorted(set(idx) | set(pat)))
     if not pred:
         idx = _without_laws(idx, te, window_s, t, tc)
         if idx:
@@ -299,6 +309,75 @@ def _simulated_hops(mh: dict, nodes: tuple[str, ...], t_s: np.ndarray, nodes_c: 
     _, ev, _ = an.mode_hops(state, np.asarray(t_s, dtype=float), nodes_c)
     return tuple((float(t), 1 if k == "mode_hop_up" else -1)
                  for t, k in zip(ev.time_s, ev.kind))
+
+
+#: lock points tried over one mode spacing by the pattern search (a template that draws it per
+#: unit); the grid step 1/(κ·PHASES) is 0.5 K for κ = 0.05/K, below a window's T_c change on
+#: a 1 °C/min ramp
+PHASES = 40
+#: windows either side within which a pattern's hop is the blind scan's hop, and over which a
+#: pattern's hop is moved to its best position
+NEAR = 2
+
+
+def _pattern_search(y, lin, sel_lin, idx, cov, template, nodes, t, nodes_c, node_names,
+                    block, starts, alpha) -> tuple[int, ...]:
+    """The template's mode-hop model as one column — the mode level its hops give on the twin's
+    T_c (:func:`_simulated_hops`), each hop a unit step of its direction at the window
+    boundary — tested given the linear law and the hops found so far, over the template's
+    unspecified lock point (``reference_c`` moved over one mode spacing ``1/κ`` when
+    ``phase_per_unit``, the simulator's draw) and κ at 1 and 1 ± 2·``modes_per_k_rel``; the
+    largest |z| against the Bonferroni threshold over that grid at level ``alpha``. Hops at
+    two mode levels make a staircase that follows the temperature, which the law's c1 term
+    absorbs almost whole, so one step at a time falls below the threshold (docs/identify.md,
+    *The template's pattern*); the pattern carries what the staircase does not share with the
+    law — the hysteresis. Returns the window indices of the best pattern's hops when
+    significant, else ()."""
+    from scipy.stats import norm
+    n = y.size
+    kappa = float(template["modes_per_k"])
+    rel = float(template.get("modes_per_k_rel", 0.0))
+    t_ref = float(template.get("reference_c", 20.0))
+    phases = (np.arange(PHASES) / PHASES - 0.5) / kappa if template.get(
+        "phase_per_unit", True) else np.zeros(1)
+    kappas = kappa * (np.array([1.0 - 2.0 * rel, 1.0, 1.0 + 2.0 * rel]) if 0 < rel < 0.5
+                      else np.ones(1))
+    X = np.column_stack([_law_design(sel_lin, lin, n)]
+                        + ([step_columns(n, np.array(idx, dtype=int))] if idx else []))
+    L = jittered_cholesky(np.asarray(cov, dtype=float))
+    best, tried = None, set()
+    for k in kappas:
+        for ph in phases:
+            mh = {**template, "modes_per_k": float(k), "reference_c": t_ref + float(ph)}
+            js = tuple((int(np.searchsorted(starts, th)), d) for th, d in
+                       _simulated_hops(mh, nodes, t, nodes_c, node_names, block))
+            js = tuple((j, d) for j, d in js
+                       if 2 <= j <= n - 2 and all(abs(j - i) > NEAR for i in idx))
+            if not js or js in tried:
+                continue
+            tried.add(js)
+            col = sum(d * step_columns(n, np.array([j]))[:, 0] for j, d in js)
+            z = float(_t_stat(y, X, col, L)[0])
+            if best is None or abs(z) > abs(best[0]):
+                best = (z, js)
+    if best is None:
+        return ()
+    thr = float(norm.isf(alpha / (2.0 * len(tried))))
+    if abs(best[0]) < thr:
+        return ()
+    # each hop of the pattern moved to where its own step fits best (±NEAR windows), the
+    # others held: the grid places a hop only to within a window or two of the truth
+    pos = [j for j, _ in best[1]]
+    for h in range(len(pos)):
+        others = [i for i in list(idx) + pos[:h] + pos[h + 1:]]
+        Xh = np.column_stack([_law_design(sel_lin, lin, n)]
+                             + ([step_columns(n, np.array(others, dtype=int))] if others else []))
+        cand = [j for j in range(pos[h] - NEAR, pos[h] + NEAR + 1)
+                if 2 <= j <= n - 2 and j not in others]
+        zs = [abs(_t_stat(y, Xh, step_columns(n, np.array([j]))[:, 0], L)[0]) for j in cand]
+        if zs:
+            pos[h] = cand[int(np.argmax(zs))]
+    return tuple(sorted(set(pos)))
 
 
 def describe_hops(sel: SelectedLaw, scan: StepFit, index: tuple[int, ...], rounds: int,
