@@ -10,7 +10,8 @@ integration on the same increments (issue 25).
    latitude/longitude/altitude) on the same exact increments given as rates (Δθ/Δt, Δv/Δt),
    run in a subprocess from its source folder (``--gnss-ins-sim PATH`` or the environment
    variable ``GNSS_INS_SIM``; never copied into this repository). Its speed is measured on
-   ``--gis-minutes`` of the data (a per-sample Python loop) and the ratio of samples/s printed.
+   ``--gis-minutes`` of the data (a per-sample Python loop; ``--pairs`` alternated pairs with
+   ours on the same samples) and the ratio of samples/s printed.
 3. **Accuracy**, both navigators on exact increments (the error is the algorithm's own):
    static 1 h, a level IMU spinning in azimuth at 10 °/s for 1 h, and the 19-position
    sequence (40 min). Ours with the height held and with the vertical channel free (gnss-ins-
@@ -38,7 +39,7 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _machine import machine  # noqa: E402
+from _machine import LoadWatch, alternate, machine, spread  # noqa: E402
 
 from rlgsim.estimators.ins import InsState, attitude_error, integrate  # noqa: E402
 from rlgsim.ground.earth import radii_of_curvature  # noqa: E402
@@ -72,10 +73,6 @@ c = np.array([attitude.euler2dcm(a).T for a in att[::every]])   # b -> NED
 np.savez(folder + "/out.npz", c=c, pos=pos[::every], vel=vel[::every])
 print(json.dumps({"seconds": el, "n": int(d["gyro"].shape[0])}))
 """
-
-
-def _load() -> str:
-    return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
 def increments(kind: str, seconds: float):
@@ -128,39 +125,54 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--gnss-ins-sim", default=os.environ.get("GNSS_INS_SIM"), metavar="PATH")
     ap.add_argument("--rounds", type=int, default=5)
-    ap.add_argument("--gis-minutes", type=float, default=10.0)
+    ap.add_argument("--gis-minutes", type=float, default=2.0)
+    ap.add_argument("--pairs", type=int, default=5)
     args = ap.parse_args()
     print(f"machine: {machine()}")
-    print(f"load average before: {_load()}")
+    watch = LoadWatch()
     dth, dv, motion = increments("calib", 8 * 3600.0)
     c0 = motion.attitude(np.array([0.0]))[0]
     start = InsState.at_rest(c0, LAT)
     integrate(start, dth[:100], dv[:100], 1 / RATE_HZ)                  # compile / load cache
+    n = dth.shape[0]
     times, cpu = [], []
     for _ in range(args.rounds):
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0, c0_ = time.perf_counter(), time.process_time()
         integrate(start, dth, dv, 1 / RATE_HZ, output_every=int(RATE_HZ))
         times.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
+        cpu.append(time.process_time() - c0_)
+        watch.sample()
     med, med_cpu = statistics.median(times), statistics.median(cpu)
-    n = dth.shape[0]
-    print(f"navigate 8 h at 100 Hz ({n} samples): wall median {med:.3f} s (min {min(times):.3f}, "
-          f"max {max(times):.3f}, {args.rounds} rounds) = {n / med / 1e6:.1f} M samples/s; "
-          f"CPU median {med_cpu:.3f} s = {n / med_cpu / 1e6:.1f} M samples/s "
-          f"(target >= {TARGET_SAMPLES_PER_S / 1e6:.0f} M samples/s, < 0.3 s)")
-    print(f"load average after: {_load()}")
+    print(f"navigate 8 h at 100 Hz ({n} samples), wall: {spread(times, '.3f', ' s')} = "
+          f"{n / med / 1e6:.1f} M samples/s; CPU: {spread(cpu, '.3f', ' s')} = "
+          f"{n / med_cpu / 1e6:.1f} M samples/s (target >= {TARGET_SAMPLES_PER_S / 1e6:.0f} "
+          f"M samples/s, i.e. < 0.3 s): wall {watch.verdict(med < 0.3, len(times))}")
+    print(watch.line())
     src = args.gnss_ins_sim
     if not src or not (pathlib.Path(src) / "demo_algorithms" / "free_integration.py").is_file():
         print("gnss-ins-sim: not found (give --gnss-ins-sim PATH to its source folder); "
               "comparison skipped")
         return 0
     m = int(args.gis_minutes * 60 * RATE_HZ)
-    info, _ = theirs(src, dth[:m], dv[:m], motion, int(RATE_HZ))
-    gis_rate = info["n"] / info["seconds"]
-    print(f"gnss-ins-sim free integration: {info['n']} samples in {info['seconds']:.2f} s "
-          f"(wall) = {gis_rate / 1e3:.1f} k samples/s; ours {n / med / 1e6:.1f} M samples/s "
-          f"(wall): ratio {n / med / gis_rate:.0f}x")
-    print(f"load average: {_load()}")
+    watch.start()
+
+    def run_ours() -> float:
+        t0 = time.perf_counter()
+        integrate(start, dth[:m], dv[:m], 1 / RATE_HZ, output_every=int(RATE_HZ))
+        return m / (time.perf_counter() - t0)
+
+    def run_theirs() -> float:
+        info, _ = theirs(src, dth[:m], dv[:m], motion, int(RATE_HZ))
+        return info["n"] / info["seconds"]
+
+    r_ours, r_gis = alternate(run_ours, run_theirs, args.pairs,
+                              lambda i, a, b: watch.sample())
+    ratio = [a / b for a, b in zip(r_ours, r_gis)]
+    print(f"same {m} samples ({args.gis_minutes:g} min of the 19-position sequence), "
+          f"{args.pairs} alternated pairs: ours {spread([r / 1e6 for r in r_ours], '.2f', ' M/s')}"
+          f"; gnss-ins-sim free integration {spread([r / 1e3 for r in r_gis], '.2f', ' k/s')}; "
+          f"ratio {spread(ratio, '.0f', 'x')}")
+    print(watch.line())
     print("accuracy on exact increments (horizontal error at the end [m], largest attitude "
           "error [arcsec], final height [m]):")
     for kind, secs in (("static", 3600.0), ("spin", 3600.0), ("calib", 2400.0)):
@@ -180,7 +192,7 @@ def main() -> int:
             row.append(f"gnss-ins-sim {gis[0]:.3g} m, {gis[1] / (DEG / 3600):.3g}\", "
                        f"h {gis[2]:.3g} m")
         print(f"  {label}: " + "; ".join(row))
-    print(f"load average after: {_load()}")
+    print(watch.line())
     return 0
 
 

@@ -181,6 +181,8 @@ def test_study_unit_draws_another_device_without_a_report():
     metrics = {(c, m) for c, m, _ in u1["rows"]}
     assert ("LS cubic T", "stability_after") in metrics
     assert ("truth: temperature law", "rmse_true") in metrics
+    assert ("LS cubic T", "nav_radial_rate_nmi_per_h") in metrics      # the unit navigates
+    assert ("truth", "nav_error_end_m") in metrics
     assert all(math.isfinite(v) for _, _, v in u1["rows"])
     assert u1["params"].keys() == u2["params"].keys()
     assert u1["params"]["gyro.bias.c1[z]"] != u2["params"]["gyro.bias.c1[z]"]
@@ -284,3 +286,21 @@ def test_a_recipe_without_a_report_hook_gets_its_score_rows(tmp_path, monkeypatc
     md = run_study(study, tmp_path, progress=False).read_text()
     assert "Study bare" in md and "Study file" in md
     assert (tmp_path / "scores.csv").read_text().splitlines()[1:] == ["model,rmse_true,0.25"]
+
+
+def test_demo_navigation_section(demo):
+    """The single gyro navigates as the North axis of an ideal IMU (docs/navigation.md):
+    raw, every compensator, the gyro oracle and the truth floor, with a reason per ranking."""
+    import csv
+    with open(demo / "navigation.csv", newline="") as fh:
+        rows = {r["variant"]: r for r in csv.DictReader(fh)}
+    assert list(rows) == ["raw", "LS cubic T", "LS cubic U", "Stepwise Model 2",
+                          "LSSVM T, dT/dt, U", "oracle (gyros)", "truth"]
+    rate = {k: float(r["radial rate [nmi/h]"]) for k, r in rows.items()}
+    assert rate["truth"] < 1e-6 < rate["oracle (gyros)"]
+    # the gyro oracle removes the temperature law the compensators estimate: less residual
+    # gyro error than the raw gyro, and than every compensator (its rest is the random part)
+    resid = {k: float(r["residual gyro error [°/h]"]) for k, r in rows.items()}
+    assert all(resid["oracle (gyros)"] <= resid[k] for k in resid if k != "truth")
+    md = (demo / "report.md").read_text()
+    assert md.count("ranks before") == len(rows) - 1 and "(navigation.png)" in md

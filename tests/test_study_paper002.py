@@ -249,9 +249,11 @@ def test_report_files_and_table1_rows(ran):
                     "Truth-based scores", "Rankings: the paper's claims against ours", "Why",
                     "Figures", "Study file"):
         assert heading in md
-    for fig in ("bias_over_time.png", "bias_vs_temperature.png", "allan_deviation.png"):
+    for fig in ("bias_over_time.png", "bias_vs_temperature.png", "allan_deviation.png",
+                "navigation.png"):
         assert (ran / fig).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"({fig})" in md
-    assert html.count("src='data:image/png;base64,") == 3
+    assert html.count("src='data:image/png;base64,") == 4
+    assert "Navigation: free-inertial position and heading errors" in md
     rows = _csv(ran / "table1.csv")
     cols = list(rows[0])
     assert cols == ["quantity", "method", "20 °C ours", "20 °C paper", "5 °C/min ours",
@@ -351,11 +353,16 @@ def test_rows_depend_on_study_and_unit_only(study, folder, tmp_path):
     payload = {"text": study.text, "source": study.source, "name": study.name,
                "base_dir": str(folder)}
     again = study_unit(payload, 0)                      # fresh folder: simulated again
-    assert again["rows"] == res.rows and again["params"] == res.params
+    # the unit's rows: the recipe's, then its navigation scores (docs/navigation.md)
+    n = len(res.rows)
+    assert again["rows"][:n] == res.rows and again["params"] == res.params
+    nav = again["rows"][n:]
+    assert nav and all(m.startswith("nav_") and math.isfinite(v) for _, m, v in nav)
+    assert {c for c, _, _ in nav} == {"raw", *METHODS, "oracle (gyros)", "truth"}
     other = study_unit(payload, 1)                      # Monte Carlo unit: another device
     assert other["params"].keys() == res.params.keys()
     assert other["params"]["gyro.bias.c1[x]"] != res.params["gyro.bias.c1[x]"]
-    assert [(c, m) for c, m, _ in other["rows"]] == [(c, m) for c, m, _ in res.rows]
+    assert [(c, m) for c, m, _ in other["rows"]] == [(c, m) for c, m, _ in again["rows"]]
 
 
 def test_several_test_runs_give_per_run_rows_and_their_mean(folder, tmp_path):

@@ -57,6 +57,7 @@ def _corrections(src: NavSource, models: Mapping[str, ModelPrediction] | None
             out[name] = (lambda a: lambda k0, k1: (a[src.step_index(k0, k1)], None))(arr)
     if src.law_gyro is not None:
         out["oracle (gyros)"] = lambda k0, k1: (src.law_gyro[src.step_index(k0, k1)], None)
+    if src.law_gyro is not None and src.law_accel is not None:
         out["oracle"] = lambda k0, k1: (src.law_gyro[src.step_index(k0, k1)],
                                         src.law_accel[src.step_index(k0, k1)])
     return out
@@ -267,3 +268,16 @@ def navigate(source: str | os.PathLike, *, models: Mapping[str, ModelPrediction]
                                align_s=align_s, output_s=output_s)
     finally:
         src.close()
+
+
+#: the navigation scores a Monte Carlo campaign collects per unit (metric name → dataset key)
+NAV_METRICS = {"nav_error_end_m": "error_end_m",
+               "nav_radial_rate_nmi_per_h": "radial_error_rate_nmi_per_h",
+               "nav_heading_end_arcmin": "heading_error_end_arcmin"}
+
+
+def nav_rows(ds) -> list[tuple[str, str, float]]:
+    """(variant, metric, value) rows of a navigation run for the Monte Carlo summaries (the
+    variants are named like the study's compensators, plus ``oracle (gyros)`` and ``truth``)."""
+    return [(str(v), metric, float(ds[key].sel(variant=v)))
+            for v in ds["variant"].values for metric, key in NAV_METRICS.items()]

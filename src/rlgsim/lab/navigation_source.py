@@ -72,7 +72,14 @@ def _weight(coef: dict, key: str, unit: str, path: pathlib.Path) -> float:
     return coef[key][0]
 
 
-def _from_dataset(path: pathlib.Path) -> NavSource:
+def _from_dataset_static(path: pathlib.Path) -> NavSource:
+    """:func:`_from_dataset` for a dataset of any number of gyros and no accelerometers: the
+    site, the power-on, the alignment segment, the truth and the attitude (read and weights
+    are the caller's)."""
+    return _from_dataset(path, need_imu=False)
+
+
+def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
     import h5py
 
     from rlgsim.ground import dataset_format as fmt
@@ -83,18 +90,21 @@ def _from_dataset(path: pathlib.Path) -> NavSource:
     try:
         imu = f["imu"]
         gyros = [_text(a) for a in imu["gyro"][...]]
-        if len(gyros) < 3:
+        if need_imu and len(gyros) < 3:
             raise UserInputError(f"{path}: imu/gyro has {len(gyros)} gyro(s) ({', '.join(gyros)});"
                                  " navigation needs three (x, y, z)")
-        if "accel_pulses" not in imu:
+        if need_imu and "accel_pulses" not in imu:
             raise UserInputError(f"{path}: imu/accel_pulses missing; navigation needs three "
                                  "accelerometers")
         rate = float(f.attrs["sample_rate_hz"])
         tr = f["truth"]
         coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
             tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
-        k_g = np.array([_weight(coef, f"gyro.k0[{a}]", "pulses/rad", path) for a in "xyz"])
-        k_a = np.array([_weight(coef, f"accel.k0[{a}]", "pulses/(m/s)", path) for a in "xyz"])
+        if need_imu:
+            k_g = np.array([_weight(coef, f"gyro.k0[{a}]", "pulses/rad", path) for a in "xyz"])
+            k_a = np.array([_weight(coef, f"accel.k0[{a}]", "pulses/(m/s)", path) for a in "xyz"])
+        else:
+            k_g = k_a = np.ones(3)
         tracks = {_text(t) for t in f["timeline/track"][...]}
         if "turntable" not in tracks:
             raise UserInputError(f"{path}: no turntable track in the timeline (a vehicle run?);"
@@ -121,13 +131,17 @@ def _from_dataset(path: pathlib.Path) -> NavSource:
         def read(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
             return (np.asarray(imu["gyro_pulses"][k0:k1], dtype=float),
                     np.asarray(imu["accel_pulses"][k0:k1], dtype=float))
+        if not need_imu:
+            read = None                                 # type: ignore[assignment]
 
         def truth(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
             mb = motion.increments(k0 / rate, k1 - k0, rate, angles=False)
             return mb.dtheta_rad, mb.dv_m_per_s
 
-        law_g = np.asarray(tr["gyro_bias"][...]) - np.asarray(tr["gyro_bias_random"][...])
-        law_a = np.asarray(tr["accel_bias"][...]) - np.asarray(tr["accel_bias_random"][...])
+        law_g = law_a = None
+        if need_imu:
+            law_g = np.asarray(tr["gyro_bias"][...]) - np.asarray(tr["gyro_bias_random"][...])
+            law_a = np.asarray(tr["accel_bias"][...]) - np.asarray(tr["accel_bias_random"][...])
         return NavSource(path.name, rate, float(f.attrs["latitude_deg"]),
                          float(f.attrs["height_m"]), n, 1.0 / k_g, 1.0 / k_a, start,
                          max(static_end, start), read, motion.attitude, truth, step, law_g,
@@ -163,6 +177,60 @@ def _from_recording(path: pathlib.Path) -> NavSource:
     return NavSource(path.name, rec.sample_rate_hz, sc.latitude_deg, sc.height_m,
                      rec.n_samples, np.full(3, 1.0 / k_g), np.full(3, 1.0 / k_a), 0,
                      rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude)
+
+
+def single_gyro_source(path: str | os.PathLike, gyro: str | None = None,
+                       mount: int = 1) -> NavSource:
+    """A single gyro of a simulated dataset as one axis of an otherwise ideal IMU.
+
+    The virtual IMU's increments are the exact ones of the run's motion (the truth), except on
+    body axis ``mount`` (0 x, 1 y, 2 z; default 1: North for a table at zero), which carries
+    the true increment of that axis plus the gyro's own error (its pulses × nominal weight
+    minus the true increment along its input axis). Its law (``law_gyro``) sits on the same
+    axis; the accelerometers are ideal (``law_accel`` None: no accelerometer oracle)."""
+    import h5py
+
+    from rlgsim.ground import dataset_format as fmt
+    p = pathlib.Path(path)
+    with fmt.open_dataset(p):
+        pass
+    f = h5py.File(p, "r")
+    try:
+        gyros = [_text(a) for a in f["imu/gyro"][...]]
+        axis = gyro if gyro is not None else gyros[0]
+        if axis not in gyros:
+            raise UserInputError(f"{p}: no gyro {axis!r} (gyros: {', '.join(gyros)})")
+        i = gyros.index(axis)
+        bodies = [_text(a) for a in f["truth/body"][...]]
+        b = bodies.index(axis) if axis in bodies else None
+        if b is None:
+            raise UserInputError(f"{p}: gyro {axis!r} is not a body axis ({', '.join(bodies)})")
+        tr = f["truth"]
+        coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
+            tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
+        w = 1.0 / _weight(coef, f"gyro.k0[{axis}]", "pulses/rad", p)
+        law = np.zeros((tr["gyro_bias"].shape[0], 3))
+        law[:, mount] = np.asarray(tr["gyro_bias"][:, i]) - np.asarray(tr["gyro_bias_random"][:, i])
+    finally:
+        f.close()
+    base = _from_dataset_static(p)
+    truth = base.truth
+
+    def read(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+        dth, dv = truth(k0, k1)
+        out = dth.copy()
+        with h5py.File(p, "r") as fh:
+            pulses = np.asarray(fh["imu/gyro_pulses"][k0:k1, i], dtype=float)
+        out[:, mount] = dth[:, mount] + (pulses * w - dth[:, b])
+        return out, dv
+
+    base.name = f"{p.name} (gyro {axis} on body axis {'xyz'[mount]} of an ideal IMU)"
+    base.read = read
+    base.gyro_weight = np.ones(3)
+    base.accel_weight = np.ones(3)
+    base.law_gyro = law
+    base.law_accel = None
+    return base
 
 
 def open_source(path: str | os.PathLike) -> NavSource:

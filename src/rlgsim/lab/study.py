@@ -255,4 +255,10 @@ def study_unit(payload: dict[str, Any], unit: int) -> dict[str, Any]:
     config = recipe.check(study)
     with tempfile.TemporaryDirectory(prefix=f"rlgsim-unit{unit}-") as tmp:
         result = recipe.run(study, config, pathlib.Path(tmp), unit=unit, progress=False)
-    return {"rows": result.rows, "params": result.params}
+        rows = list(result.rows)
+        nav_hook = getattr(recipe, "navigation", None)
+        nav = nav_hook(study, config, result) if nav_hook is not None else None
+        if nav is not None:                 # the unit's navigation scores (docs/navigation.md)
+            from rlgsim.lab.navigation import nav_rows
+            rows += nav_rows(nav[0])
+    return {"rows": rows, "params": result.params}

@@ -136,6 +136,12 @@ def fitted_models(config: Config, result: StudyResult) -> list:
             for m in from_fitted(res.fitted, prefix=f"{res.env.name} ")]
 
 
+def navigation(study: Study, config: Config, result: StudyResult):
+    """One environment's navigation (:func:`rlgsim.lab.studies.environments_report.navigation`):
+    (dataset, introduction), or None."""
+    return environments_report.navigation(config, result.details.results)
+
+
 def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report (:mod:`rlgsim.lab.studies.environments_report`), refits included, with one
     BLAS thread like the fits of :func:`run`."""

@@ -64,6 +64,25 @@ class NoiseBudget:
     rate_span: float       # range of dT/dt [K/min]
 
 
+def navigation(config: Config, results: list[EnvResult]):
+    """One environment's navigation (the first whose test runs carry the truth; the others
+    navigate alike with ``rlgsim navigate``): (dataset, introduction), or None."""
+    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
+    from rlgsim.lab.studies.scoring import has_truth
+    nav = next((r for r in results if all(has_truth(t) for t in r.tests)
+                and r.tests[0].path.suffix == ".h5"), None)
+    if nav is None:
+        return None
+    rs0 = nav.tests[0]
+    preds = nav.predictions[rs0.label]
+    return single_gyro_navigation(rs0.path, config.gyro, rs0.time_s,
+                                  {f.spec.name: preds[f.spec.name] for f in nav.fitted
+                                   if f.spec.name in preds}, config.window_s,
+                                  note=f"Environment {nav.env.name}, test run {rs0.label} (the "
+                                       f"first environment with the truth; the others navigate "
+                                       f"alike through rlgsim navigate).")
+
+
 def _window_noise(rs: RunSeries, config: Config) -> tuple[float, float]:
     """(white, quantisation) σ of a window mean [°/h] from the dataset's truth."""
     axis, sigma, rate = gyro_white_sigma(rs.path, config.gyro)           # rad per sample, Hz
@@ -856,6 +875,10 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     _figures(rep, results, config)
+    nav = navigation(config, results)
+    if nav is not None:
+        from rlgsim.lab.studies.navigation_section import add_section
+        add_section(rep, *nav)
     if results[0].tests[0].coefficients:
         device_coefficients_section(rep, results[0].tests[0].coefficients,
                                     results[0].tests[0].path)

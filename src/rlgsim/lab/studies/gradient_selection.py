@@ -382,9 +382,27 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     _series_attachments(rep, config, runs, predictions)
     _figures(rep, config, runs, per_test, predictions, fitted, corr)
     first = runs[config.test[0].key].series
+    nav = navigation(study, config, result)
+    if nav is not None:
+        from rlgsim.lab.studies.navigation_section import add_section
+        add_section(rep, *nav)
     if first.coefficients:
         device_coefficients_section(rep, first.coefficients, first.path)
     return rep
+
+
+def navigation(study: Study, config: Config, result: StudyResult):
+    """The first test run's navigation (docs/navigation.md, "In the studies"): (dataset,
+    introduction), or None for a recording."""
+    out: Outcome = result.details
+    rs = out.runs[config.test[0].key].series
+    if not has_truth(rs) or rs.path.suffix != ".h5":
+        return None
+    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
+    preds = out.predictions[config.test[0].label]
+    return single_gyro_navigation(rs.path, config.gyro, rs.time_s,
+                                  {f.spec.name: preds[f.spec.name] for f in out.fitted
+                                   if f.spec.name in preds}, config.window_s)
 
 
 def _short(p: str) -> str:

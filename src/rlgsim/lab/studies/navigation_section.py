@@ -70,10 +70,11 @@ def add_section(rep: Report, ds, intro: str, *, csv_name: str = "navigation.csv"
     plt.close(fig)
 
 
-def paper000_navigation(rep: Report, data_path: pathlib.Path, desired: dict[str, dict],
-                        desired_c: float, compensators: dict[str, str]) -> None:
-    """Paper 000's navigation section (module docstring). ``desired``: parameter → model →
-    value at ``desired_c`` (°/h, µg); ``compensators``: model key → label."""
+def paper000_navigation(data_path: pathlib.Path, desired: dict[str, dict], desired_c: float,
+                        compensators: dict[str, str]) -> tuple[Any, str]:
+    """Paper 000's navigation run and its introduction (module docstring). ``desired``:
+    parameter → model → value at ``desired_c`` (°/h, µg); ``compensators``: model key →
+    label."""
     from rlgsim.lab.navigation import navigate
     from rlgsim.lab.navigation_source import open_source
     src = open_source(data_path)
@@ -92,10 +93,56 @@ def paper000_navigation(rep: Report, data_path: pathlib.Path, desired: dict[str,
             "accel_bias": np.array([desired[f"accel_bias_{a}"][key] for a in "xyz"]) * MICRO_G}
     span_h = min(STUDY_SPAN_H, rest_h - 0.25)          # the alignment takes at most 600 s
     ds = navigate(data_path, others=others, span_s=span_h * HOUR)
-    add_section(rep, ds, f"Paper 000's IMU navigates as it is, on the campaign run ({span_h:g} h "
+    return ds, (f"Paper 000's IMU navigates as it is, on the campaign run ({span_h:g} h "
                          "after the alignment; the turntable keeps running its calibration "
                          "sequence, so scale-factor and misalignment errors times the table "
                          f"rate add to the biases). The compensated variants use the pulses "
                          f"compensated to {desired_c:g} °C (eqs. 24–29) with the models' biases "
                          f"at {desired_c:g} °C removed; no variant applies a scale-factor "
                          "model (nominal pulse weights throughout).")
+
+
+def _window_predictor(ends: np.ndarray, pred_deg_h: np.ndarray, window_s: float, mount: int):
+    """f(t) → (m, 3) [rad/s]: the prediction of the window holding t on axis ``mount``
+    (0 outside the windows)."""
+    ends = np.asarray(ends, float)
+    vals = np.asarray(pred_deg_h, float) * DEG / HOUR
+
+    def f(t: np.ndarray) -> np.ndarray:
+        j = np.searchsorted(ends, t, side="left")
+        jj = np.minimum(j, ends.size - 1)
+        ok = (j < ends.size) & (t > ends[jj] - window_s) & np.isfinite(vals[jj])
+        out = np.zeros((t.size, 3))
+        out[:, mount] = np.where(ok, vals[jj], 0.0)
+        return out
+    return f
+
+
+def single_gyro_navigation(data_path: pathlib.Path, gyro: str | None, ends: np.ndarray,
+                           predictions: dict[str, np.ndarray], window_s: float,
+                           mount: int = 1, note: str = "") -> tuple[Any, str]:
+    """The navigation section of a single-gyro study: the test run's gyro as the North axis
+    (``mount``) of an otherwise ideal IMU (:func:`rlgsim.lab.navigation_source.
+    single_gyro_source`), each compensator's window prediction [°/h] subtracted."""
+    from rlgsim.lab.navigation import navigate_source
+    from rlgsim.lab.navigation_source import single_gyro_source
+    src = single_gyro_source(data_path, gyro, mount)
+    try:
+        rest_h = (src.n - src.start) / src.rate_hz / HOUR
+        span_h = min(STUDY_SPAN_H, rest_h - 0.25)
+        models = {name: _window_predictor(ends, p, window_s, mount)
+                  for name, p in predictions.items()}
+        ds = navigate_source(src, models=models, span_s=span_h * HOUR)
+    finally:
+        src.close()
+    ds.attrs["compensation"] = "the compensators' window predictions subtracted from the gyro"
+    return ds, (f"The device has one gyro, so it navigates as the {'xyz'[mount]} "
+                         f"(North) axis of an otherwise ideal IMU: the exact increments of the "
+                         f"run's motion on every axis, plus this gyro's own error (its pulses "
+                         f"through the nominal weight minus the true increment) on the North "
+                         f"axis, where a gyro error costs the most position (North gyro error → "
+                         f"East tilt → East velocity). Ideal accelerometers, so no "
+                         f"accelerometer oracle. Not done: the three-unit IMU (units drawn from "
+                         f"the preset, compensated per axis) that would show the units' spread. "
+                         f"{span_h:g} h after the alignment. {note}".rstrip())
+

@@ -641,15 +641,26 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
                    "Residuals after system-level compensation (re-calibrated parameter minus "
                    "the model's value at the desired temperature), HHO-RVR and LSM.")
 
-    if comp_tables:
-        from rlgsim.lab.studies.navigation_section import paper000_navigation
-        paper000_navigation(rep, data_path, desired, cfg.desired_c,
-                            {"hho_rvr": "HHO-RVR", "lsm": "LSM"})
+    nav = navigation(study, cfg, result)
+    if nav is not None:
+        from rlgsim.lab.studies.navigation_section import add_section
+        add_section(rep, *nav)
 
     rep.heading("Timing", 2)
     rep.table(Table("Wall time", ["step", "s"], [[k, v] for k, v in clock.items()],
                     csv_name="timing.csv"))
     return rep
+
+
+def navigation(study, cfg: Config, result: StudyResult):
+    """The campaign run's navigation with the compensated datasets (docs/navigation.md, "In
+    the studies"): (dataset, introduction), or None without the compensation."""
+    o: Outcome = result.details
+    if not o.comp_tables:
+        return None
+    from rlgsim.lab.studies.navigation_section import paper000_navigation
+    return paper000_navigation(o.data_path, o.desired, cfg.desired_c,
+                               {"hho_rvr": "HHO-RVR", "lsm": "LSM"})
 
 
 def _input_probe(cfg: Config) -> str:
