@@ -77,3 +77,86 @@ def test_the_stage_modules_are_read_by_ast_too():
                 if isinstance(n, ast.ImportFrom) and n.module
                 and n.module.startswith("rlgsim.sim.stages.")}
     assert set(_stage_modules()) <= imported
+
+
+# --------------------------------------------------------------------------- sizes
+
+#: a non-test file over this many lines needs a reason at its top (docs/contributing.md)
+REASON_LINES = 400
+MAX_LINES = 700
+MAX_FUNCTION_LINES = 100
+SIM_FILES = sorted(p for p in SIM.rglob("*.py") if "__pycache__" not in p.parts)
+
+
+@pytest.mark.parametrize("path", SIM_FILES, ids=lambda p: str(p.relative_to(SIM)))
+def test_a_sim_file_is_small_or_says_why(path):
+    text = path.read_text(encoding="utf-8")
+    n = len(text.splitlines())
+    assert n <= MAX_LINES, f"{path.relative_to(SIM)}: {n} lines; split it along its seams"
+    if n > REASON_LINES:
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        assert "over 400 lines" in doc.lower(), (
+            f"{path.relative_to(SIM)}: {n} lines and no reason at its top ('Why this file is "
+            f"over 400 lines: ...' in the module docstring)")
+
+
+@pytest.mark.parametrize("path", SIM_FILES, ids=lambda p: str(p.relative_to(SIM)))
+def test_no_sim_function_is_over_100_lines(path):
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    long = sorted((node.end_lineno - node.lineno + 1, node.name) for node in ast.walk(tree)
+                  if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+                  and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES)
+    assert not long, f"{path.relative_to(SIM)}: functions over {MAX_FUNCTION_LINES} lines {long}"
+
+
+# --------------------------------------------------------------------------- names
+
+
+class _Recorder:
+    """Stands in for a group writer: records what is declared."""
+
+    def __init__(self) -> None:
+        self.declared: list[str] = []
+
+    def dimension(self, name):
+        self.declared.append(name)
+
+    def coordinate(self, name, *args, **kwargs):
+        self.declared.append(name)
+
+    def variable(self, name, *args, **kwargs):
+        self.declared.append(name)
+
+
+def test_the_schema_declares_only_names_the_ground_format_lists():
+    """The variable names are declared once, in rlgsim.ground.dataset_format; the schema
+    refuses to declare any other (the format owns the names, the schema adds the rest)."""
+    from rlgsim.ground import dataset_format as fmt
+    from rlgsim.sim.writer.schema import _Listed
+
+    rec = _Recorder()
+    g = _Listed(rec, fmt.IMU)
+    g.dimension("sample")
+    g.variable("gyro_pulses", ("sample", "gyro"), units="1", description="x")
+    g.variable("sample_valid", ("sample",), units="1", description="x")      # optional part
+    assert rec.declared == ["sample", "gyro_pulses", "sample_valid"]
+    for bad in (lambda: g.variable("gyro_pulse", ("sample",), description="x"),
+                lambda: g.coordinate("node", ["a"], description="x"),    # a thermal name
+                lambda: g.dimension("samples")):
+        with pytest.raises(ValueError, match="dataset_format does not list"):
+            bad()
+    assert rec.declared == ["sample", "gyro_pulses", "sample_valid"]       # nothing written
+
+
+def test_every_schema_declaration_goes_through_the_guard():
+    """Every declare_* function (and write_timeline) of the schema wraps its group writer in
+    the guard before declaring anything."""
+    tree = ast.parse((SIM / "writer" / "schema.py").read_text(encoding="utf-8"))
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef) and (node.name.startswith("declare_")
+                                                  or node.name == "write_timeline"):
+            src = ast.unparse(node)
+            guard = src.find("_Listed(g, fmt.")
+            first = min((i for i in (src.find("g.variable("), src.find("g.coordinate("),
+                                     src.find("g.dimension(")) if i >= 0), default=-1)
+            assert guard >= 0 and (first < 0 or guard < first), node.name

@@ -31,6 +31,11 @@ a motion boundary is split at the boundary and the pieces are summed, so the inc
 exact integrals (to rounding), not rate × Δt.
 
 Vectorised over samples; the only Python loop runs over the motions that touch a block.
+
+Why this file is over 400 lines: it is one model, the exact kinematics of the table on the
+rotating Earth (segments, their angles and the closed-form increments over any sample grid,
+with the runs at rest found on the way); the programme reader is apart (turntable.py) and a
+vehicle's kinematics too (trajectory.py).
 """
 
 from __future__ import annotations

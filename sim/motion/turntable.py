@@ -77,6 +77,10 @@ g·φ·t ≈ 5.7 mm/s in 120 s, from a 0.01 °/h gyro bias to ≈ g·b·t²/2 �
 velocity noise of navigation-grade accelerometers) and 159 s for the first dwell, which also
 serves the static alignment: 159 + 18·120 + 18·4.5 = 2400 s = 40 min, as in paper 000
 (7000 min / 40 min = 175 windows).
+
+Why this file is over 400 lines: it is one reader, the ``[turntable]`` table and its step kinds
+with their checks and durations (the calibration sequences included), whose parts share the
+same small step classes; the kinematics of the result are apart (kinematics.py).
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ DEVICE_TABLES: dict[str, TableValidator | None] = {
     "uhfo": UhfoModel.from_config,
     "noise": NoiseModel.from_config,
     "tolerance": Tolerance.from_config,
-    "anomalies": AnomalyModel.from_config,          # optional sensor anomalies (sim/sensors/anomalies.py)
+    "anomalies": AnomalyModel.from_config,          # optional sensor anomalies (anomaly_model.py)
 }
 
 #: Keys of a device preset's ``[device]`` table.

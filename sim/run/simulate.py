@@ -134,6 +134,31 @@ def default_output(scenario) -> pathlib.Path:
     return pathlib.Path(f"{scenario.name}.h5")
 
 
+def _root_attrs(scenario, timeline) -> dict:
+    """The dataset's root attributes (docs/dataset.md "Root attributes"): what was run, with
+    which seeds, on which grid and where."""
+    step = timeline.step_s
+    return {
+        "title": f"rlgsim run of scenario {scenario.name}",
+        "scenario_name": scenario.name,
+        "scenario_description": scenario.description,
+        "scenario_source": scenario.source,
+        "scenario_text": scenario.text,
+        "device": scenario.device.name,
+        "device_text": scenario.device.text,
+        "thermal_preset_text": scenario.device.thermal.text,
+        "seed": np.int64(scenario.seed),
+        "unit": np.int64(scenario.unit),
+        "device_seed": np.int64(scenario.realisation_seed),
+        "duration_s": float(timeline.duration_s),
+        "thermal_step_s": float(step),
+        "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
+        "block_s": BLOCK_S,
+        "latitude_deg": scenario.site.latitude_deg,
+        "height_m": scenario.site.height_m,
+    }
+
+
 def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | None = None,
              progress: bool = True, should_stop: Callable[[], bool] | None = None
              ) -> pathlib.Path:
@@ -167,25 +192,7 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
             from rlgsim.sim.motion.kinematics import Motion
             motion = Motion(timeline.segments, scenario.site)  # exact turntable kinematics
 
-    attrs = {
-        "title": f"rlgsim run of scenario {scenario.name}",
-        "scenario_name": scenario.name,
-        "scenario_description": scenario.description,
-        "scenario_source": scenario.source,
-        "scenario_text": scenario.text,
-        "device": scenario.device.name,
-        "device_text": scenario.device.text,
-        "thermal_preset_text": scenario.device.thermal.text,
-        "seed": np.int64(scenario.seed),
-        "unit": np.int64(scenario.unit),
-        "device_seed": np.int64(scenario.realisation_seed),
-        "duration_s": float(timeline.duration_s),
-        "thermal_step_s": float(step),
-        "sample_rate_hz": float(scenario.acquisition.sample_rate_hz),
-        "block_s": BLOCK_S,
-        "latitude_deg": scenario.site.latitude_deg,
-        "height_m": scenario.site.height_m,
-    }
+    attrs = _root_attrs(scenario, timeline)
     from tqdm import tqdm
     with DatasetWriter(out, attrs) as w:
         write_timeline(w, timeline)

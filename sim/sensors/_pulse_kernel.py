@@ -50,6 +50,51 @@ CHUNK = 512
 _ABS_BITS = np.int64(0x7FFFFFFFFFFFFFFF)      # a float64's bits without the sign
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _scaled_per_sample(ub, x_t, rows, bias, sample_dt, zs, sg, k_pos, k_neg, one, step_of,
+                       power, s, o, c0, w, has_z, has_neg, has_power):  # pragma: no cover
+    """:func:`count_block`'s scaled increments ``ub[:w]`` of channel ``s`` for the samples
+    ``c0 … c0 + w − 1`` when each sample names its step (``step_of``)."""
+    for t in range(w):
+        j = np.uint64(c0 + t)
+        st = step_of[j]
+        x0, x1, x2 = x_t[0, j], x_t[1, j], x_t[2, j]
+        p0 = x0 if o == 0 else rows[st, s, 0] * x0
+        p1 = x1 if o == 1 else rows[st, s, 1] * x1
+        p2 = x2 if o == 2 else rows[st, s, 2] * x2
+        u = ((p0 + p1) + p2) + bias[st, s] * sample_dt
+        if has_z:
+            u = u + np.float64(zs[np.uint64(t)]) * sg
+        if has_neg and not u >= 0.0:
+            u = u * (k_neg[st, s] * one)
+        else:
+            u = u * (k_pos[st, s] * one)
+        if has_power and power[st] <= 0.0:
+            u = 0.0
+        ub[np.uint64(t)] = u
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _count_chunk(ub, bits, q, w, h, ph, pv, outs):  # pragma: no cover
+    """:func:`count_block`'s count of one chunk of one channel: the largest |u| bits ``h``
+    updated, ``u`` rounded to the nearest integer (half to even), accumulated into the phase
+    ``ph`` and counted in whole pulses (``ph >> 30``) into ``outs``; returns
+    ``(h, ph, pv)`` with ``pv`` the last count."""
+    for t in range(w):
+        ut = np.uint64(t)
+        v = bits[ut] & _ABS_BITS
+        if v > h:
+            h = v
+        q[ut] = np.int64(np.rint(ub[ut]))
+    for t in range(w):
+        ut = np.uint64(t)
+        ph += q[ut]
+        cc = ph >> 30
+        outs[ut] = np.int32(cc - pv)
+        pv = cc
+    return h, ph, pv
+
+
 @njit(cache=True, nogil=True)
 def count_block(x_t, rows, bias, sample_dt, z, sigma, k_pos, k_neg, one, r, step_of,
                 uniform, first, own, power, remainder, out, new, peak_bits):  # pragma: no cover
@@ -139,42 +184,11 @@ def count_block(x_t, rows, bias, sample_dt, z, sigma, k_pos, k_neg, one, r, step
                         for t in range(w):
                             ub[np.uint64(t)] = 0.0
                 else:                                   # a step index per sample
-                    for t in range(w):
-                        j = np.uint64(c0 + t)
-                        st = step_of[j]
-                        x0, x1, x2 = x_t[0, j], x_t[1, j], x_t[2, j]
-                        p0 = x0 if o == 0 else rows[st, s, 0] * x0
-                        p1 = x1 if o == 1 else rows[st, s, 1] * x1
-                        p2 = x2 if o == 2 else rows[st, s, 2] * x2
-                        u = ((p0 + p1) + p2) + bias[st, s] * sample_dt
-                        if has_z:
-                            u = u + np.float64(zs[np.uint64(t)]) * sg
-                        if has_neg and not u >= 0.0:
-                            u = u * (k_neg[st, s] * one)
-                        else:
-                            u = u * (k_pos[st, s] * one)
-                        if has_power and power[st] <= 0.0:
-                            u = 0.0
-                        ub[np.uint64(t)] = u
-                h = hb[s]
-                for t in range(w):
-                    ut = np.uint64(t)
-                    v = bits[ut] & _ABS_BITS
-                    if v > h:
-                        h = v
-                    q[ut] = np.int64(np.rint(ub[ut]))
-                hb[s] = h
-                ph = phi[s]
-                pv = prev[s]
-                outs = out[c0:c1, s]
-                for t in range(w):
-                    ut = np.uint64(t)
-                    ph += q[ut]
-                    cc = ph >> 30
-                    outs[ut] = np.int32(cc - pv)
-                    pv = cc
-                phi[s] = ph
-                prev[s] = pv
+                    _scaled_per_sample(ub, x_t, rows, bias, sample_dt, zs, sg, k_pos, k_neg,
+                                       one, step_of, power, s, o, c0, w, has_z, has_neg,
+                                       has_power)
+                hb[s], phi[s], prev[s] = _count_chunk(ub, bits, q, w, hb[s], phi[s], prev[s],
+                                                      out[c0:c1, s])
     for s in range(c):
         new[s] = phi[s] - (prev[s] << 30)
         peak_bits[s] = hb[s]

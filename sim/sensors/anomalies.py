@@ -14,6 +14,11 @@ or thermal step, the dataset's time convention), ``end_s``, ``channel`` (gyro ax
 name), ``kind``, ``size`` and ``units`` — bias step [deg/h] for mode hops, pulses for spikes,
 lost pulses for dropouts, the replaced-minus-true reading [°C] for glitches, the duration [s]
 for stuck readings and probe dropouts.
+
+Why this file is over 400 lines: it is one engine, the anomalies of a run drawn and applied
+block by block (mode hops with their hysteresis, pulse spikes, lost frames, probe glitches,
+stuck and missing readings), every kind sharing the carried state and the event record; the
+table and the rows are apart (anomaly_model.py).
 """
 
 from __future__ import annotations

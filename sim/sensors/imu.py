@@ -40,6 +40,11 @@ the site, so by default the truth group stores them summed per thermal step (flo
 stores them per sample as well (48 bytes per epoch — at 100 Hz over paper 000's 121 h
 programme that is 2 GB, several times the rest of the file, which is why it is not the
 default; see benchmarks/bench_sim.py).
+
+Why this file is over 400 lines: it is one engine, a drawn unit simulated block by block
+(inputs drawn ahead in a worker thread, kinematics, slow noise, UHFO, the two counting calls),
+whose parts share the carried state and the prefetch queue; the model and realisation are apart
+(imu_model.py), the stage too (sim/stages/imu.py).
 """
 
 from __future__ import annotations

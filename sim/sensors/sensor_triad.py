@@ -18,6 +18,11 @@ equation (:func:`phase_increments`), the per-axis bookkeeping (:func:`axis_indic
 (:func:`parse_sensor_sites`, :func:`law_spec`) and the two base classes
 :class:`SensorTriadModel` (the nominal laws + tolerances: ``with_tolerance``, ``realise``) and
 :class:`SensorTriad` (one unit's realised laws: ``bind``, evaluation on the thermal grid).
+
+Why this file is over 400 lines: it holds the one measurement equation the gyros and the
+accelerometers share — the preset parsing of a triad, its realisation, and the pulse count with
+its NumPy path beside the compiled one (_pulse_kernel.py) — so both instruments read one
+definition, and the NumPy reference sits next to the call that may replace it.
 """
 
 from __future__ import annotations

@@ -27,6 +27,11 @@ with time constant ``air_tau_s``; that lag is one more state of the thermal inte
 The slew-rate limiter is written here because no library offers an exact (event-based,
 closed-form) limiter of a piecewise-linear signal; sampled limiters would put the catch-up
 instants off the breakpoints. docs/thermal.md §1.1 states the equations.
+
+Why this file is over 400 lines: it is one reader and one model, the chamber programme: the
+segment kinds with their checks, the expansion to the piecewise-linear set point (random
+profiles included) and the rate limit, which share the segment classes; the controllers are
+apart (chamber_controllers.py, chamber_controller.py).
 """
 
 from __future__ import annotations

@@ -38,6 +38,11 @@ The product with ``C^-½ V`` is done on fixed-shape row blocks so BLAS takes the
 every row whatever the call length (a plain ``W @ P`` is not row-independent in OpenBLAS), with
 BLAS limited to one thread (threadpoolctl): the products are small, and multi-threaded
 OpenBLAS on a busy machine is many times slower than one thread.
+
+Why this file is over 400 lines: it is one solver, the exact propagation of the network: the
+modal set-up, the vectorised path and the step-by-step path for the state-dependent inputs
+(heaters, nonlinear links, airflow, the chamber's own loop), which share the per-mode
+coefficients; the compiled heater loop is apart (_heater_kernel.py).
 """
 
 from __future__ import annotations
@@ -239,6 +244,23 @@ class ThermalIntegrator:
             self._c_db = beta_b * E0[None, :, 0, 3] / h          # × (T_b[k+1] − T_b[k])
         else:
             self._c_b = self._c_db = np.zeros((0, n))
+        self._setup_state_terms(network, d, V, E, h)   # heaters, nonlinear links, airflow
+        #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
+        self.last_heater_power_w = np.zeros((0, len(self.heaters)))
+        #: further boundaries' temperatures [°C] (m, nb) at the ends of the last call's steps
+        self.last_boundary_c = np.zeros((0, len(self.boundaries)))
+        if tau > 0:
+            self._air_mu = float(E[0, 1, 1])
+            self._air_s = float(E[0, 1, 2])
+            self._air_ds = float(E[0, 1, 3] / h)
+        else:
+            self._air_mu = self._air_s = self._air_ds = 0.0
+
+    def _setup_state_terms(self, network: ThermalNetwork, d: np.ndarray, V: np.ndarray,
+                           E: np.ndarray, h: float) -> None:
+        """The coefficients of the inputs that depend on the state — controlled heaters,
+        nonlinear link parts, airflow over the ambient links — from the modal basis (``d`` =
+        C^-½, ``V`` the eigenvectors, ``E`` the per-mode step exponentials, ``h`` the step)."""
         # controlled heaters: ZOH power into their node, sensors read from the modal state
         self.heaters = tuple(network.heaters)
         if self.heaters:
@@ -276,16 +298,6 @@ class ThermalIntegrator:
         self._film_rows = (d[:, None] * V)[inv_f]                            # (nf, n)
         self._film_cols = (V.T[:, inv_f] * d[inv_f][None, :]) * E[:, 0, 4][:, None]  # (n, nf)
         self._film_g = g_amb[inv_f]
-        #: heater powers [W] (m, H) of the last propagate call (a record for the caller)
-        self.last_heater_power_w = np.zeros((0, len(self.heaters)))
-        #: further boundaries' temperatures [°C] (m, nb) at the ends of the last call's steps
-        self.last_boundary_c = np.zeros((0, len(self.boundaries)))
-        if tau > 0:
-            self._air_mu = float(E[0, 1, 1])
-            self._air_s = float(E[0, 1, 2])
-            self._air_ds = float(E[0, 1, 3] / h)
-        else:
-            self._air_mu = self._air_s = self._air_ds = 0.0
 
     # ----------------------------------------------------------------- states
 

@@ -25,6 +25,12 @@ CPU time — once a self-check has shown that with the HDF5 this process loaded
 
 Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
 format marker and version); :func:`summary` is what ``rlgsim info`` prints.
+
+Why this file is over 400 lines: it is the one HDF5 writer — the group writer with its chunk
+staging and direct-chunk path, the dataset's life cycle (temporary file, marker written last,
+stale temporaries) and the small reading helpers of ``rlgsim info`` and ``add_group``, which
+must agree with it on the layout; the encoders and the direct-chunk checks are apart
+(_scaleoffset*.py, _direct_*.py).
 """
 
 from __future__ import annotations

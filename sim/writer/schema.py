@@ -30,6 +30,10 @@ so runs without it keep their layout: the ``thermal`` group's heaters and furthe
 Units are UDUNITS spellings ("1" for dimensionless and flags, none for strings); times are s
 since the start of the run at the end of each thermal step (or IMU sample), absolute
 temperatures °C.
+
+Why this file is over 400 lines: it is the one room that declares every group of a dataset —
+names (checked against rlgsim.ground.dataset_format), dimensions, units and descriptions — so a
+reader of the format finds the whole layout in one place (docs/dataset.md is its prose).
 """
 
 from __future__ import annotations
@@ -67,12 +71,48 @@ DESCRIPTIONS: dict[str, str] = {
 _TIME = "time since the start of the run at the end of each thermal step"
 
 
+class _Listed:
+    """A group writer that declares only the names :mod:`rlgsim.ground.dataset_format` lists
+    for its group (:data:`~rlgsim.ground.dataset_format.VARIABLES` and
+    :data:`~rlgsim.ground.dataset_format.OPTIONAL_VARIABLES`): the format owns the names, this
+    room adds their dimensions, units and descriptions. A name the format does not list is a
+    programming error (ValueError) before anything is written; the order and completeness of
+    the declared names are checked by tests/test_imu.py and tests/test_dataset_optional.py."""
+
+    def __init__(self, g: GroupWriter, group: str) -> None:
+        self._g = g
+        self._group = group
+        self._names = set(fmt.VARIABLES.get(group, ())) | set(fmt.OPTIONAL_VARIABLES.get(group, ()))
+
+    def _check(self, name: str) -> None:
+        if name not in self._names:
+            raise ValueError(f"the schema declares {self._group}/{name}, which "
+                             f"rlgsim.ground.dataset_format does not list for group "
+                             f"{self._group!r}; add it to VARIABLES or OPTIONAL_VARIABLES there")
+
+    def dimension(self, name: str) -> None:
+        self._check(name)
+        self._g.dimension(name)
+
+    def coordinate(self, name: str, *args: Any, **kwargs: Any) -> None:
+        self._check(name)
+        self._g.coordinate(name, *args, **kwargs)
+
+    def variable(self, name: str, *args: Any, **kwargs: Any) -> None:
+        self._check(name)
+        self._g.variable(name, *args, **kwargs)
+
+    def set_attrs(self, attrs: Any) -> None:
+        self._g.set_attrs(attrs)
+
+
 # --------------------------------------------------------------------------- timeline
 
 
 def write_timeline(w: DatasetWriter, timeline) -> None:
     """The ``timeline`` group of a :class:`rlgsim.sim.run.schedule.Timeline`, written whole."""
     g = w.group(fmt.TIMELINE, DESCRIPTIONS[fmt.TIMELINE])
+    g = _Listed(g, fmt.TIMELINE)  # type: ignore[assignment]
     segs = timeline.segments
     g.coordinate("segment", np.arange(len(segs), dtype=np.int32), units="1",
                  description="segment index", dtype=np.int32)
@@ -104,6 +144,7 @@ def declare_thermal(g: GroupWriter, nominal, realised) -> None:
     """The ``thermal`` group: growing ``time`` rows (``chamber_setpoint``, ``chamber_air``,
     ``power_on``, ``node_temperature``) and the simulated unit's network — ``realised`` values
     and their factors over the ``nominal`` :class:`rlgsim.sim.thermal.network.ThermalNetwork`."""
+    g = _Listed(g, fmt.THERMAL)  # type: ignore[assignment]
     node_names = tuple(realised.node_names)
     g.coordinate("time", growing=True, units="s", description=_TIME)
     g.variable("chamber_setpoint", ("time",), units="degC",
@@ -149,6 +190,7 @@ def declare_thermal_parts(g: GroupWriter, network) -> None:
     for a network without them, so such datasets keep their layout): ``heater``,
     ``heater_power`` (time, heater) [W] held over the step ending at time; ``boundary``,
     ``boundary_temperature`` (time, boundary) [°C] at time."""
+    g = _Listed(g, fmt.THERMAL)  # type: ignore[assignment]
     if network.heaters:
         g.coordinate("heater", [h.name for h in network.heaters],
                      description="controlled heater of the network")
@@ -169,6 +211,7 @@ def declare_thermal_parts(g: GroupWriter, network) -> None:
 def declare_probes(g: GroupWriter, probes, network) -> None:
     """The ``probes`` group of a :class:`rlgsim.sim.thermal.thermometers.ProbeSet` on ``network``:
     the probes' properties and the growing ``temperature`` rows."""
+    g = _Listed(g, fmt.PROBES)  # type: ignore[assignment]
     names = tuple(probes.names)
     nodes = [network.node_names[i] for i in np.asarray(probes.node_index)]
     g.coordinate("time", growing=True, units="s", description=_TIME)
@@ -199,6 +242,7 @@ def declare_imu(g: GroupWriter, realisation, *, rate_hz: float, step_s: float) -
     """The ``imu`` group of a drawn unit (:class:`rlgsim.sim.sensors.imu_model.ImuRealisation`): pulses along
     ``sample`` (no stored coordinate), UHFO along ``time``; accelerometer and UHFO variables
     only when the unit has them."""
+    g = _Listed(g, fmt.IMU)  # type: ignore[assignment]
     gy, acc, uh = realisation.gyros, realisation.accels, realisation.uhfo
     g.set_attrs({"sample_rate_hz": rate_hz, "thermal_step_s": step_s,
                  "sample_time": "sample k covers [k/f, (k+1)/f); its time is (k+1)/f s "
@@ -224,6 +268,7 @@ def declare_imu(g: GroupWriter, realisation, *, rate_hz: float, step_s: float) -
 def declare_sample_valid(g: GroupWriter) -> None:
     """The ``imu`` group's frame-validity flag, declared after :func:`declare_imu` and only
     when the device's ``[anomalies]`` table has IMU frame dropouts (:mod:`rlgsim.sim.sensors.anomalies`)."""
+    g = _Listed(g, fmt.IMU)  # type: ignore[assignment]
     g.variable("sample_valid", ("sample",), units="1", dtype=np.int8,
                description="1 if the IMU frame reached the log, 0 if it was lost (its pulses "
                            "are 0 here; the lost counts are in the anomalies group)")
@@ -232,6 +277,7 @@ def declare_sample_valid(g: GroupWriter) -> None:
 def declare_turntable(g: GroupWriter, segments: Sequence[Any]) -> None:
     """The ``turntable`` group: angles and motion index along ``time`` and the table of the
     timeline's turntable ``segments`` (dimension ``motion``)."""
+    g = _Listed(g, fmt.TURNTABLE)  # type: ignore[assignment]
     segs = segments
     g.coordinate("time", growing=True, units="s", description=_TIME)
     g.variable("outer_angle", ("time",), units="degree",
@@ -277,6 +323,7 @@ def declare_truth(g: GroupWriter, realisation, *, seed: int, unit: int, rate_hz:
     inputs along ``time`` (per ``sample`` too when ``truth_samples``), the white-noise σ per
     sample (gyro [rad], accelerometer [m/s]) and, as attributes, the recipes that reproduce the
     pulses (docs/dataset.md "Reproducing the pulses")."""
+    g = _Listed(g, fmt.TRUTH)  # type: ignore[assignment]
     gy, acc, uh = realisation.gyros, realisation.accels, realisation.uhfo
     names, values, unit_list = realisation.coefficient_table()
     g.set_attrs({
@@ -356,6 +403,7 @@ def declare_anomalies(g: GroupWriter) -> None:
     :class:`rlgsim.sim.stages.anomalies.AnomalyStage`): one row per event along the growing
     dimension ``event`` — start and end [s], channel, kind, size and the unit of the size
     (docs/sensors.md)."""
+    g = _Listed(g, fmt.ANOMALIES)  # type: ignore[assignment]
     g.coordinate("event", growing=True, dtype=np.int64, units="1",
                  description="event index in order of time")
     g.variable("time", ("event",), units="s",
@@ -381,6 +429,7 @@ def declare_trajectory(g: GroupWriter, trajectory) -> None:
     """The ``trajectory`` group of a run on a vehicle (:class:`rlgsim.sim.motion.trajectory.
     Trajectory`): the states at the end of each IMU sample along ``sample`` (no stored
     coordinate, as in ``imu``) and the table of the legs (dimension ``leg``)."""
+    g = _Listed(g, fmt.TRAJECTORY)  # type: ignore[assignment]
     legs = trajectory.legs
     g.set_attrs({"frames": "navigation frame ENU at the vehicle; body axes x right, y forward, "
                            "z up; C_b^n = R_z(-heading) R_x(pitch) R_y(roll)",
