@@ -29,7 +29,9 @@ def _records(n: int = 8) -> list[UnitRecord]:
 @pytest.mark.parametrize("metric, unit", [
     ("stability_after", "°/h"), ("rmse_true", "°/h"), ("improvement_pct@test2", "%"),
     ("r2_true", "1"), ("improvement_factor", "1"), ("gyro_bias_x.rmse", ""),
-    ("gyro_bias_x.residual_variance", ""), ("avg_improvement_rmse_pct", "%")])
+    ("gyro_bias_x.residual_variance", ""), ("avg_improvement_rmse_pct", "%"),
+    ("nav_error_end_m", "m"), ("nav_radial_rate_nmi_per_h", "nmi/h"),
+    ("nav_heading_end_arcmin", "′")])
 def test_metric_units(metric, unit):
     assert metric_unit(metric) == unit
 
@@ -51,3 +53,17 @@ def test_summary_drops_baseline_repeats_and_rounding_noise():
     assert raw_imp["unit"] == "%" and rows[("LS", "stability_after")]["unit"] == "°/h"
     assert rows[("LS", "stability_after")]["beats baseline"] == 1.0
     assert "-1.084e-14" not in rep.markdown()
+
+
+def test_navigation_metrics_get_their_spread_figures():
+    """Units that navigated (docs/navigation.md) get the radial-rate and heading figures even
+    beyond the cap of figures of the other metrics."""
+    records = _records()
+    for k, r in enumerate(records):
+        r.rows += [(c, m, 0.1 * (k + 1) + (c == "raw"))
+                   for c in ("raw", "LS", "truth")
+                   for m in ("nav_error_end_m", "nav_radial_rate_nmi_per_h",
+                             "nav_heading_end_arcmin")]
+    md = summary_report(records, 8, title="toy", baseline="raw").markdown()
+    assert "spread_nav_radial_rate_nmi_per_h.png" in md
+    assert "spread_nav_heading_end_arcmin.png" in md

@@ -42,6 +42,8 @@ PRIMARY_METRICS = ("stability_after", "improvement_pct", "resid_std_true", "rmse
 
 #: How many box/violin figures the summary draws at most (one per metric).
 MAX_FIGURES = 6
+#: Navigation scores drawn beside them whenever the units navigated (docs/navigation.md)
+NAV_FIGURE_METRICS = ("nav_radial_rate_nmi_per_h", "nav_heading_end_arcmin")
 #: How many drawn parameters the worst-units tables show (units.csv has them all).
 MAX_PARAMS = 10
 
@@ -263,7 +265,9 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
                     csv_name="summary.csv"))
 
     rep.heading("Spread over the units", 2)
-    for metric in metrics[:MAX_FIGURES]:
+    drawn = metrics[:MAX_FIGURES]
+    drawn += [m for m in NAV_FIGURE_METRICS if m in metrics and m not in drawn]
+    for metric in drawn:
         names = [c for c in comps if matrix.get((c, metric))]
         data = [np.asarray(list(matrix[(c, metric)].values()), float) for c in names]
         data = [d[np.isfinite(d)] for d in data]
