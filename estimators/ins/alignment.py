@@ -27,6 +27,7 @@ estimated ψ corrects the attitude at the segment end: C_b^n = exp([ψ̂×]) C̃
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -111,6 +112,15 @@ def error_model_matrix(latitude_deg: float, height_m: float = 0.0) -> np.ndarray
     return f
 
 
+@functools.lru_cache(maxsize=32)
+def _transition(latitude_deg: float, height_m: float, step_s: float) -> np.ndarray:
+    """exp(F Δt) of :func:`error_model_matrix` (cached: a study aligns many variants at one
+    site)."""
+    phi = scipy.linalg.expm(error_model_matrix(latitude_deg, height_m) * step_s)
+    phi.setflags(write=False)
+    return phi
+
+
 def align(dtheta: np.ndarray, dv: np.ndarray, dt_s: float, latitude_deg: float,
           longitude_deg: float = 0.0, height_m: float = 0.0, *, step_s: float = 1.0,
           arw_deg_rt_h: float = 0.003, vrw_ug_rt_hz: float = 30.0,
@@ -134,7 +144,7 @@ def align(dtheta: np.ndarray, dv: np.ndarray, dt_s: float, latitude_deg: float,
     sol = integrate(start, dtheta, dv, dt_s, output_every=every)
     h_kf = every * dt_s
     kf = KalmanFilter(dim_x=5, dim_z=2)
-    kf.F = scipy.linalg.expm(error_model_matrix(latitude_deg, height_m) * h_kf)
+    kf.F = _transition(float(latitude_deg), float(height_m), float(h_kf))
     kf.H = np.array([[0, 0, 0, 1.0, 0], [0, 0, 0, 0, 1.0]])
     arw = arw_deg_rt_h * DEG / math.sqrt(HOUR)
     vrw = vrw_ug_rt_hz * MICRO_G

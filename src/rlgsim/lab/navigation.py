@@ -38,6 +38,9 @@ from rlgsim.ground.frames import quat_to_dcm
 from rlgsim.ground.units import ARCMIN, DEG, HOUR, MICRO_G, NAUTICAL_MILE
 from rlgsim.lab.navigation_source import NavSource, open_source
 
+#: the fine alignment's measurement interval [s] (zero-velocity updates over ≤ 600 s)
+ALIGN_STEP_S = 5.0
+
 ModelPrediction = np.ndarray | Callable[[np.ndarray], np.ndarray]
 
 
@@ -141,7 +144,7 @@ def _align_all(src: NavSource, variants: dict, a0: int, a1: int) -> tuple[dict, 
     states, psi_align, bound = {}, {}, {}
     for v, corr in variants.items():
         dth, dv = _increments(src, a0, a1, corr, pulses, truth)
-        al = align(dth, dv, dt, src.latitude_deg, 0.0, src.height_m)
+        al = align(dth, dv, dt, src.latitude_deg, 0.0, src.height_m, step_s=ALIGN_STEP_S)
         states[v] = al.state
         psi_align[v] = attitude_error(al.c_bn, c_true_a1)[2]
         bound[v] = math.nan
