@@ -43,6 +43,15 @@ def test_a_model_imports_no_schema_writer_stage_or_run(model):
     assert not above, f"{model} imports {above}: a model must not know the dataset's layout"
 
 
+def test_the_stages_and_the_writer_import_nothing_of_the_run():
+    """The run (sim/run) calls the stages and the writer; neither imports the run back (the
+    timeline and scenario reach them as arguments; the track names are the format's)."""
+    for m in MODULES:
+        if _in(m, ("rlgsim.sim.stages", "rlgsim.sim.writer")):
+            back = sorted(t for t in GRAPH[m] if _in(t, ("rlgsim.sim.run",)))
+            assert not back, f"{m} imports {back}"
+
+
 def test_the_schema_is_reached_from_the_stages_and_the_loop_only():
     users = sorted(m for m, targets in GRAPH.items() if "rlgsim.sim.writer.schema" in targets)
     assert users and all(_in(m, ("rlgsim.sim.stages", "rlgsim.sim.run.simulate"))

@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 import simpy
 
-#: Tracks of the timeline, in the order they are written to datasets.
-TRACKS = ("chamber", "power", "turntable", "calibration", "acquisition")
+from rlgsim.ground.dataset_format import TRACKS   # the timeline's tracks, in dataset order
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,6 @@ from typing import Any
 
 from rlgsim.ground.dataset_format import PROBES
 from rlgsim.sim.rng import generator
-from rlgsim.sim.run.schedule import Timeline
 from rlgsim.sim.sensors.anomalies import AnomalyRun
 from rlgsim.sim.stages.base import Stage
 from rlgsim.sim.writer.dataset import GroupWriter
@@ -22,7 +21,7 @@ class ProbeStage(Stage):
     group = PROBES
     description = DESCRIPTIONS[PROBES]
 
-    def __init__(self, scenario, timeline: Timeline) -> None:
+    def __init__(self, scenario, timeline) -> None:
         self.probes = scenario.device.thermal.probes
         self.network = scenario.device.thermal.network
         self.seed = scenario.seed
@@ -31,7 +30,7 @@ class ProbeStage(Stage):
         self.anomalies = AnomalyRun.of(scenario, timeline)     # None unless [anomalies]
 
     @classmethod
-    def create(cls, scenario, timeline: Timeline) -> "ProbeStage | None":
+    def create(cls, scenario, timeline) -> "ProbeStage | None":
         if not scenario.device.thermal.probes.n_probes:
             return None
         return cls(scenario, timeline)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from rlgsim.sim.run.schedule import Timeline
 from rlgsim.sim.stages.anomalies import AnomalyStage
 from rlgsim.sim.stages.base import Stage
 from rlgsim.sim.stages.imu import ImuStage
@@ -15,10 +14,11 @@ from rlgsim.sim.stages.probes import ProbeStage
 
 __all__ = ["STAGES"]
 
-#: Stage factories, in order: ``f(scenario, timeline) -> Stage | None`` (None: the scenario
+#: Stage factories, in order: ``f(scenario, timeline) -> Stage | None`` (``timeline`` a
+#: :class:`rlgsim.sim.run.schedule.Timeline`; None: the scenario
 #: does not have the part). The anomaly stage is last: it writes the events the stages before
 #: it produced in the block.
-STAGES: list[Callable[[Any, Timeline], Stage | None]] = [
+STAGES: list[Callable[[Any, Any], Stage | None]] = [
     ProbeStage.create,      # probes: thermometer readings
     ImuStage.create,        # imu, turntable, truth: pulses, UHFO, table angles, ground truth
     AnomalyStage.create,    # anomalies: the event record (only with [anomalies])

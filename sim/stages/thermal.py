@@ -10,7 +10,6 @@ import numpy as np
 
 from rlgsim.ground.dataset_format import THERMAL
 from rlgsim.sim.rng import generator
-from rlgsim.sim.run.schedule import Timeline
 from rlgsim.sim.stages.base import ThermalTrace
 from rlgsim.sim.thermal.integrator import ThermalIntegrator
 from rlgsim.sim.writer.dataset import GroupWriter
@@ -25,7 +24,7 @@ class ThermalPart:
     group = THERMAL
     description = DESCRIPTIONS[THERMAL]
 
-    def __init__(self, scenario, timeline: Timeline) -> None:
+    def __init__(self, scenario, timeline) -> None:
         self.timeline = timeline
         self.step = timeline.step_s
         self.nominal = scenario.device.thermal.network

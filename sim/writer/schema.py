@@ -46,7 +46,6 @@ import numpy as np
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.sim.writer.dataset import DatasetWriter, GroupWriter
 from rlgsim.sim.sensors.gyro import BODY_AXES
-from rlgsim.sim.run.schedule import TRACKS
 
 #: The ``description`` attribute of each group.
 DESCRIPTIONS: dict[str, str] = {
@@ -121,7 +120,7 @@ def write_timeline(w: DatasetWriter, timeline) -> None:
     g.variable("t1", ("segment",), units="s", data=np.array([s.t1_s for s in segs], float),
                description="segment end, s since the start of the run")
     g.variable("track", ("segment",), dtype=str, data=[s.track for s in segs],
-               description=f"track of the segment: one of {', '.join(TRACKS)}")
+               description=f"track of the segment: one of {', '.join(fmt.TRACKS)}")
     g.variable("label", ("segment",), dtype=str, data=[s.label for s in segs],
                description="human-readable label")
     g.variable(fmt.SEGMENT_DETAILS, ("segment",), dtype=str,

@@ -38,7 +38,7 @@ from rlgsim.ground.errors import UserInputError
 __all__ = ["FORMAT", "FORMAT_VERSION", "FORMAT_ATTR", "VERSION_ATTR", "SEGMENT_DETAILS",
            "TIMELINE", "THERMAL", "PROBES", "IMU", "TURNTABLE", "TRUTH", "ANOMALIES",
            "TRAJECTORY",
-           "CALIBRATION", "TIME", "SAMPLE", "VARIABLES", "OPTIONAL_VARIABLES",
+           "CALIBRATION", "TRACKS", "TIME", "SAMPLE", "VARIABLES", "OPTIONAL_VARIABLES",
            "MissingVariableError", "VariableInfo", "open_dataset", "Dataset"]
 
 #: Root attribute :data:`FORMAT_ATTR` of every rlgsim dataset holds this marker.
@@ -69,6 +69,9 @@ TRUTH = "truth"            #: true sensor parameters, true inputs, the drawn uni
 ANOMALIES = "anomalies"    #: the sensor anomalies' event record (only with ``[anomalies]``)
 TRAJECTORY = "trajectory"  #: a vehicle's position, velocity, attitude (only with ``[trajectory]``)
 CALIBRATION = "calibration"  #: added by ``rlgsim calibrate`` (one row per calibration window)
+
+#: The timeline's tracks (variable ``timeline/track``), in the order the segments are stored.
+TRACKS = ("chamber", "power", "turntable", "calibration", "acquisition")
 
 # ---- dimension names shared by several groups
 TIME = "time"              #: thermal grid: end of each thermal step [s]
