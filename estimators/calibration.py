@@ -52,6 +52,7 @@ from rlgsim.estimators.kalman_calibration import (ACCEL_MIS, BA, BG, GYRO_MIS, M
 from rlgsim.estimators.strapdown import SensorModel
 from rlgsim.ground import dataset_format as fmt
 from rlgsim.ground.dataset_format import open_dataset
+from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.lifeline import process_pool
 from rlgsim.ground.units import ARCSEC, G0
@@ -256,7 +257,7 @@ class DatasetReader:
             raise CampaignError(f"{self.path}: the dataset has no accelerometer pulses; the "
                                 f"systematic calibration needs them")
         a = self.ds.attrs
-        self.latitude_deg = float(a.get("latitude_deg", 34.0))
+        self.latitude_deg = float(a.get("latitude_deg", DEFAULT_LATITUDE_DEG))
         self.height_m = float(a.get("height_m", 0.0))
         self.rate_hz = float(self.ds.group_attrs(fmt.IMU).get("sample_rate_hz",
                                                               a.get("sample_rate_hz", 100.0)))

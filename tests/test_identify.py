@@ -215,7 +215,7 @@ def test_recording_with_dropout_rows_is_identified(tmp_path):
     """Dropout rows (gyro, probe and chamber air missing): the window table leaves out the
     windows that hold one and keeps every other window as it was; identify accepts it."""
     import rlgsim
-    from rlgsim.lab.api import _nan_windows
+    from rlgsim.lab.windows import gap_windows
     from rlgsim.estimators.features import temperature_rate, window_average
     from rlgsim.ground.recording_export import export
     # the window mean and slope of a channel with missing readings use its valid samples
@@ -223,8 +223,8 @@ def test_recording_with_dropout_rows_is_identified(tmp_path):
     x = 20.0 + 0.01 * np.arange(300.0) + rng.normal(0, 0.05, 300)
     x[[5, 6, 7, 150]] = np.nan
     x[200:260] = np.nan
-    mean = _nan_windows(window_average, x, 1.0, 100.0)
-    slope = _nan_windows(temperature_rate, x, 1.0, 100.0)
+    mean = gap_windows(window_average, x, 1.0, 100.0)
+    slope = gap_windows(temperature_rate, x, 1.0, 100.0)
     for k in range(2):
         seg, t = x[100 * k:100 * k + 100], np.arange(100.0)
         ok = np.isfinite(seg)

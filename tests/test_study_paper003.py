@@ -311,13 +311,14 @@ def test_window_series_do_not_depend_on_the_read_block(short, monkeypatch):
     """read_run reads a block of windows at a time (bounded memory); the series are the same
     bytes whatever the block size."""
     from rlgsim.sim.config import Ctx
+    from rlgsim.lab import windows
     from rlgsim.lab.studies import runs
     from rlgsim.lab.studies.study_tables import FeatureSpec
     spec = FeatureSpec(100.0, None, "g.A", False, ("housing",), tuple(POINTS))
     path = short / "data" / "test.h5"
     ref = runs.read_run(path, spec, "test", Ctx("s.toml"))
     for block in (1000, 7777, 123_457):
-        monkeypatch.setattr(runs, "READ_BLOCK_SAMPLES", block)
+        monkeypatch.setattr(windows, "READ_BLOCK_SAMPLES", block)
         got = runs.read_run(path, spec, "test", Ctx("s.toml"))
         for a, b in ((ref.y, got.y), (ref.true_bias, got.true_bias), (ref.time_s, got.time_s)):
             assert a.tobytes() == b.tobytes()

@@ -15,7 +15,7 @@ from typing import Mapping
 
 import numpy as np
 
-from rlgsim.ground.earth import earth_rate_enu, normal_gravity
+from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG, earth_rate_enu, normal_gravity
 from rlgsim.sim.config import Ctx, check_known_keys, get_float
 
 
@@ -23,12 +23,12 @@ from rlgsim.sim.config import Ctx, check_known_keys, get_float
 class Site:
     """Where the turntable stands: geodetic latitude [°] and height above the ellipsoid [m].
 
-    Default latitude 34.0° (docs/design.md). Attributes computed once:
+    Default latitude :data:`rlgsim.ground.earth.DEFAULT_LATITUDE_DEG` (docs/design.md). Attributes computed once:
     ``earth_rate_enu`` ω_ie^n [rad/s], ``gravity`` γ [m/s²], ``gravity_enu`` g^n = (0, 0, −γ)
     [m/s²] and ``specific_force_enu`` f^n = (0, 0, γ) [m/s²] (at rest on the Earth).
     """
 
-    latitude_deg: float = 34.0
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
     height_m: float = 0.0
     earth_rate_enu: np.ndarray = field(init=False, repr=False, compare=False)
     gravity: float = field(init=False, repr=False, compare=False)
@@ -53,10 +53,11 @@ class Site:
     def from_config(cls, table: Mapping | None, ctx: Ctx) -> "Site":
         """Build from a scenario's ``[site]`` table (keys ``latitude_deg``, ``height_m``).
 
-        A missing table gives the default site (34.0°, 0 m). Bad values raise
+        A missing table gives the default site (the default latitude, 0 m). Bad values raise
         :class:`~rlgsim.ground.errors.UserInputError` naming file, key and value.
         """
         table = {} if table is None else table
         check_known_keys(table, ("latitude_deg", "height_m"), ctx)
-        return cls(latitude_deg=get_float(table, "latitude_deg", ctx, 34.0, min=-90.0, max=90.0),
+        return cls(latitude_deg=get_float(table, "latitude_deg", ctx, DEFAULT_LATITUDE_DEG,
+                                          min=-90.0, max=90.0),
                    height_m=get_float(table, "height_m", ctx, 0.0, min=-11000.0, max=20000.0))

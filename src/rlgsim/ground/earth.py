@@ -49,6 +49,10 @@ import numpy as np
 
 from rlgsim.ground.units import DEG, EARTH_RATE
 
+#: The site's geodetic latitude [°] when a scenario, dataset or recording gives none
+#: (docs/design.md): the one default every wing uses.
+DEFAULT_LATITUDE_DEG = 34.0
+
 # WGS-84 defining and derived constants (NIMA TR8350.2, 3rd ed., tables 3.1 and 3.3).
 WGS84_A = 6378137.0                      # semi-major axis [m]
 WGS84_F = 1.0 / 298.257223563            # flattening [-]

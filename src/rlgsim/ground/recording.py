@@ -32,6 +32,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.toml_text import dumps
 from rlgsim.ground.units import ARCSEC, DEG, EARTH_RATE, G0, HOUR
@@ -162,7 +163,7 @@ class Sidecar:
     hdf5_group: str = "/"
     ignore_columns: list[str] = field(default_factory=list)
     source: str = ""
-    latitude_deg: float = 34.0
+    latitude_deg: float = DEFAULT_LATITUDE_DEG
     height_m: float = 0.0
     site_given: bool = False          # the sidecar has [site] latitude_deg (navigation needs it)
     gyro_axes: list[str] | None = None
@@ -227,7 +228,8 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
                                            f"column names")
     sc.ignore_columns = list(ign)
     site = data.get("site", {})
-    sc.latitude_deg = _number(site, "latitude_deg", f"{p}: site", 34.0, lo=-90, hi=90)
+    sc.latitude_deg = _number(site, "latitude_deg", f"{p}: site", DEFAULT_LATITUDE_DEG, lo=-90,
+                              hi=90)
     sc.height_m = _number(site, "height_m", f"{p}: site", 0.0, lo=-1000, hi=1e5)
     sc.site_given = isinstance(site, Mapping) and "latitude_deg" in site
     gyro = data.get("gyro", {})

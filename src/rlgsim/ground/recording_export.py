@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, _is_sidecar,
                                      is_recording, load_recording, sidecar_path, write_sidecar,
@@ -228,7 +229,7 @@ def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
             rec_t["temperature_rate_hz"] = 1.0 / step
         rec_t["source"] = str(src)
         tables = {"recording": rec_t,
-                  "site": {"latitude_deg": float(a.get("latitude_deg", 34.0)),
+                  "site": {"latitude_deg": float(a.get("latitude_deg", DEFAULT_LATITUDE_DEG)),
                            "height_m": float(a.get("height_m", 0.0))}}
         if gyro_axes:
             g = {"axes": gyro_axes}

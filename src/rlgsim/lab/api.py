@@ -20,7 +20,6 @@ Everything is imported lazily: ``import rlgsim`` stays light.
 
 from __future__ import annotations
 
-import math
 import os
 import pathlib
 import tempfile
@@ -30,10 +29,6 @@ import numpy as np
 
 __all__ = ["load_scenario", "with_changes", "run", "open_tree", "window_table", "score",
            "calibrate", "load_study", "run_study", "navigate"]
-
-_DEG_PER_H = math.pi / 180.0 / 3600.0          # rad/s per °/h
-_ARCSEC = math.pi / 180.0 / 3600.0             # rad per arcsec
-
 
 def load_scenario(ref: str):
     """A scenario by shipped name (``rlgsim list``) or path (:class:`rlgsim.Scenario`)."""
@@ -91,147 +86,8 @@ def window_table(source, window_s: float = 100.0, *, gyro: str | None = None):
     ``gyro.k0`` for a dataset, the sidecar's for a recording); the Earth rate is the exact
     projection the truth stores for a dataset, and for a recording the site latitude and the
     sidecar's ``[orientation]`` (a static mount)."""
-    import pandas as pd
-
-    from rlgsim.estimators.features import samples_per_window, temperature_rate, window_average
-    from rlgsim.ground.recording import is_recording, load_recording
-    if is_recording(source):
-        rec = load_recording(source)
-        axes = rec.gyro_axes
-        axis = _axis(axes, gyro, source)
-        i = axes.index(axis)
-        f = rec.sample_rate_hz
-        rate = rec.gyro_rate_deg_per_h()[:, i] * _DEG_PER_H            # rad/s per sample
-        n = rec.n_samples
-        m_s = samples_per_window(f, window_s)
-        n_win = n // m_s
-        rate_w = rate[:n_win * m_s].reshape(n_win, m_s).mean(axis=1)
-        earth = np.full(n_win, rec.earth_rate_deg_per_h()[i] * _DEG_PER_H)
-        t_slow, temps = rec.probes()
-        names = rec.probe_names
-        f_slow = rec.sidecar.temperature_rate_hz or f
-        extra = {}
-        uh = [k for k, (kind, _, g) in rec.kinds.items() if kind == "uhfo"
-              and (g.get("axis") in (None, axis))]
-        if uh:
-            extra["uhfo_v"] = rec.slow(uh[0])[1]
-        power = rec.slow("power_on")[1] if "power_on" in rec.columns else None
-        bad = rec.dropout[:n_win * m_s].reshape(n_win, m_s).any(axis=1)
-        truth = None
-    else:
-        tree = open_tree(source)
-        try:
-            imu = tree["imu"]
-            axes = [str(a) for a in imu["gyro"].values]
-            axis = _axis(axes, gyro, source)
-            i = axes.index(axis)
-            f = float(imu.attrs["sample_rate_hz"])
-            coeffs = {}
-            if "truth" in tree.children and "coefficient" in tree["truth"].coords:
-                coeffs = dict(zip(map(str, tree["truth"]["coefficient"].values),
-                                  map(float, tree["truth"]["coefficient_value"].values)))
-            k = coeffs.get(f"gyro.k0[{axis}]")
-            if k is None:
-                import tomllib
-                dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
-                from rlgsim.sim.sensors.gyro import pulses_per_arcsec
-                k = pulses_per_arcsec(dev) / _ARCSEC
-            pulses = np.asarray(imu["gyro_pulses"][:, i].values, dtype=np.float64)
-            m_s = samples_per_window(f, window_s)
-            n_win = pulses.size // m_s
-            rate_w = pulses[:n_win * m_s].reshape(n_win, m_s).sum(axis=1) / (k * window_s)
-            step = float(tree.attrs["thermal_step_s"])
-            f_slow = 1.0 / step
-            m_t = samples_per_window(f_slow, window_s)
-            truth = None
-            if "truth" in tree.children and "dtheta_step" in tree["truth"]:
-                tr = tree["truth"]
-                b = list(map(str, tr["body"].values)).index(axis)
-                dth = np.asarray(tr["dtheta_step"][:, b].values)
-                n_win = min(n_win, dth.size // m_t)
-                earth = dth[:n_win * m_t].reshape(n_win, m_t).sum(axis=1) / window_s
-                truth = {
-                    "true_bias_deg_per_h": window_average(
-                        np.asarray(tr["gyro_bias"][:, i].values), f_slow, window_s)[:n_win]
-                    / _DEG_PER_H,
-                    "true_random_deg_per_h": window_average(
-                        np.asarray(tr["gyro_bias_random"][:, i].values), f_slow, window_s
-                    )[:n_win] / _DEG_PER_H}
-            else:
-                lat = math.radians(float(tree.attrs.get("latitude_deg", 34.0)))
-                up = {"x": 0.0, "y": math.cos(lat), "z": math.sin(lat)}.get(axis, 0.0)
-                earth = np.full(n_win, 7.292115e-5 * up)
-            rate_w = rate_w[:n_win]
-            names, temps = [], np.zeros((0, 0))
-            if "probes" in tree.children:
-                names = [str(p) for p in tree["probes"]["probe"].values]
-                temps = np.asarray(tree["probes"]["temperature"].values, dtype=np.float64)
-            extra = {}
-            if "uhfo" in imu:
-                extra["uhfo_v"] = np.asarray(imu["uhfo"][:, i].values, dtype=np.float64)
-            power = (np.asarray(tree["thermal"]["power_on"].values, dtype=np.float64)
-                     if "thermal" in tree.children and "power_on" in tree["thermal"] else None)
-            bad = np.zeros(n_win, dtype=bool)
-        finally:
-            tree.close()
-    rate_w = rate_w[:n_win]
-    earth = earth[:n_win]
-    cols: dict[str, Any] = {"time_s": (np.arange(n_win) + 1) * window_s,
-                            "bias_deg_per_h": (rate_w - earth) / _DEG_PER_H}
-    if truth:
-        cols.update(truth)
-    for j, name in enumerate(names):
-        T = temps[:, j]
-        cols[f"probe_{name}_c"] = _nan_windows(window_average, T, f_slow, window_s)[:n_win]
-        cols[f"dTdt_{name}_k_per_s"] = _nan_windows(temperature_rate, T, f_slow,
-                                                    window_s)[:n_win]
-    for key, v in extra.items():
-        cols[key] = _nan_windows(window_average, v, f_slow, window_s)[:n_win]
-    keep = ~bad
-    if power is not None:
-        keep &= _nan_windows(window_average, power, f_slow, window_s)[:n_win] >= 1.0
-    for key, v in cols.items():
-        if len(v) != n_win:
-            raise ValueError(f"{source}: {key} covers {len(v)} windows, the pulses {n_win}")
-    df = pd.DataFrame(cols)
-    keep &= np.all(np.isfinite(df.to_numpy(dtype=float)), axis=1)
-    return df[keep].reset_index(drop=True)
-
-
-def _nan_windows(func, x, rate_hz: float, window_s: float) -> np.ndarray:
-    """``func`` (window mean or least-squares slope) per window of a slow channel with missing
-    readings (NaN, e.g. dropout rows of a recording): a window missing more than half of its
-    samples is NaN (the window is then left out), otherwise the value of its valid samples. A
-    complete channel goes straight through ``func``."""
-    from rlgsim.estimators.features import samples_per_window
-    x = np.asarray(x, dtype=np.float64)
-    ok = np.isfinite(x)
-    if ok.all():
-        return func(x, rate_hz, window_s)
-    m = samples_per_window(rate_hz, window_s)
-    n_win = x.size // m
-    xw = x[:n_win * m].reshape(n_win, m)
-    okw = ok[:n_win * m].reshape(n_win, m)
-    cnt = okw.sum(axis=1)
-    x0 = np.where(okw, xw, 0.0)
-    mean = x0.sum(axis=1) / np.maximum(cnt, 1)
-    if func.__name__ == "window_average":
-        out = mean
-    else:                               # slope of x against time over the valid samples
-        t = np.broadcast_to(np.arange(m, dtype=np.float64) / rate_hz, xw.shape)
-        tm = np.where(okw, t, 0.0).sum(axis=1) / np.maximum(cnt, 1)
-        dt = np.where(okw, t - tm[:, None], 0.0)
-        den = (dt * dt).sum(axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out = (dt * (x0 - mean[:, None] * okw)).sum(axis=1) / den
-    return np.where(cnt * 2 > m, out, np.nan)
-
-
-def _axis(axes: list[str], gyro: str | None, source) -> str:
-    from rlgsim.ground.gyro_axis import choose_gyro
-    return choose_gyro(axes, gyro, where=source,
-                       unknown="{where}: gyro {gyro!r} not allowed; the gyro axes are {axes}",
-                       several="{where}: several gyros ({axes}); say which one with gyro=")
+    from rlgsim.lab.windows import window_table as _table
+    return _table(source, window_s, gyro=gyro)
 
 
 # ---------------------------------------------------------------------------- scores

@@ -1,6 +1,6 @@
 """What identification reads from a recording or an rlgsim dataset, checked once: the probe
 temperatures and the chamber air on the temperature grid, the power state, the UHFO, the gyro
-rate at its sample rate, and the 100 s bias windows (:func:`rlgsim.lab.api.window_table`, which
+rate at its sample rate, and the 100 s bias windows (:func:`rlgsim.lab.windows.window_table`, which
 removes the Earth rate). Every other module of :mod:`rlgsim.lab.identify` works on
 :class:`RecordingData` only.
 
@@ -126,7 +126,8 @@ def _refuse(source: str, what: str) -> UserInputError:
 def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                    window_s: float = 100.0) -> RecordingData:
     """Read and check a recording (table + sidecar) or an rlgsim dataset."""
-    from rlgsim.lab.api import open_tree, window_table
+    from rlgsim.ground.datatree import open_tree
+    from rlgsim.lab.windows import window_table
     from rlgsim.ground.recording import is_recording, load_recording
     source = os.fspath(path)
     p = pathlib.Path(source)

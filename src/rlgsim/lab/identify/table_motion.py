@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rlgsim.ground.earth import earth_rate_enu
+from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG, earth_rate_enu
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.frames import body_to_enu
 from rlgsim.ground.units import DEG, HOUR
@@ -154,7 +154,7 @@ def motion_from_dataset(h5, axis: str, n: int, f: float) -> TableMotion | None:
         t_k.append(e)
         o_k.append(o)
         i_k.append(i)
-    lat = float(h5.attrs.get("latitude_deg", 34.0))
+    lat = float(h5.attrs.get("latitude_deg", DEFAULT_LATITUDE_DEG))
     return _from_knots(np.array(t_k), np.array(o_k), np.array(i_k), n, f, _unit_axis(axis),
                        lat, "the dataset's turntable motions")
 

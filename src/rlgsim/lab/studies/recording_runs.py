@@ -29,6 +29,7 @@ import numpy as np
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.gyro_axis import choose_gyro
 from rlgsim.ground.recording import Recording, load_recording
+from rlgsim.lab.windows import recording_windows, uhfo_column
 
 __all__ = ["check_recording_run", "recorded_labels", "recording_series", "recordings_paragraph",
            "run_origin"]
@@ -80,49 +81,42 @@ def check_recording_run(study, path: pathlib.Path, spec) -> Recording:
 def recording_series(path: pathlib.Path, config, label: str, ctx, skip_s: float = 0.0
                      ) -> dict:
     """The fields of the :class:`~rlgsim.lab.studies.runs.RunSeries` of a recording (module
-    docstring); runs.py builds the series (this module imports nothing from it)."""
+    docstring; the windows: :func:`rlgsim.lab.windows.recording_windows`); runs.py builds the
+    series (this module imports nothing from it)."""
     from rlgsim.estimators.columns import Columns
-    from rlgsim.estimators.features import (pairwise_gradients, samples_per_window,
-                                            temperature_rate, window_average)
+    from rlgsim.estimators.features import pairwise_gradients
     rec = load_recording(path)
     W = config.window_s
     axis = _axis(rec, config.gyro, str(ctx.source))
-    i = rec.gyro_axes.index(axis)
-    f, fs = _rates(rec)
-    m_s, m_t = samples_per_window(f, W), samples_per_window(fs, W)
-    t_slow, temps = rec.probes()
-    n_win = min(rec.n_samples // m_s, len(t_slow) // m_t if rec.slow_rows is not None
-                else rec.n_samples // m_s)
+    uhfo = None
+    if config.uhfo:
+        uhfo = uhfo_column(rec, axis)
+        if uhfo is None:
+            raise UserInputError(f"{ctx.source}: features.uhfo: recording {path.name} has no "
+                                 f"UHFO column for gyro {axis}")
+    means = tuple(dict.fromkeys(((config.temperature,) if config.temperature else ())
+                                + tuple(config.probes) + tuple(config.gradients)))
+    w = recording_windows(rec, axis, W, means,
+                          (config.temperature,) if config.temperature else (), uhfo)
+    n_win = w["n_win"]
     if n_win == 0:
         raise UserInputError(f"{ctx.source}: data.window_s: recording {path.name} is shorter "
                              f"than one {W:g} s window")
-    rate = rec.gyro_rate_deg_per_h()[:n_win * m_s, i].reshape(n_win, m_s).mean(axis=1)
-    earth = float(rec.earth_rate_deg_per_h()[i])
-    y = rate - earth
-    names = rec.probe_names
-
-    def mean(v):
-        return window_average(v[:n_win * m_t], fs, W)[:n_win]
+    y, earth = w["y"], w["earth"]
     cols: dict[str, np.ndarray] = {}
     if config.temperature:
-        T = temps[:, names.index(config.temperature)]
-        cols["T"] = mean(T)
-        cols["dT/dt"] = temperature_rate(T[:n_win * m_t], fs, W)[:n_win]
+        cols["T"] = w[f"mean:{config.temperature}"]
+        cols["dT/dt"] = w[f"slope:{config.temperature}"]
     if config.uhfo:
-        uh = [n for n, (k, _, g) in rec.kinds.items() if k == "uhfo"
-              and g.get("axis") in (None, axis)]
-        if not uh:
-            raise UserInputError(f"{ctx.source}: features.uhfo: recording {path.name} has no "
-                                 f"UHFO column for gyro {axis}")
-        cols["U"] = mean(rec.slow(uh[0])[1])
+        cols["U"] = w["uhfo"]
     for name in config.probes:
-        cols[name] = mean(temps[:, names.index(name)])
+        cols[name] = w[f"mean:{name}"]
     if config.gradients:
-        cols.update(pairwise_gradients(Columns({g: mean(temps[:, names.index(g)])
+        cols.update(pairwise_gradients(Columns({g: w[f"mean:{g}"]
                                                 for g in config.gradients})).items())
-    keep = ~rec.dropout[:n_win * m_s].reshape(n_win, m_s).any(axis=1)
-    if "power_on" in rec.columns:
-        keep &= mean(rec.slow("power_on")[1]) >= 1.0
+    keep = ~w["dropout"]
+    if "power" in w:
+        keep &= w["power"] >= 1.0
     keep &= np.isfinite(y) & np.all([np.isfinite(v) for v in cols.values()], axis=0) \
         if cols else np.isfinite(y)
     keep &= np.arange(n_win) * W >= skip_s - 1e-9

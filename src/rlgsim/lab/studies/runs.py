@@ -8,7 +8,8 @@ preset text, thermal preset text, noise seed, device seed and Monte Carlo unit
 (:func:`dataset_matches`, used by every recipe including ``paper000_system``); otherwise it is
 simulated again.
 
-How the series are built (paper 001 §3 and §4.1): the gyro's rate is its pulse count per window
+How the series are built (paper 001 §3 and §4.1; :mod:`rlgsim.lab.windows`, the one window
+builder): the gyro's rate is its pulse count per window
 divided by the nominal scale factor (truth group ``gyro.k0``) and the window length; the
 bias is that rate minus the Earth-rate projection on the gyro axis (the table's known
 input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
@@ -23,21 +24,19 @@ which no temperature model can predict.
 from __future__ import annotations
 
 import dataclasses
-import math
 import pathlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from rlgsim.ground.dataset_format import (IMU, PROBES, THERMAL, TRUTH, Dataset, check_finite,
-                                          open_dataset)
+from rlgsim.ground.dataset_format import IMU, PROBES, THERMAL, TRUTH, open_dataset
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx
 from rlgsim.lab.study import Study, scenario_for
 from rlgsim.lab.studies.study_tables import FeatureSpec, RunSpec
+from rlgsim.lab.windows import DEG_PER_H_PER_RAD_PER_S, Where, bias_deg_per_h, dataset_windows
 
-DEG_PER_H_PER_RAD_PER_S = 180.0 / math.pi * 3600.0
 
 
 # ------------------------------------------------------------------------------ datasets
@@ -106,15 +105,11 @@ class RunSeries:
     coefficients: dict[str, float]
 
 
-#: Samples read at a time from a dataset (memory stays bounded whatever the run's duration).
-READ_BLOCK_SAMPLES = 1 << 22
-
-
 def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
              skip_s: float = 0.0) -> RunSeries:
     """Build the window series of one dataset (see the module docstring); windows that start
     before ``skip_s`` are dropped. The dataset is read a block of whole windows at a time
-    (:data:`READ_BLOCK_SAMPLES`), so memory does not grow with the run's duration; every window
+    (:func:`rlgsim.lab.windows.dataset_windows`), so memory does not grow with the run's duration; every window
     is computed from its own samples only, so the result does not depend on the block size."""
     from rlgsim.estimators.columns import Columns
     from rlgsim.estimators.features import pairwise_gradients, samples_per_window
@@ -150,24 +145,22 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
                 wanted[name] = probes.index(name)
         coeff = ds.coefficients()
         n_win = min(ds.length(IMU, "gyro_pulses") // m_s, ds.length(THERMAL, "time") // m_t)
-        where = _Where(gyro=gyros.index(axis), body=ds.strings(TRUTH, "body").index(axis),
-                       probes=wanted, uhfo=config.uhfo, temperature=config.temperature)
-        per_block = max(1, READ_BLOCK_SAMPLES // max(m_s, m_t))
+        where = Where(gyro=gyros.index(axis), body=ds.strings(TRUTH, "body").index(axis),
+                      probes=wanted, uhfo=config.uhfo,
+                      slopes=(config.temperature,) if config.temperature else ())
         if n_win == 0:
             raise dctx.error("window_s", f"run {label!r} is shorter than one {W:g} s window")
-        blocks = [_window_block(ds, i, min(n_win, i + per_block), m_s, m_t, step, W, where)
-                  for i in range(0, n_win, per_block)]
+        w = dataset_windows(ds, where, n_win, m_s, m_t, W)
         seed = int(ds.attrs["seed"])
         device_seed = int(ds.attrs.get("device_seed", seed))
-    w = {k: np.concatenate([blk[k] for blk in blocks]) for k in blocks[0]}
 
     k0 = coeff[f"gyro.k0[{axis}]"]
     earth = w["dtheta"] / W                                                    # rad/s
-    y = (w["counts"] / (k0 * W) - earth) * DEG_PER_H_PER_RAD_PER_S
+    y = bias_deg_per_h(w["counts"] / (k0 * W), earth)
     cols: dict[str, np.ndarray] = {}
     if config.temperature:
         cols["T"] = w[f"mean:{config.temperature}"]
-        cols["dT/dt"] = w["slope"]
+        cols["dT/dt"] = w[f"slope:{config.temperature}"]
     if config.uhfo:
         cols["U"] = w["uhfo"]
     for name in config.probes:
@@ -183,49 +176,6 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
                      X=Columns({k: v[keep] for k, v in cols.items()}),
                      earth_deg_per_h=float(np.mean(earth) * DEG_PER_H_PER_RAD_PER_S),
                      coefficients=coeff)
-
-
-@dataclass(frozen=True)
-class _Where:
-    """Which columns of a dataset a run's series needs."""
-
-    gyro: int                       # column of the gyro in imu/* and truth/gyro_*
-    body: int                       # column of its axis in truth/dtheta_step
-    probes: dict[str, int]          # probe name → column of probes/temperature
-    uhfo: bool
-    temperature: str | None         # the probe whose window slope is dT/dt
-
-
-def _window_block(ds: Dataset, i: int, j: int, m_s: int, m_t: int, step: float, W: float,
-                  where: _Where) -> dict[str, np.ndarray]:
-    """Per-window sums and means of windows ``i … j−1`` (rad for dtheta, rad/s for b and r,
-    °C, K/s, V): only these windows' samples are read."""
-    from rlgsim.estimators.features import temperature_rate, window_average
-    n = j - i
-    t0, t1 = i * m_t, j * m_t
-    thermal_rate = 1.0 / step
-    rows, grid = slice(i * m_s, j * m_s), slice(t0, t1)
-    out = {"counts": ds.read(IMU, "gyro_pulses", rows, where.gyro).astype(np.int64)
-           .reshape(n, m_s).sum(axis=1),
-           "dtheta": ds.read(TRUTH, "dtheta_step", grid, where.body).reshape(n, m_t).sum(axis=1),
-           "b": window_average(ds.read(TRUTH, "gyro_bias", grid, where.gyro), thermal_rate, W),
-           "r": window_average(ds.read(TRUTH, "gyro_bias_random", grid, where.gyro),
-                               thermal_rate, W),
-           "power": ds.read(THERMAL, "power_on", grid).reshape(n, m_t).min(axis=1) > 0}
-    if where.probes:
-        cols = sorted(set(where.probes.values()))
-        temps = check_finite(ds.path, PROBES, "temperature",
-                             ds.read(PROBES, "temperature", grid, cols).astype(np.float64), t0)
-        for name, c in where.probes.items():
-            out[f"mean:{name}"] = window_average(temps[:, cols.index(c)], thermal_rate, W)
-        if where.temperature:
-            T = temps[:, cols.index(where.probes[where.temperature])]
-            out["slope"] = temperature_rate(T, thermal_rate, W)
-    if where.uhfo:
-        u = check_finite(ds.path, IMU, "uhfo",
-                         ds.read(IMU, "uhfo", grid, where.gyro).astype(np.float64), t0)
-        out["uhfo"] = window_average(u, thermal_rate, W)
-    return out
 
 
 @dataclass
