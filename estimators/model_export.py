@@ -54,6 +54,7 @@ from sklearn.metrics.pairwise import rbf_kernel
 from sklearn.utils.validation import check_array, check_is_fitted
 
 from rlgsim.estimators.columns import Columns
+from rlgsim.estimators.compensator_kinds import KINDS as COMPENSATOR_KINDS
 from rlgsim.estimators.terms import (design_matrix, format_equation, raw_coefficients,
                                      term_label, term_pretty)
 from rlgsim.ground.errors import UserInputError
@@ -66,26 +67,16 @@ FORMAT_VERSION = 1
 FORMS = ("polynomial", "gaussian_kernel")
 #: Kinds whose estimator forms squared distances as ``‖a‖² − 2a·b + ‖b‖²`` (scikit-learn's
 #: ``rbf_kernel``); the others use exact differences (``cdist``), as the C code does.
-EXPANDED_DISTANCE_KINDS = ("lssvm", "ir_lssvm")
+EXPANDED_DISTANCE_KINDS = tuple(k for k, s in COMPENSATOR_KINDS.items() if s.closed_form == "lssvm")
 #: Kinds whose kernel sum is accumulated term by term in centre order (libsvm's predict).
-SEQUENTIAL_SUM_KINDS = ("pso_svr",)
+SEQUENTIAL_SUM_KINDS = tuple(k for k, s in COMPENSATOR_KINDS.items() if s.closed_form == "svr")
 #: Rows per block when kernel values are formed (memory: rows x centres doubles).
 CHUNK_ROWS = 4096
 
-#: Estimator class (module.qualname) -> compensator kind (the study files' ``kind``).
-KINDS: dict[str, str] = {
-    "rlgsim.estimators.polynomial.PolynomialRegressor": "polynomial",
-    "rlgsim.estimators.stepwise.StepwiseRegressor": "stepwise",
-    "rlgsim.estimators.mlr.MLRBICRegressor": "mlr_bic",
-    "rlgsim.estimators.lssvm.LSSVMRegressor": "lssvm",
-    "rlgsim.estimators.lssvm_cv.LSSVMRegressorCV": "lssvm",
-    "rlgsim.estimators.robust_lssvm.RobustLSSVMRegressor": "ir_lssvm",
-    "rlgsim.estimators.rvr.RVR": "rvr",
-    "rlgsim.estimators.tuned.HHORVR": "hho_rvr",
-    "rlgsim.estimators.tuned.PSOSVR": "pso_svr",
-    "rlgsim.estimators.rbf_network.RBFNetwork": "rbf",
-    "rlgsim.estimators.rbf_modified.ModifiedRBFNetwork": "rbf_modified",
-}
+#: Estimator class (module.qualname) -> compensator kind (the study files' ``kind``), from the
+#: one registry :data:`rlgsim.estimators.compensator_kinds.KINDS`.
+KINDS: dict[str, str] = {cls: kind for kind, spec in COMPENSATOR_KINDS.items()
+                         for cls in spec.classes}
 
 
 class OutOfTrainingRangeWarning(UserWarning):
@@ -127,27 +118,28 @@ def _json_params(model: Any) -> dict:
 def _form_of(model: Any, kind: str) -> tuple[np.ndarray, np.ndarray, dict, Any]:
     """``(center, scale, model-table, svr)`` of a fitted model of ``kind`` (see module doc);
     ``svr`` is the fitted scikit-learn SVR of a PSO-SVR (for the C generator), else None."""
-    if kind in ("polynomial", "stepwise", "mlr_bic"):
+    form = COMPENSATOR_KINDS[kind].closed_form if kind in COMPENSATOR_KINDS else None
+    if form == "polynomial":
         check_is_fitted(model, "coef_scaled_")
         table = {"form": "polynomial", "intercept": float(model.intercept_scaled_),
                  "powers": [list(p) for p in model.powers_],
                  "coefficients": _floats(model.coef_scaled_)}
         return model.center_, model.scale_, table, None
-    if kind in ("lssvm", "ir_lssvm"):
+    if form == "lssvm":
         inner = model.estimator_ if hasattr(model, "estimator_") else model
         check_is_fitted(inner, "dual_coef_")
         return inner.x_mean_, inner.x_scale_, _kernel_table(        # paper 001 eq. 11
             inner.support_, inner.dual_coef_, inner.intercept_,
             1.0 / (2.0 * float(inner.sigma2))), None
-    if kind in ("rvr", "hho_rvr"):
-        inner = model.estimator_ if kind == "hho_rvr" else model
+    if form == "rvr":
+        inner = model.estimator_ if hasattr(model, "estimator_") else model
         check_is_fitted(inner, "dual_coef_")
         width = float(inner.width_)
         n = inner.relevance_vectors_.shape[1]
         b = float(inner.intercept_) if inner.fit_intercept else 0.0
         return np.zeros(n), np.ones(n), _kernel_table(
             inner.relevance_vectors_, inner.dual_coef_, b, 1.0 / (width * width)), None
-    if kind == "pso_svr":
+    if form == "svr":
         check_is_fitted(model, "estimator_")
         ttr = model.estimator_
         scaler, svr = ttr.regressor_[0], ttr.regressor_[-1]
@@ -157,7 +149,7 @@ def _form_of(model: Any, kind: str) -> tuple[np.ndarray, np.ndarray, dict, Any]:
         table["output_offset"] = float(target.mean_[0])
         table["output_scale"] = float(target.scale_[0])
         return scaler.mean_, scaler.scale_, table, svr
-    if kind in ("rbf", "rbf_modified"):
+    if form == "rbf":
         check_is_fitted(model, "weights_")
         spread = float(model.spread)
         centres = (model.centers_ - model.x_mean_) / model.x_scale_

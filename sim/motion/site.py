@@ -23,7 +23,8 @@ from rlgsim.sim.config import Ctx, check_known_keys, get_float
 class Site:
     """Where the turntable stands: geodetic latitude [°] and height above the ellipsoid [m].
 
-    Default latitude :data:`rlgsim.ground.earth.DEFAULT_LATITUDE_DEG` (docs/design.md). Attributes computed once:
+    Default latitude :data:`rlgsim.ground.earth.DEFAULT_LATITUDE_DEG` (docs/design.md).
+    Attributes computed once:
     ``earth_rate_enu`` ω_ie^n [rad/s], ``gravity`` γ [m/s²], ``gravity_enu`` g^n = (0, 0, −γ)
     [m/s²] and ``specific_force_enu`` f^n = (0, 0, γ) [m/s²] (at rest on the Earth).
     """

@@ -34,6 +34,7 @@ import numpy as np
 
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.recording_formats import DATA_SUFFIXES, TABLE_FORMATS
 from rlgsim.ground.toml_text import dumps
 from rlgsim.ground.units import ARCSEC, DEG, EARTH_RATE, G0, HOUR
 
@@ -45,9 +46,6 @@ __all__ = ["RECORDING_FORMAT", "RECORDING_VERSION", "DATA_SUFFIXES", "COLUMN_RUL
 RECORDING_FORMAT = "rlgsim recording"
 #: ``[recording] version``; readers refuse newer versions.
 RECORDING_VERSION = 1
-#: Table files a recording may be, by suffix.
-DATA_SUFFIXES = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".h5": "hdf5",
-                 ".hdf5": "hdf5", ".hdf": "hdf5"}
 
 #: Allowed range of each kind of value (what the messages say is allowed).
 TEMPERATURE_RANGE_C = (-100.0, 200.0)
@@ -507,9 +505,9 @@ def is_recording(path: str | os.PathLike) -> bool:
     p = pathlib.Path(path)
     if p.suffix.lower() == ".toml":
         return _is_sidecar(p)
-    if p.suffix.lower() in (".csv", ".parquet", ".pq"):
+    if DATA_SUFFIXES.get(p.suffix.lower()) in ("csv", "parquet"):
         return True
-    if p.suffix.lower() in (".h5", ".hdf5", ".hdf"):
+    if p.suffix.lower() in TABLE_FORMATS["hdf5"].suffixes:
         # an HDF5 table of another tool, with a sidecar made for it (not the sidecar of a
         # CSV export of this dataset, which shares the stem)
         side = sidecar_path(p)

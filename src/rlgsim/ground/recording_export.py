@@ -27,13 +27,14 @@ import numpy as np
 
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.recording_formats import EXPORT_FORMATS
 from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, _is_sidecar,
                                      is_recording, load_recording, sidecar_path, write_sidecar,
                                      write_table)
 
 __all__ = ["FORMATS", "BLOCK_ROWS", "Exported", "export"]
 
-FORMATS = {"csv": ".csv", "parquet": ".parquet"}
+FORMATS = EXPORT_FORMATS             # format name → the suffix written (one registry)
 #: Samples per written block.
 BLOCK_ROWS = 1 << 18
 

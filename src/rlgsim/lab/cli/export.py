@@ -19,7 +19,8 @@ def add_subparser(sub) -> None:
                                       "table + TOML sidecar)")
     e.add_argument("source", metavar="DATASET_OR_RECORDING",
                    help="an rlgsim dataset (.h5) or a recording (table with a .toml sidecar)")
-    e.add_argument("--format", choices=("csv", "parquet"), default="csv",
+    from rlgsim.ground.recording_formats import EXPORT_FORMATS
+    e.add_argument("--format", choices=tuple(EXPORT_FORMATS), default="csv",
                    help="table format (default: csv)")
     e.add_argument("-o", "--output", metavar="PATH",
                    help="output table (default: the source's stem with .csv or .parquet next to "

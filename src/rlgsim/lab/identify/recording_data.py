@@ -191,9 +191,9 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     finally:
         tree.close()
     if motion and table is None and not is_recording(source):
-        import h5py                             # the dataset's motion arrays, once it is closed
-        with h5py.File(source, "r") as h5:
-            table = motion_from_dataset(h5, gyro, rate.size, f)
+        from rlgsim.ground.dataset_format import open_dataset
+        with open_dataset(source) as ds:        # the dataset's motion arrays, once it is closed
+            table = motion_from_dataset(ds, gyro, rate.size, f)
     # a table at rest away from zero: no motion, but its attitude still sets the Earth rate
     at_rest = table if table is not None and not table.moving.any() else None
     if at_rest is not None:

@@ -25,11 +25,11 @@ Units: rates in °/h (the gyro's), angles in °, times in s from the run's start
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
 
+from rlgsim.ground.dataset_format import TIMELINE, TURNTABLE
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG, earth_rate_enu
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.frames import body_to_enu
@@ -123,25 +123,22 @@ def _from_knots(t_k: np.ndarray, outer_k: np.ndarray, inner_k: np.ndarray, n: in
                        segment_rate_deg_s=np.array(rates), origin=origin)
 
 
-def motion_from_dataset(h5, axis: str, n: int, f: float) -> TableMotion | None:
-    """The motion of an rlgsim dataset (open :class:`h5py.File` ``h5``) for the gyro on body
-    axis ``axis``; None when the table never turns."""
-    if "turntable" not in h5 or "motion_t0" not in h5["turntable"]:
+def motion_from_dataset(ds, axis: str, n: int, f: float) -> TableMotion | None:
+    """The motion of an rlgsim dataset (open :class:`rlgsim.ground.dataset_format.Dataset`
+    ``ds``) for the gyro on body axis ``axis``; None when the table never turns."""
+    if not ds.has(TURNTABLE, "motion_t0"):
         return None
-    tt = h5["turntable"]
-    t0 = np.asarray(tt["motion_t0"][()], dtype=float)
-    t1 = np.asarray(tt["motion_t1"][()], dtype=float)
-    rate = np.asarray(tt["motion_rate"][()], dtype=float)
-    ax = [x.decode() if isinstance(x, bytes) else str(x) for x in tt["motion_axis"][()]]
+    t0 = np.asarray(ds.read(TURNTABLE, "motion_t0"), dtype=float)
+    t1 = np.asarray(ds.read(TURNTABLE, "motion_t1"), dtype=float)
+    rate = np.asarray(ds.read(TURNTABLE, "motion_rate"), dtype=float)
+    ax = ds.strings(TURNTABLE, "motion_axis")
     if not np.any(rate != 0.0):
         return None
     o0 = i0 = 0.0
-    tl = h5.get("timeline")
-    if tl is not None and "details" in tl:
-        tracks = [x.decode() if isinstance(x, bytes) else str(x) for x in tl["track"][()]]
-        if "turntable" in tracks:
-            d = tl["details"][tracks.index("turntable")]
-            d = json.loads(d.decode() if isinstance(d, bytes) else str(d))
+    if ds.has(TIMELINE, "track"):
+        first = ds.segments("turntable")[:1]
+        if first:
+            d = first[0]["attrs"]
             o0, i0 = float(d.get("outer_deg", 0.0)), float(d.get("inner_deg", 0.0))
     t_k = [t0[0]]
     o_k, i_k = [o0], [i0]
@@ -154,7 +151,7 @@ def motion_from_dataset(h5, axis: str, n: int, f: float) -> TableMotion | None:
         t_k.append(e)
         o_k.append(o)
         i_k.append(i)
-    lat = float(h5.attrs.get("latitude_deg", DEFAULT_LATITUDE_DEG))
+    lat = float(ds.attrs.get("latitude_deg", DEFAULT_LATITUDE_DEG))
     return _from_knots(np.array(t_k), np.array(o_k), np.array(i_k), n, f, _unit_axis(axis),
                        lat, "the dataset's turntable motions")
 

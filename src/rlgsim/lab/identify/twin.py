@@ -80,18 +80,13 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
         dev_name, dev, base = f.name, f.data, f.base_dir
         dev_src = str(f.source)
     elif not is_recording(source):
-        import h5py
-        try:
-            with h5py.File(source, "r") as h:
-                text = h.attrs.get("device_text", "")
-                dname = h.attrs.get("device", "device")
-                ttext = h.attrs.get("thermal_preset_text", "")
-        except OSError as exc:
-            raise UserInputError(f"{source}: not readable as a dataset ({exc})") from None
-        text = text.decode() if isinstance(text, bytes) else str(text)
-        ttext = ttext.decode() if isinstance(ttext, bytes) else str(ttext)
+        from rlgsim.ground.dataset_format import open_dataset
+        with open_dataset(source) as ds:
+            text = str(ds.attrs.get("device_text", ""))
+            dname = str(ds.attrs.get("device", "device"))
+            ttext = str(ds.attrs.get("thermal_preset_text", ""))
         if text:
-            dev_name = dname.decode() if isinstance(dname, bytes) else str(dname)
+            dev_name = dname
             dev = tomllib.loads(text)
             if thermal_template is None and ttext:
                 tname = str(dev.get("device", {}).get("thermal_preset", "thermal preset"))

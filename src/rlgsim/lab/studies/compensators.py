@@ -5,7 +5,8 @@ Study-file piece parsed here::
 
     [[compensator]]
     name = "LS cubic T"               # unique label in the report (not "raw" nor the oracle's)
-    kind = "polynomial"               # see KINDS, or "custom" with estimator = "..."
+    kind = "polynomial"               # see KINDS (rlgsim.estimators.compensator_kinds), or
+                                      # "custom" with estimator = "..."
     inputs = ["T"]                    # feature names ([features], :mod:`.study_tables`)
     params = { degree = 3 }           # estimator constructor keywords
     table = "Table 2"                 # optional: groups compensators into a paper table
@@ -19,11 +20,11 @@ whose names a compensator may not take.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import pathlib
 from dataclasses import dataclass
 from typing import Any
 
+from rlgsim.estimators.compensator_kinds import KINDS, estimator_class
 from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_str, get_table
 from rlgsim.lab.studies.study_tables import str_list
@@ -31,23 +32,8 @@ from rlgsim.lab.studies.study_tables import str_list
 COMPENSATOR_KEYS = ("name", "kind", "inputs", "params", "table", "published", "estimator")
 CUSTOM = "custom"   # kind of a user's own scikit-learn regressor (key ``estimator``)
 
-#: Compensator kinds: (module, class, extra keys the recipe itself understands).
-KINDS: dict[str, tuple[str, str, tuple[str, ...]]] = {
-    "polynomial": ("rlgsim.estimators.polynomial", "PolynomialRegressor", ()),
-    "stepwise": ("rlgsim.estimators.stepwise", "StepwiseRegressor", ()),
-    "mlr_bic": ("rlgsim.estimators.mlr", "MLRBICRegressor", ()),
-    "lssvm": ("rlgsim.estimators.lssvm_cv", "LSSVMRegressorCV", ()),
-    "ir_lssvm": ("rlgsim.estimators.robust_lssvm", "RobustLSSVMRegressor",
-                 ("gammas", "sigma2s", "tune_cv", "tune_scoring")),
-    "rvr": ("rlgsim.estimators.rvr", "RVR", ()),
-    "hho_rvr": ("rlgsim.estimators.tuned", "HHORVR", ()),
-    "pso_svr": ("rlgsim.estimators.tuned", "PSOSVR", ()),
-    "rbf": ("rlgsim.estimators.rbf_network", "RBFNetwork", ()),
-    "rbf_modified": ("rlgsim.estimators.rbf_modified", "ModifiedRBFNetwork", ()),
-}
-
 #: Kinds whose fitted model prints an equation (rlgsim.estimators.term_model).
-EQUATION_KINDS = ("polynomial", "stepwise", "mlr_bic")
+EQUATION_KINDS = tuple(k for k, spec in KINDS.items() if spec.closed_form == "polynomial")
 
 #: The reference compensators every test run is scored with (reserved names).
 ORACLE = "truth: temperature law"
@@ -67,12 +53,6 @@ class CompensatorSpec:
     ctx: Ctx
     estimator: str = ""                       # kind "custom": "module:Class" or "file.py:Class"
     base_dir: pathlib.Path | None = None      # where a "file.py" estimator is looked up
-
-
-def estimator_class(kind: str):
-    """The estimator class of a built-in ``kind`` (imported on first use)."""
-    module, cls, _ = KINDS[kind]
-    return getattr(importlib.import_module(module), cls)
 
 
 def spec_class(spec: CompensatorSpec):
@@ -162,7 +142,7 @@ def parse_compensator(item: Any, i: int, ctx: Ctx, features: list[str],
                            published={}, ctx=cctx, estimator=estimator, base_dir=base_dir)
     cls = spec_class(spec)
     try:
-        allowed = set(cls().get_params()) | set(KINDS.get(kind, ("", "", ()))[2])
+        allowed = set(cls().get_params()) | set(KINDS[kind].recipe_keys if kind in KINDS else ())
     except Exception as exc:
         raise cctx.error("estimator", f"{cls.__name__}() failed: {type(exc).__name__}: "
                                       f"{' '.join(str(exc).split())} (a scikit-learn "
@@ -202,7 +182,7 @@ def parse_compensators(data: dict, ctx: Ctx, features: list[str],
 def make_estimator(spec: CompensatorSpec, random_state: int):
     """The estimator of ``spec`` (ir_lssvm: its (gamma, sigma2) are tuned in :func:`fit`)."""
     cls = spec_class(spec)
-    extra = KINDS[spec.kind][2] if spec.kind in KINDS else ()
+    extra = KINDS[spec.kind].recipe_keys if spec.kind in KINDS else ()
     params = {k: v for k, v in spec.params.items() if k not in extra}
     if "random_state" in cls().get_params() and "random_state" not in params:
         params["random_state"] = random_state

@@ -105,17 +105,18 @@ def why_noise(results: list[EnvResult], budgets: dict[str, NoiseBudget],
 def _chamber_ripple(rs: RunSeries, node: str, skip_s: float) -> tuple[float, float] | None:
     """(peak |chamber air − setpoint|, peak of ``node``'s departure from its 30-min running
     mean) [K] on a simulated run after ``skip_s``; None for a recording or an unknown node."""
-    import h5py
+    from rlgsim.ground.dataset_format import THERMAL, open_dataset
+    from rlgsim.ground.errors import UserInputError
     try:
-        with h5py.File(rs.path, "r") as f:
-            g = f["thermal"]
-            t = g["time"][()]
+        with open_dataset(rs.path) as ds:
+            t = ds.read(THERMAL, "time")
             keep = t >= skip_s
-            air = g["chamber_air"][()][keep] - g["chamber_setpoint"][()][keep]
-            nodes = [n.decode() if isinstance(n, bytes) else str(n) for n in g["node"][()]]
-            x = g["node_temperature"][()][keep, nodes.index(node)]
+            air = (ds.read(THERMAL, "chamber_air")[keep]
+                   - ds.read(THERMAL, "chamber_setpoint")[keep])
+            col = ds.strings(THERMAL, "node").index(node)
+            x = ds.read(THERMAL, "node_temperature")[keep, col]
             step = float(t[1] - t[0])
-    except (KeyError, ValueError, OSError, IndexError):
+    except (UserInputError, KeyError, ValueError, OSError, IndexError):
         return None
     m = max(1, int(round(1800.0 / step)))
     if x.size <= 2 * m:

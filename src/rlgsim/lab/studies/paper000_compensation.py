@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 
 from rlgsim.lab.studies.paper000_config import AXES
-from rlgsim.lab.studies.runs import probe_temperatures, rewrite_pulses
+from rlgsim.lab.studies.runs import probe_temperatures
+from rlgsim.sim.writer.derived import rewrite_pulses
 
 
 def timed_compensation(*args) -> float:

@@ -8,6 +8,8 @@ import pathlib
 
 import numpy as np
 
+from rlgsim.ground.dataset_format import THERMAL, open_dataset
+from rlgsim.ground.errors import UserInputError
 from rlgsim.lab.report import Report, Table
 from rlgsim.lab.study import StudyResult
 from rlgsim.lab.studies.paper000_config import (PAPER_AVG_IMPROVEMENT, PAPER_MAX_IMPROVEMENT,
@@ -184,15 +186,13 @@ def _imu_temperature_text(data_path: pathlib.Path, xs: dict[str, np.ndarray]) ->
             f"about 0.4 °C), {np.min(step):.3f} … {np.max(step):.3f} °C; "
             f"{int(np.sum(step < 0.2))} of {step.size} steps below 0.2 °C.")
     try:
-        import h5py
-        with h5py.File(data_path, "r") as f:
-            if "heater_power" not in f["thermal"]:
+        with open_dataset(data_path) as ds:
+            if not ds.has(THERMAL, "heater_power"):
                 return text + " The IMU has no temperature control in this preset."
-            P = f["thermal/heater_power"][()]
-            names = [n.decode() if isinstance(n, bytes) else str(n)
-                     for n in f["thermal/heater"][()]]
-            powered = f["thermal/power_on"][()] > 0
-    except (OSError, KeyError):
+            P = ds.read(THERMAL, "heater_power")
+            names = ds.strings(THERMAL, "heater")
+            powered = ds.read(THERMAL, "power_on") > 0
+    except (UserInputError, OSError, KeyError):
         return text
     for j, name in enumerate(names):
         p = P[powered, j]

@@ -1,7 +1,8 @@
 """The runs of a study: their datasets (simulated, or reused when the one dataset fingerprint
 matches) and the window series read from them. Every study reads its datasets here, through the
-one dataset reader :func:`rlgsim.ground.dataset_format.open_dataset`, and writes the one
-derived dataset a study makes (paper 000's compensated pulses, :func:`rewrite_pulses`).
+one dataset reader :func:`rlgsim.ground.dataset_format.open_dataset` (the one derived dataset a
+study makes, paper 000's compensated pulses, is written by
+:func:`rlgsim.sim.writer.derived.rewrite_pulses`).
 
 A dataset under ``DIR/data/`` is reused when it was made from the same scenario text, device
 preset text, thermal preset text, noise seed, device seed and Monte Carlo unit
@@ -9,10 +10,10 @@ preset text, thermal preset text, noise seed, device seed and Monte Carlo unit
 simulated again.
 
 How the series are built (paper 001 §3 and §4.1; :mod:`rlgsim.lab.windows`, the one window
-builder): the gyro's rate is its pulse count per window
-divided by the nominal scale factor (truth group ``gyro.k0``) and the window length; the
-bias is that rate minus the Earth-rate projection on the gyro axis (the table's known
-input rate, ``truth/dtheta_step``: Ω·sin L for an up-pointing gyro on a static mount), in °/h.
+builder): the gyro's rate is its pulse count per window divided by the nominal scale factor
+(truth group ``gyro.k0``) and the window length; the bias is that rate minus the Earth-rate
+projection on the gyro axis (the table's known input rate, ``truth/dtheta_step``: Ω·sin L for
+an up-pointing gyro on a static mount), in °/h.
 Inputs are window means of the probe readings and the logged UHFO, and the least-squares slope
 of the temperature in each window (:mod:`rlgsim.estimators.features`). Windows in which the
 device was not powered over the whole window, or that start before a run's ``skip_h``, are
@@ -26,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -109,8 +110,9 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
              skip_s: float = 0.0) -> RunSeries:
     """Build the window series of one dataset (see the module docstring); windows that start
     before ``skip_s`` are dropped. The dataset is read a block of whole windows at a time
-    (:func:`rlgsim.lab.windows.dataset_windows`), so memory does not grow with the run's duration; every window
-    is computed from its own samples only, so the result does not depend on the block size."""
+    (:func:`rlgsim.lab.windows.dataset_windows`), so memory does not grow with the run's
+    duration; every window is computed from its own samples only, so the result does not depend
+    on the block size."""
     from rlgsim.estimators.columns import Columns
     from rlgsim.estimators.features import pairwise_gradients, samples_per_window
 
@@ -282,47 +284,3 @@ def probe_temperatures(path: pathlib.Path, names: list[str]
         probes = ds.strings(PROBES, "probe")
         return time_s, {n: ds.read(PROBES, "temperature", None, probes.index(n)).astype(float)
                         for n in names}
-
-
-def rewrite_pulses(src: pathlib.Path, dst: pathlib.Path,
-                   make_transform: Callable[[str], Callable[[int, np.ndarray], np.ndarray]],
-                   *, title_suffix: str, attrs: dict[str, Any], chunk: int) -> pathlib.Path:
-    """Write a copy of dataset ``src`` to ``dst`` (atomically) whose ``imu/<sensor>_pulses``
-    (sensor "gyro", then "accel") are rewritten ``chunk`` samples at a time by
-    ``make_transform(sensor)``, a function ``(first sample, pulses (samples × axes)) -> new
-    pulses`` called block by block in sample order (stored as int32 with the original's chunks
-    and compression); every other group and attribute is copied unchanged, the root's ``title``
-    gets ``title_suffix`` and ``attrs`` are added to the root."""
-    import os
-
-    import h5py
-    tmp = dst.with_name(f".{dst.name}.tmp{os.getpid()}")
-    with h5py.File(src, "r") as fs, h5py.File(tmp, "w") as fd:
-        for k, v in fs.attrs.items():
-            fd.attrs[k] = v
-        fd.attrs["title"] = f"{fs.attrs.get('title', '')}{title_suffix}"
-        for k, v in attrs.items():
-            fd.attrs[k] = v
-        for name in fs:
-            if name != "imu":
-                fs.copy(fs[name], fd, name=name)
-        gi, go = fs["imu"], fd.create_group("imu")
-        for k, v in gi.attrs.items():
-            go.attrs[k] = v
-        for name in gi:
-            if name not in ("gyro_pulses", "accel_pulses"):
-                gi.copy(gi[name], go, name=name)
-        n = gi["gyro_pulses"].shape[0]
-        for sensor in ("gyro", "accel"):
-            src_ds = gi[f"{sensor}_pulses"]
-            out = go.create_dataset(f"{sensor}_pulses", shape=src_ds.shape, dtype="int32",
-                                    chunks=src_ds.chunks, scaleoffset=0)
-            for k, v in src_ds.attrs.items():
-                if k not in ("DIMENSION_LIST", "REFERENCE_LIST"):
-                    out.attrs[k] = v
-            transform = make_transform(sensor)
-            for k0 in range(0, n, chunk):
-                k1 = min(n, k0 + chunk)
-                out[k0:k1] = transform(k0, src_ds[k0:k1])
-    os.replace(tmp, dst)
-    return dst
