@@ -279,8 +279,6 @@ KNOWN_LONG_FUNCTIONS: list[str] = [
     "estimators/identify/term_selection.py:select_terms",
     "estimators/identify/term_selection.py:_averaging", "estimators/ins/_kernel.py:ins_loop",
     "estimators/optimize/hho.py:harris_hawks",
-    "sim/run/simulate.py:simulate", "sim/sensors/_pulse_kernel.py:count_block",
-    "sim/thermal/integrator.py:_setup",
     "src/rlgsim/ground/recording.py:load_recording",
     "src/rlgsim/ground/recording_export.py:_export_dataset",
     "src/rlgsim/lab/identify/hop_fit.py:_map",
