@@ -12,7 +12,8 @@ at 100 Hz for ``--hours`` (default 1) in a bay/chamber held at 20 °C, written t
   states per sample) written too.
 
 Pairs alternate their order (static first, then trajectory first, …) so a changing load hits
-both alike; the median ratio and its spread are printed beside the target, with the machine
+both alike; the median ratio and its spread are printed beside the target (a verdict only with
+≥ 5 pairs and the others' load at most 1.5 on 2 cores: ``benchmarks/_machine.py``), with the machine
 line and the load average before and after. ``python benchmarks/bench_sim.py --trajectory``
 runs it too. Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N]``.
 """
@@ -29,7 +30,7 @@ import time
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _machine import alternate, load_text, machine, spread  # noqa: E402
+from _machine import MIN_PAIRS, LoadWatch, alternate, load_text, machine, spread  # noqa: E402
 
 TARGET = 0.75
 STATIC = """
@@ -65,11 +66,13 @@ def run_once(sc, out: pathlib.Path) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=1.0)
-    ap.add_argument("--repeat", type=int, default=4, help="alternating pairs (default 4)")
+    ap.add_argument("--repeat", type=int, default=MIN_PAIRS,
+                    help=f"alternating pairs (default {MIN_PAIRS}, the fewest for a verdict)")
     args = ap.parse_args(argv)
     static, moving = scenarios(args.hours)
     epochs = int(round(static.duration_s * 100))
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="rlgsim-bench-traj-"))
+    watch = LoadWatch()
     print(f"machine: {machine()}")
     print(f"load average before: {load_text()}", flush=True)
     run_once(static, tmp / "warm.h5")          # imports, numba caches: outside the pairs
@@ -79,14 +82,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  pair {i}: static {s:.2f} s ({epochs / s / 1e6:.2f} M epochs/s), trajectory "
               f"{m:.2f} s ({epochs / m / 1e6:.2f} M epochs/s), ratio {s / m:.2f}; load "
               f"{load_text()}", flush=True)
+        watch.sample()
     ws, wm = alternate(lambda: run_once(static, tmp / "s.h5"),
                        lambda: run_once(moving, tmp / "m.h5"), max(1, args.repeat), report)
     ratios = [s / m for s, m in zip(ws, wm)]
     print(f"{args.hours:g} h at 100 Hz = {epochs:,} epochs; static {spread(ws, unit=' s')}, "
           f"trajectory {spread(wm, unit=' s')}")
     print(f"trajectory / static throughput: {spread(ratios)}  (target >= {TARGET:.2f}: "
-          f"{'met' if statistics.median(ratios) >= TARGET else 'NOT met'})")
-    print(f"load average after: {load_text()}")
+          f"{watch.verdict(statistics.median(ratios) >= TARGET, len(ratios))})")
+    print(watch.line())
     return 0
 
 
