@@ -92,6 +92,9 @@ def test_kill_run(tmp_path):
                           text=True, timeout=60)
     assert info.returncode == 2 and "Traceback" not in info.stderr, info.stderr
     assert "incomplete" in info.stderr and len(info.stderr.strip().splitlines()) == 1
+    # the next runs to the same place: 2 h are enough to show the clean-up and that the
+    # output is a fresh run's bytes (48 h twice more cost most of this test's time)
+    (tmp_path / "long.toml").write_text(SCENARIO)
     _run("run", "long.toml", "-o", "long.h5", "-q", cwd=tmp_path)
     assert temporaries(tmp_path) == []                 # the next run cleaned up
     _run("run", "long.toml", "-o", "again.h5", "-q", cwd=tmp_path)
