@@ -94,10 +94,10 @@ def run_variant(name: str, tmp: pathlib.Path, rate_hz: float, pso: tuple[int, in
         (d / f"{sc}.toml").write_text(text)
     study = (SC / "studies" / "paper003.toml").read_text()
     study = study.replace('train = ["paper003_cycles"]', 'train = ["paper003_cycles.toml"]')
-    study = study.replace('test = [{ scenario = "paper003_cycles", seed = 3100 }, '
-                          '"paper003_random"]',
-                          'test = [{ scenario = "paper003_cycles.toml", seed = 3100 }, '
-                          '"paper003_random.toml"]')
+    study = study.replace('test = [{ scenario = "paper003_cycles", seed = 3100, '
+                          'run_seed = 3110 }, "paper003_random"]',
+                          'test = [{ scenario = "paper003_cycles.toml", seed = 3100, '
+                          'run_seed = 3110 }, "paper003_random.toml"]')
     if pso is not None:
         study = study.replace("n_agents = 20, max_iter = 50",
                               f"n_agents = {pso[0]}, max_iter = {pso[1]}")

@@ -31,6 +31,7 @@ from rlgsim.sim.sensors.gyro import GyroModel
 from rlgsim.sim.sensors.imu_model import Tolerance
 from rlgsim.sim.sensors.noise import NoiseModel
 from rlgsim.sim.rng import BLOCK_S, generator
+from rlgsim.sim.run.run_to_run import RunToRun
 from rlgsim.sim.thermal.network import ThermalNetwork
 from rlgsim.sim.thermal.thermometers import ProbeSet
 from rlgsim.sim.motion.turntable import TurntableProgram
@@ -53,13 +54,14 @@ DEVICE_TABLES: dict[str, TableValidator | None] = {
     "noise": NoiseModel.from_config,
     "tolerance": Tolerance.from_config,
     "anomalies": AnomalyModel.from_config,          # optional sensor anomalies (anomaly_model.py)
+    "run_to_run": RunToRun.from_config,             # optional turn-on and lab spreads (sim/run/run_to_run.py)
 }
 
 #: Keys of a device preset's ``[device]`` table.
 DEVICE_KEYS = ("name", "description", "source", "thermal_preset")
 
 #: Top-level keys of a scenario (tables included). Later issues add theirs here and parse them.
-SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "device",
+SCENARIO_KEYS = ("name", "description", "seed", "device_seed", "run_seed", "device",
                  *unit_keys("duration", TIME_UNITS), "site", "acquisition", "power", "chamber",
                  "turntable", "trajectory", "vehicle_bay")
 
@@ -133,6 +135,8 @@ def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
     thermal = load_thermal_preset(thermal_ref, base_dir=f.base_dir,
                                   context=f"{f.source}: device.thermal_preset")
     tables, parts = validate_device_tables(f.data, ctx)
+    if "run_to_run" in parts:
+        parts["run_to_run"].check_network(thermal.network, ctx.child("run_to_run"))
     return Device(name=get_str(dev, "name", dctx, f.name),
                   description=get_str(dev, "description", dctx, ""),
                   reference=get_str(dev, "source", dctx, ""),
@@ -223,6 +227,7 @@ class Scenario:
     trajectory: Any = None
     #: the airflow of the vehicle's bay (rlgsim.sim.thermal.vehicle_bay; None: still air)
     vehicle_bay: Any = None
+    run_seed: int | None = None      # draws the run-to-run spreads (sim/run/run_to_run.py)
 
     @property
     def realisation_seed(self) -> int:
@@ -278,6 +283,7 @@ def parse_scenario(text: str, source: str = "<string>", *,
     description = get_str(data, "description", ctx, "")
     seed = get_int(data, "seed", ctx, 0, min=0, max=2**63 - 1)
     device_seed = get_int(data, "device_seed", ctx, None, min=0, max=2**63 - 1)
+    run_seed = get_int(data, "run_seed", ctx, None, min=0, max=2**63 - 1)
     device = load_device(get_str(data, "device", ctx), base_dir=base_dir,
                          context=f"{source}: device")
     trajectory = vehicle_bay = None
@@ -317,7 +323,8 @@ def parse_scenario(text: str, source: str = "<string>", *,
     return Scenario(name=name, description=description, source=source, text=text, seed=seed,
                     device=device, site=site, acquisition=acquisition, power=power,
                     chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data,
-                    device_seed=device_seed, trajectory=trajectory, vehicle_bay=vehicle_bay)
+                    device_seed=device_seed, trajectory=trajectory, vehicle_bay=vehicle_bay,
+                    run_seed=run_seed)
 
 
 def load_scenario(ref: str) -> Scenario:

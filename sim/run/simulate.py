@@ -174,6 +174,9 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     if not chunk > 0:
         raise ValueError("chunk_s must be > 0")
     from rlgsim.sim.run.run_budget import check_budget, check_motions
+    from rlgsim.sim.run import run_to_run
+    run_attrs = run_to_run.attrs(scenario)
+    scenario = run_to_run.applied(scenario)   # this run's turn-on and lab (none without run_seed)
     check_motions(scenario)                 # before the timeline holds them all
     timeline = build_timeline(scenario)
     step = timeline.step_s
@@ -192,7 +195,7 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
             from rlgsim.sim.motion.kinematics import Motion
             motion = Motion(timeline.segments, scenario.site)  # exact turntable kinematics
 
-    attrs = _root_attrs(scenario, timeline)
+    attrs = {**_root_attrs(scenario, timeline), **run_attrs}
     from tqdm import tqdm
     with DatasetWriter(out, attrs) as w:
         write_timeline(w, timeline)

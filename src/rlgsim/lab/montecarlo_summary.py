@@ -29,7 +29,7 @@ def metric_unit(metric: str) -> str:
     base = metric.split("@")[0]
     name = base.rsplit(".", 1)[-1]
     name = name.removesuffix("_true").removesuffix("_test")
-    if name.startswith("improvement_pct") or name.startswith("avg_improvement"):
+    if name.startswith(("improvement_pct", "avg_improvement", "outside_")):
         return "%"
     if name in ("r2", "improvement_factor"):
         return "1"

@@ -190,6 +190,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
                    f"improvement relative to "
                    f"{'the raw bias' if config.baseline == RAW else config.baseline}",
                    f"wall time: data {t_data:.1f} s, total {t_total:.1f} s"])
+    from rlgsim.lab.studies.run_days import run_to_run_section
+    run_to_run_section(rep, runs, config.train, config.test)
 
     rep.heading("Definitions", 2)
     rep.bullets(definitions())
@@ -282,6 +284,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         rep.verbatim("\n".join(eqs), language="text")
 
     # -- rankings
+    from rlgsim.lab.studies.input_range import range_section
+    range_section(rep, [(fitted, {s.label: runs[s.key].series for s in config.test})])
     rep.heading("Rankings: the paper's claims against ours", 2)
     for para in _rankings(config, fitted, sc, int(ytr.size), out.train):
         rep.paragraph(para)

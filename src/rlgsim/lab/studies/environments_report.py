@@ -120,6 +120,9 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
         rep.heading("Regression equations (B in °/h; T in °C, dT/dt in K/s)", 3)
         rep.verbatim("\n".join(eqs), language="text")
 
+    from rlgsim.lab.studies.input_range import range_section
+    range_section(rep, [(r.fitted, {f"{r.env.name}: {t.label}": t for t in r.tests})
+                        for r in results])
     rep.heading("Rankings: the paper's claims against ours", 2)
     checks = claim_checks(results)
     if checks:

@@ -55,6 +55,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
                 "the bias (paper 003 eq. 11)",
                 f"wall time: data {t_data:.1f} s, total {t_total:.1f} s"]
     rep.bullets(bullets)
+    from rlgsim.lab.studies.run_days import run_to_run_section
+    run_to_run_section(rep, runs, config.train, config.test)
     rep.heading("Definitions", 2)
     rep.bullets(definitions())
     truth = {s.label: has_truth(runs[s.key].series) for s in config.test}
@@ -69,6 +71,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     for pt in config.paper_tables:
         _paper_table_section(rep, pt, per_test[pt.test])
     _truth_section(rep, config, fitted, per_test, truth)
+    from rlgsim.lab.studies.input_range import range_section
+    range_section(rep, [(fitted, {s.label: runs[s.key].series for s in config.test})])
     rep.heading("Ranking: the paper's claim against ours", 2)
     network = _train_network(config, runs)
     for para in rankings(config, per_test, fitted, Xtr, runs, network):

@@ -5,7 +5,7 @@ study makes, paper 000's compensated pulses, is written by
 :func:`rlgsim.sim.writer.derived.rewrite_pulses`).
 
 A dataset under ``DIR/data/`` is reused when it was made from the same scenario text, device
-preset text, thermal preset text, noise seed, device seed and Monte Carlo unit
+preset text, thermal preset text, noise seed, device seed, run seed and Monte Carlo unit
 (:func:`dataset_matches`, used by every recipe including ``paper000_system``); otherwise it is
 simulated again.
 
@@ -55,6 +55,8 @@ def dataset_matches(path: pathlib.Path, scenario) -> bool:
                     and int(a.get("seed", -1)) == scenario.seed
                     and int(a.get("unit", -1)) == scenario.unit
                     and int(a.get("device_seed", -1)) == scenario.realisation_seed
+                    and int(a.get("run_seed", -1)) == (-1 if scenario.run_seed is None
+                                                       else scenario.run_seed)
                     and text("device_text") == scenario.device.text
                     and text("thermal_preset_text") == scenario.device.thermal.text)
     except (UserInputError, OSError, KeyError, ValueError, TypeError):
@@ -84,6 +86,8 @@ def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int
     scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
     if spec.seed is not None:
         scenario = dataclasses.replace(scenario, seed=spec.seed)
+    if spec.run_seed is not None:
+        scenario = dataclasses.replace(scenario, run_seed=spec.run_seed)
     path, reused = simulated_dataset(scenario, workdir / "data" / f"{spec.label}.h5",
                                      progress=progress)
     return path, scenario, reused

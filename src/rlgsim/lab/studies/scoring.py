@@ -9,6 +9,9 @@ Scores of one prediction ŷ on a test run (:func:`scores`, all in °/h unless st
 * ``rmse_true``, ``mae_true``, ``r2_true``: the predicted bias ``ŷ`` against the true bias
   ``b`` (window means); ``b`` excludes the constant the output adds through the scale-factor
   error and misalignment times the Earth rate, which the compensators fold into their constant;
+* ``outside_range_pct``: the share of the run's windows in which an input of the compensator
+  lies outside its training [min, max], ``outside_excess_pct`` the largest distance beyond, in
+  % of the training span (:mod:`rlgsim.lab.studies.input_range`; 0 for the references);
 * ``resid_std_true`` = std(ŷ − b): what is left of the true bias after compensation, offset-free
   (the bias stability a noise-free gyro would show after compensation);
 * ``law_resid_std`` = std(ŷ − (b − r)), r the random part: the error of the learnt temperature
@@ -52,6 +55,13 @@ def score_run(rs: RunSeries, fitted: list[Fitted], y_train: np.ndarray, features
            or has_truth(rs)}
     if not has_truth(rs):                # a recording: no oracle, every score NaN
         out[ORACLE] = {k: float("nan") for k in next(iter(out.values()))}
+    from rlgsim.lab.studies.input_range import outside_range
+    for name in out:                     # the references use no inputs: nothing to extrapolate
+        out[name].update(outside_range_pct=0.0, outside_excess_pct=0.0)
+    for f in fitted:
+        if f.spec.name in out and f.X_train is not None and hasattr(f.X_train, "names"):
+            share, excess, _ = outside_range(f.X_train, rs.X, f.X_train.names)
+            out[f.spec.name].update(outside_range_pct=share, outside_excess_pct=excess)
     return preds, out
 
 

@@ -7,7 +7,9 @@ and :mod:`rlgsim.lab.studies.gradient_selection`; the ``[[compensator]]`` tables
 
     train = ["paper001_train"]        # scenario names or paths (relative to the study file), or
     test = [{scenario = "demo_cycle", seed = 7, skip_h = 1}]   # tables: seed replaces the
-                                      # scenario's noise seed; skip_h drops the first hours
+                                      # scenario's noise seed; skip_h drops the first hours;
+                                      # run_seed replaces its run_seed (another day: the
+                                      # run-to-run draws of sim/run/run_to_run.py)
     [data]
     window_s = 100                    # averaging window [s]
     gyro = "z"                        # gyro axis (default: the device's only gyro)
@@ -33,7 +35,7 @@ from rlgsim.sim.config import (Ctx, check_known_keys, get_bool, get_float, get_i
                                get_section, get_str)
 from rlgsim.lab.study import Study, scenario_for
 
-RUN_KEYS = ("scenario", "seed", "skip_h")
+RUN_KEYS = ("scenario", "seed", "skip_h", "run_seed")
 FEATURE_KEYS = ("temperature", "uhfo", "probes", "gradients")
 
 
@@ -46,6 +48,7 @@ class RunSpec:
     seed: int | None
     ctx: Ctx
     skip_s: float = 0.0
+    run_seed: int | None = None     # replaces the scenario's run_seed (None: keep it)
 
     @property
     def key(self) -> tuple[str, float]:
@@ -56,7 +59,9 @@ class RunSpec:
     def label(self) -> str:
         stem = pathlib.Path(self.ref).name
         stem = stem[:-5] if stem.endswith(".toml") else stem
-        return stem if self.seed is None else f"{stem}-seed{self.seed}"
+        label = stem if self.seed is None else f"{stem}-seed{self.seed}"
+        return label if self.run_seed is None or self.seed is not None else \
+            f"{label}-run{self.run_seed}"
 
 
 @dataclass(frozen=True)
@@ -95,10 +100,11 @@ def parse_runs(table: dict, key: str, ctx: Ctx) -> tuple[RunSpec, ...]:
             check_known_keys(item, RUN_KEYS, ictx)
             out.append(RunSpec(get_str(item, "scenario", ictx),
                                get_int(item, "seed", ictx, None, min=0, max=2**63 - 1), ictx,
-                               3600.0 * get_float(item, "skip_h", ictx, 0.0, min=0.0)))
+                               3600.0 * get_float(item, "skip_h", ictx, 0.0, min=0.0),
+                               get_int(item, "run_seed", ictx, None, min=0, max=2**63 - 1)))
         else:
             raise ctx.error(f"{key}[{i}]", f"expected a scenario name or a table "
-                                           f"{{scenario = ..., seed = ..., skip_h = ...}}, "
+                                           f"{{scenario = ..., seed = ..., skip_h = ..., run_seed = ...}}, "
                                            f"got {item!r}")
     labels = [r.label for r in out]
     dup = {x for x in labels if labels.count(x) > 1}
