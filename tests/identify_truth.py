@@ -50,6 +50,7 @@ def device_truth(folder: pathlib.Path, thermal: pathlib.Path, *, template: str =
     d["device"]["name"] = pathlib.Path(name).stem
     d["device"]["thermal_preset"] = thermal.name
     d.pop("anomalies", None)     # a truth unit without mode hops and read-out spikes
+    d.pop("run_to_run", None)    # one day; its mount links name the template's own nodes
     if bias is not None:
         d["gyro"]["bias"] = bias
         d.get("tolerance", {}).get("gyro", {}).pop("bias", None)

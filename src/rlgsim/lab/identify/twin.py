@@ -90,6 +90,7 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
             dev = tomllib.loads(text)
             if thermal_template is None and ttext:
                 tname = str(dev.get("device", {}).get("thermal_preset", "thermal preset"))
+                dev = _one_day(dev)
                 _one_gyro(dev_name, dev)
                 _check_device_tables(f"{source}: device_text", dev)
                 return dev_name, dev, f"{tname} (as embedded in the dataset)", \
@@ -98,6 +99,7 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
         raise UserInputError(f"{source}: a recording needs --device-template PRESET (the device "
                              f"preset whose law family and noise keys the twin takes; e.g. "
                              f"trplg_001)")
+    dev = _one_day(dev)
     _one_gyro(dev_name, dev)
     _check_device_tables(dev_src if device_template is not None else f"{source}: device_text",
                          dev)
@@ -106,6 +108,13 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
         raise UserInputError(f"{dev_name}: no thermal preset; give --thermal-template PRESET")
     t = presets.load_thermal_file(tref, base_dir=base)
     return dev_name, dev, t.name, t.data
+
+
+def _one_day(dev: dict) -> dict:
+    """The template without its ``[run_to_run]`` table: a twin is one recording, one day, and
+    the table's mount links name nodes of the template's own thermal network, which the twin
+    may replace (sim/run/run_to_run.py)."""
+    return {k: v for k, v in dev.items() if k != "run_to_run"}
 
 
 def _check_device_tables(where: str, dev: dict) -> None:
