@@ -1,0 +1,78 @@
+"""Consistency of the calibration filter over a campaign: NEES per parameter group against the
+χ² band.
+
+    python benchmarks/calibration_nees.py TABLE.csv          # a table of 'rlgsim calibrate'
+    python benchmarks/calibration_nees.py --run [--dir DIR]   # simulate paper000_campaign and
+                                                              # calibrate it first (minutes)
+
+For every window with status "ok" and a truth column, the normalised error of each parameter
+is (estimate − window-mean truth)/σ (σ the filter's 1σ); a group's NEES per window is the sum of
+its squares over the group's parameters (the diagonal of the covariance: the table carries the
+σ only). Over n windows and k parameters a consistent filter gives a mean NEES per window
+inside χ²(k·n)'s central 95 % interval divided by n (scipy.stats.chi2), printed beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+
+
+def groups(columns: list[str]) -> dict[str, list[str]]:
+    """Parameter groups of a calibration table: the name without its axis suffix."""
+    out: dict[str, list[str]] = {}
+    for c in columns:
+        if c.endswith("_sigma"):
+            p = c[:-len("_sigma")]
+            out.setdefault(p.rsplit("_", 1)[0], []).append(p)
+    return out
+
+
+def nees_table(path: pathlib.Path) -> list[tuple[str, int, float, float, float]]:
+    """(group, k, mean NEES per window, band low, band high) per group and overall."""
+    import pandas as pd
+    from scipy import stats
+    t = pd.read_csv(path)
+    t = t[t["status"] == "ok"]
+    n = len(t)
+    rows, total, k_total = [], np.zeros(n), 0
+    for g, ps in groups(list(t.columns)).items():
+        z2 = np.sum([((t[p] - t[f"{p}_true"]) / t[f"{p}_sigma"]).to_numpy() ** 2 for p in ps],
+                    axis=0)
+        if not np.all(np.isfinite(z2)):
+            continue
+        lo, hi = stats.chi2.ppf([0.025, 0.975], len(ps) * n) / n
+        rows.append((g, len(ps), float(z2.mean()), float(lo), float(hi)))
+        total, k_total = total + z2, k_total + len(ps)
+    lo, hi = stats.chi2.ppf([0.025, 0.975], k_total * n) / n
+    rows.append(("overall", k_total, float(total.mean()), float(lo), float(hi)))
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("table", nargs="?", type=pathlib.Path)
+    ap.add_argument("--run", action="store_true", help="simulate and calibrate paper000_campaign")
+    ap.add_argument("--dir", type=pathlib.Path, default=pathlib.Path("."))
+    a = ap.parse_args(argv)
+    if a.run:
+        data, table = a.dir / "paper000_campaign.h5", a.dir / "paper000_campaign_calibration.csv"
+        for cmd in (["run", "paper000_campaign", "-o", str(data), "-q"],
+                    ["calibrate", str(data), "-o", str(table), "--no-dataset", "-q"]):
+            subprocess.run([sys.executable, "-m", "rlgsim", *cmd], check=True)
+        a.table = table
+    if a.table is None:
+        ap.error("give a calibration table or --run")
+    print("| group | k | NEES per window | χ² 95 % band | inside |")
+    print("|---|---|---|---|---|")
+    for g, k, m, lo, hi in nees_table(a.table):
+        print(f"| {g} | {k} | {m:.2f} | {lo:.2f}–{hi:.2f} | {'yes' if lo <= m <= hi else 'NO'} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
