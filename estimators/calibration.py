@@ -31,6 +31,13 @@ a dataset without calibration windows raises :class:`CampaignError`.
 Not a scikit-learn estimator: a calibration maps a window of pulses and a commanded programme to
 one parameter set (there is no X → y to fit and predict), so the sklearn estimator contract of
 the compensators does not apply here.
+
+Why this file is long: it holds one job, the calibration campaign over a dataset — its windows
+(:func:`find_windows`), their reader (:class:`DatasetReader`, on the one dataset reader), the
+filter called per window, the result table and the worker pool — and these parts share the
+window specification and the parameter list; the filter itself is
+:mod:`rlgsim.estimators.kalman_calibration`, the figures
+:mod:`rlgsim.estimators.calibration_plot`.
 """
 
 from __future__ import annotations

@@ -87,6 +87,11 @@ horizontal axis turns a gyro scale-factor error (and the misalignment of the oth
 onto the turned axis) into a tilt, which the following dwell shows as a growing velocity; each
 accelerometer pointing Up and Down separates K_a⁺, K_a⁻ and bias; horizontal axes under g
 expose the accelerometer misalignments.
+
+Why this file is long: the filter's state layout (indices, names, units and scales), its
+settings and the filter that uses them are one model; split apart, every index would be defined
+in one file and read in another. The sequential loop is compiled in
+:mod:`rlgsim.estimators._kalman_kernel`.
 """
 
 from __future__ import annotations

@@ -62,6 +62,11 @@ the eigenvalues of ``K_mm`` at an absolute 1e-12, while the directions below the
 carry only round-off: truncating them gives fewer features for wide kernels (rank 168 of 300
 landmarks at ``sigma2 = 10`` on 3 standardised inputs, a 1.7x faster fit at N = 1e5), and with
 ``m = N`` landmarks it reproduces the dense solution to ~1e-14 instead of ~1e-8.
+
+Why this file is long: the bordered LS-SVM system, its Cholesky and Nyström solvers and the
+closed-form cross-validation residuals are the regressor's own numerics, shared by its
+cross-validated and robust variants (:mod:`rlgsim.estimators.lssvm_cv`,
+:mod:`rlgsim.estimators.robust_lssvm`).
 """
 
 from __future__ import annotations

@@ -36,6 +36,11 @@ Why not pickle/joblib or ONNX: a pickle is neither readable nor portable to the 
 microprocessor and breaks across library versions; skl2onnx converts scikit-learn classes, not
 these estimators, and an ONNX runtime is not what a microprocessor runs. The format here is
 small enough to read and to re-implement in any language.
+
+Why this file is long: the JSON format is written and read here (:func:`export_compensator`,
+:class:`ExportedCompensator`, :func:`load_json` with its one-line check of every key), so that
+the writer and the reader cannot drift apart; the C code is generated in
+:mod:`rlgsim.estimators.c_codegen`.
 """
 
 from __future__ import annotations

@@ -16,6 +16,11 @@ refitted on all the data. Validation defaults to contiguous-in-time folds (estim
 
 ``optimizer`` may be "hho" or "pso" for either model (HHO-tuned SVR, PSO-tuned RVR), with
 ``n_agents``, ``max_iter`` and ``max_evals`` passed to it.
+
+Why this file is long: both regressors share :class:`OptimizerTunedRegressor` and its kernel
+buffers, and an exported compensator records its fitted model's class path
+(``rlgsim.estimators.tuned.HHORVR``, ``…PSOSVR``; :mod:`rlgsim.estimators.model_export`), so
+moving a class would change every exported file.
 """
 
 from __future__ import annotations

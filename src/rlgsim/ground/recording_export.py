@@ -17,7 +17,6 @@ Written block by block (:data:`BLOCK_ROWS` samples), so memory does not grow wit
 
 from __future__ import annotations
 
-import json
 import os
 import pathlib
 import tomllib
@@ -137,80 +136,128 @@ def _export_recording(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
 
 # ---------------------------------------------------------------------------- datasets
 
-def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
-    import h5py
-    import pandas as pd
+def _open(src: pathlib.Path):
+    """The dataset at ``src`` (the one reader), or one line saying it is neither a dataset nor
+    a recording."""
+    from rlgsim.ground.dataset_format import open_dataset
     try:
-        f = h5py.File(src, "r")
-    except OSError:
-        raise UserInputError(f"{src}: neither an rlgsim dataset nor a recording (a .csv, "
-                             f".parquet or .h5 table with a .toml sidecar)") from None
-    with f:
-        if _text(f.attrs.get("rlgsim_format", "")) != "rlgsim dataset":
+        return open_dataset(src)
+    except UserInputError as exc:
+        if "not an HDF5 file" in str(exc):
+            raise UserInputError(f"{src}: neither an rlgsim dataset nor a recording (a .csv, "
+                                 f".parquet or .h5 table with a .toml sidecar)") from None
+        if "without the" in str(exc):
             raise UserInputError(f"{src}: not an rlgsim dataset (HDF5 file without the "
                                  f"rlgsim_format marker) and no sidecar {sidecar_path(src).name} "
-                                 f"beside it")
-        a = f.attrs
+                                 f"beside it") from None
+        raise
+
+
+def _axes(ds, variable: str, coordinate: str) -> list[str]:
+    """The axis names of ``imu/<variable>`` (its coordinate, or x, y, z by column)."""
+    from rlgsim.ground.dataset_format import IMU
+    if ds.has(IMU, coordinate):
+        return ds.strings(IMU, coordinate)
+    return list("xyz")[:ds.read(IMU, variable, slice(0, 1)).shape[1]]
+
+
+def _slow_columns(ds, gyro_axes: list[str]) -> dict[str, np.ndarray]:
+    """The thermal-grid channels as recording columns: column -> values on the thermal grid."""
+    from rlgsim.ground.dataset_format import IMU, PROBES, THERMAL, TURNTABLE
+    slow: dict[str, np.ndarray] = {}
+    if ds.has(PROBES, "temperature"):
+        temps = ds.read(PROBES, "temperature")
+        for i, name in enumerate(ds.strings(PROBES, "probe")):
+            slow[f"probe_{name}_c"] = temps[:, i].astype(np.float64)
+    for var, col in (("chamber_air", "chamber_air_c"), ("chamber_setpoint", "chamber_setpoint_c"),
+                     ("power_on", "power_on")):
+        if ds.has(THERMAL, var):
+            slow[col] = ds.read(THERMAL, var).astype(np.float64)
+    if gyro_axes and ds.has(IMU, "uhfo"):
+        u = ds.read(IMU, "uhfo")
+        for i, ax in enumerate(gyro_axes):
+            slow[f"uhfo_{ax}_v"] = u[:, i].astype(np.float64)
+    for var, col in (("outer_angle", "outer_angle_deg"), ("inner_angle", "inner_angle_deg")):
+        if ds.has(TURNTABLE, var):
+            slow[col] = ds.read(TURNTABLE, var).astype(np.float64)
+    return slow
+
+
+def _dataset_sidecar(src: pathlib.Path, p: pathlib.Path, a: dict, rate: float, step: float,
+                     slow: bool, has_imu: bool, gyro_axes: list[str], accel_axes: list[str]
+                     ) -> dict:
+    """The sidecar of the exported table: the recording, the site, the axes with the device
+    preset's nominal scale factors, and its noise levels."""
+    device = {}
+    try:
+        device = tomllib.loads(_text(a.get("device_text", ""))) if "device_text" in a else {}
+    except tomllib.TOMLDecodeError:
+        device = {}
+    rec_t = {"format": RECORDING_FORMAT, "version": RECORDING_VERSION,
+             "description": f"exported from the rlgsim dataset {src.name} (scenario "
+                            f"{_text(a.get('scenario_name', '?'))}, seed "
+                            f"{_text(a.get('seed', '?'))})",
+             "data": p.name, "sample_rate_hz": rate}
+    if slow and has_imu:
+        rec_t["temperature_rate_hz"] = 1.0 / step
+    rec_t["source"] = str(src)
+    tables = {"recording": rec_t,
+              "site": {"latitude_deg": float(a.get("latitude_deg", DEFAULT_LATITUDE_DEG)),
+                       "height_m": float(a.get("height_m", 0.0))}}
+    if gyro_axes:
+        g = {"axes": gyro_axes}
+        sf = device.get("gyro", {}).get("scale_factor_pulses_per_arcsec")
+        if isinstance(sf, (int, float)):
+            g["scale_factor_pulses_per_arcsec"] = float(sf)
+        tables["gyro"] = g
+    if accel_axes:
+        acc_t = {"axes": accel_axes}
+        sf = device.get("accelerometer", {}).get("scale_factor_pulses_per_s_per_g")
+        if isinstance(sf, (int, float)):
+            acc_t["scale_factor_pulses_per_s_per_g"] = float(sf)
+        tables["accelerometer"] = acc_t
+    tables["noise"] = {k: float(v) for k, v in device.get("noise", {}).items()
+                       if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    return tables
+
+
+def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
+    import pandas as pd
+
+    from rlgsim.ground.dataset_format import IMU, TIMELINE
+    with _open(src) as ds:
+        a = ds.attrs
         step = float(a.get("thermal_step_s", 1.0))
-        has_imu = "imu" in f and "gyro_pulses" in f["imu"]
-        rate = float(f["imu"].attrs.get("sample_rate_hz", a.get("sample_rate_hz"))) if has_imu \
-            else 1.0 / step
+        has_imu = ds.has(IMU, "gyro_pulses")
+        rate = float(ds.group_attrs(IMU).get("sample_rate_hz", a.get("sample_rate_hz"))) \
+            if has_imu else 1.0 / step
         ratio = step * rate
         r = int(round(ratio))
         if abs(ratio - r) > 1e-9 or r < 1:
             raise UserInputError(f"{src}: thermal step {step:g} s is not a whole number of "
                                  f"samples at {rate:g} Hz; cannot put both on one table")
-
-        def strings(path):
-            return [_text(v) for v in f[path][()]]
-        gyro_axes = (strings("imu/gyro") if "gyro" in f["imu"] else
-                     list("xyz")[:f["imu/gyro_pulses"].shape[1]]) if has_imu else []
-        accel_axes = ((strings("imu/accel") if "accel" in f["imu"] else
-                       list("xyz")[:f["imu/accel_pulses"].shape[1]])
-                      if has_imu and "accel_pulses" in f["imu"] else [])
-        slow: dict[str, np.ndarray] = {}          # column -> values on the thermal grid
-        if "probes" in f:
-            temps = f["probes/temperature"][()]
-            for i, name in enumerate(strings("probes/probe")):
-                slow[f"probe_{name}_c"] = temps[:, i].astype(np.float64)
-        if "thermal" in f:
-            for var, col in (("chamber_air", "chamber_air_c"),
-                             ("chamber_setpoint", "chamber_setpoint_c"),
-                             ("power_on", "power_on")):
-                if var in f["thermal"]:
-                    slow[col] = f["thermal"][var][()].astype(np.float64)
-        if has_imu and "uhfo" in f["imu"]:
-            u = f["imu/uhfo"][()]
-            for i, ax in enumerate(gyro_axes):
-                slow[f"uhfo_{ax}_v"] = u[:, i].astype(np.float64)
-        if "turntable" in f:
-            for var, col in (("outer_angle", "outer_angle_deg"),
-                             ("inner_angle", "inner_angle_deg")):
-                if var in f["turntable"]:
-                    slow[col] = f["turntable"][var][()].astype(np.float64)
+        gyro_axes = _axes(ds, "gyro_pulses", "gyro") if has_imu else []
+        accel_axes = (_axes(ds, "accel_pulses", "accel")
+                      if has_imu and ds.has(IMU, "accel_pulses") else [])
+        slow = _slow_columns(ds, gyro_axes)
         n_thermal = max((len(v) for v in slow.values()), default=0)
-        n = int(f["imu/gyro_pulses"].shape[0]) if has_imu else n_thermal
+        n = ds.length(IMU, "gyro_pulses") if has_imu else n_thermal
         if n == 0:
             raise UserInputError(f"{src}: the dataset has no samples to export")
         # thermal row j ends at (j+1)·step: sample index (j+1)·r − 1
         slow_idx = (np.arange(n_thermal) + 1) * r - 1
         keep = slow_idx < n
-        device = {}
-        try:
-            device = tomllib.loads(_text(a.get("device_text", ""))) if "device_text" in a else {}
-        except tomllib.TOMLDecodeError:
-            device = {}
 
         def blocks():
             for k0 in range(0, n, BLOCK_ROWS):
                 k1 = min(n, k0 + BLOCK_ROWS)
                 data = {"time_s": (np.arange(k0, k1, dtype=np.float64) + 1.0) / rate}
                 if has_imu:
-                    g = f["imu/gyro_pulses"][k0:k1]
+                    g = ds.read(IMU, "gyro_pulses", slice(k0, k1))
                     for i, ax in enumerate(gyro_axes):
                         data[f"gyro_{ax}_pulses"] = g[:, i].astype(np.int64)
                     if accel_axes:
-                        acc = f["imu/accel_pulses"][k0:k1]
+                        acc = ds.read(IMU, "accel_pulses", slice(k0, k1))
                         for i, ax in enumerate(accel_axes):
                             data[f"accel_{ax}_pulses"] = acc[:, i].astype(np.int64)
                 sel = keep & (slow_idx >= k0) & (slow_idx < k1)
@@ -221,42 +268,13 @@ def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
                 yield pd.DataFrame(data)
 
         write_table(p, blocks(), fmt)
-        rec_t = {"format": RECORDING_FORMAT, "version": RECORDING_VERSION,
-                 "description": f"exported from the rlgsim dataset {src.name} (scenario "
-                                f"{_text(a.get('scenario_name', '?'))}, seed "
-                                f"{_text(a.get('seed', '?'))})",
-                 "data": p.name, "sample_rate_hz": rate}
-        if slow and has_imu:
-            rec_t["temperature_rate_hz"] = 1.0 / step
-        rec_t["source"] = str(src)
-        tables = {"recording": rec_t,
-                  "site": {"latitude_deg": float(a.get("latitude_deg", DEFAULT_LATITUDE_DEG)),
-                           "height_m": float(a.get("height_m", 0.0))}}
-        if gyro_axes:
-            g = {"axes": gyro_axes}
-            sf = device.get("gyro", {}).get("scale_factor_pulses_per_arcsec")
-            if isinstance(sf, (int, float)):
-                g["scale_factor_pulses_per_arcsec"] = float(sf)
-            tables["gyro"] = g
-        if accel_axes:
-            acc_t = {"axes": accel_axes}
-            sf = device.get("accelerometer", {}).get("scale_factor_pulses_per_s_per_g")
-            if isinstance(sf, (int, float)):
-                acc_t["scale_factor_pulses_per_s_per_g"] = float(sf)
-            tables["accelerometer"] = acc_t
-        noise = {k: float(v) for k, v in device.get("noise", {}).items()
-                 if isinstance(v, (int, float)) and not isinstance(v, bool)}
-        tables["noise"] = noise
-        side = write_sidecar(sidecar_path(p), tables,
+        side = write_sidecar(sidecar_path(p),
+                             _dataset_sidecar(src, p, a, rate, step, bool(slow), has_imu,
+                                              gyro_axes, accel_axes),
                              comment="rlgsim recording sidecar (docs/recordings.md)")
         programme = None
-        if "timeline" in f:
-            tl = f["timeline"]
-            details = "details" if "details" in tl else "attrs"
-            segs = [dict(t0=float(t0), t1=float(t1), track=_text(tr), label=_text(lb),
-                         attrs=json.loads(_text(at)))
-                    for t0, t1, tr, lb, at in zip(tl["t0"][()], tl["t1"][()], tl["track"][()],
-                                                  tl["label"][()], tl[details][()])]
+        if ds.has(TIMELINE, "t0"):
+            segs = ds.segments()
             if any(s["track"] == "calibration" for s in segs):
                 from rlgsim.ground.programme import write_programme
                 programme = write_programme(p.with_name(f"{p.stem}_programme.csv"), segs)

@@ -416,84 +416,95 @@ def fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: fl
         _JOB.clear()
 
 
-def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
-                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str,
-                 max_corr: float, workers: int) -> ThermalFit:
-    net0, pr0 = build(template, "thermal template")
-    unknown = [n for n in probe_names if n not in pr0.names]
-    if unknown:
-        raise UserInputError(f"{source}: probe {unknown[0]!r} of the recording is not a probe "
-                             f"of the thermal template (its probes: {', '.join(pr0.names)}); "
-                             f"name the probes as the template does or give another "
-                             f"--thermal-template")
-    cols = np.array([pr0.names.index(n) for n in probe_names])
-    m_full = air_c.size
-    # the fit integrates on a coarser grid (every `coarse` recorded steps): the air is smooth
-    # and the first-order hold stays exact to the millikelvin; the final twin is on the full grid
-    batched = BATCH_JACOBIAN and batchable(net0)
-    most = MAX_FIT_STEPS_STEPWISE if batchable(net0) else MAX_FIT_STEPS
-    coarse = max(1, int(math.ceil(m_full / most)))
-    sel = np.arange(coarse - 1, m_full, coarse)
-    air_f, power_f, step_f = air_c[sel], power[sel], step_s * coarse
-    m = sel.size
-    stride = max(1, int(math.ceil(m * len(probe_names) / MAX_RESIDUALS)))
-    rows = np.arange(stride - 1, m, stride)
-    obs = probes_c[sel][rows]
-    mask = np.isfinite(obs)
-    obs0 = np.where(mask, obs, 0.0)
-    params = thermal_parameters(template, probe_names)
-    by = {p.name: p for p in params}
+class _Problem:
+    """The fit's residuals and Jacobians: the template's twin with multipliers on the fit's
+    coarser grid (and on the recorded grid for the result), one residual series per probe,
+    forward-difference Jacobians batched over processes for a heater network."""
 
-    def model(mult: dict[str, float], full: bool = False):
-        d, _ = apply_multipliers(template, params, mult)
+    def __init__(self, template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
+                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str,
+                 workers: int) -> None:
+        net0, pr0 = build(template, "thermal template")
+        unknown = [n for n in probe_names if n not in pr0.names]
+        if unknown:
+            raise UserInputError(f"{source}: probe {unknown[0]!r} of the recording is not a probe "
+                                 f"of the thermal template (its probes: {', '.join(pr0.names)}); "
+                                 f"name the probes as the template does or give another "
+                                 f"--thermal-template")
+        cols = np.array([pr0.names.index(n) for n in probe_names])
+        m_full = air_c.size
+        # the fit integrates on a coarser grid (every `coarse` recorded steps): the air is
+        # smooth and the first-order hold stays exact to the millikelvin; the final twin is on
+        # the full grid
+        batched = BATCH_JACOBIAN and batchable(net0)
+        most = MAX_FIT_STEPS_STEPWISE if batchable(net0) else MAX_FIT_STEPS
+        coarse = max(1, int(math.ceil(m_full / most)))
+        sel = np.arange(coarse - 1, m_full, coarse)
+        air_f, power_f, step_f = air_c[sel], power[sel], step_s * coarse
+        m = sel.size
+        stride = max(1, int(math.ceil(m * len(probe_names) / MAX_RESIDUALS)))
+        rows = np.arange(stride - 1, m, stride)
+        obs = probes_c[sel][rows]
+        mask = np.isfinite(obs)
+        obs0 = np.where(mask, obs, 0.0)
+        params = thermal_parameters(template, probe_names)
+
+        self.template, self.air_c, self.power, self.step_s = template, air_c, power, step_s
+        self.probe_names, self.probes_c, self.pr0, self.cols = probe_names, probes_c, pr0, cols
+        self.air_f, self.power_f, self.step_f, self.batched = air_f, power_f, step_f, batched
+        self.rows, self.obs, self.mask, self.obs0 = rows, obs, mask, obs0
+        self.params = params
+        pool = None
+        if batched and workers > 1:
+            import multiprocessing
+            _JOB["fun"] = self.residuals_part
+            try:
+                pool = multiprocessing.get_context("fork").Pool(workers)
+                _JOB["pool"] = pool                      # closed by fit_thermal
+            except (ValueError, OSError, AssertionError):   # no fork, or a daemon: one process
+                pool = None
+
+        self.pool = pool
+
+    def model(self, mult: dict[str, float], full: bool = False):
+        d, _ = apply_multipliers(self.template, self.params, mult)
         net, pr = build(d)
         if full:
-            nodes, read = twin_response(net, pr, air_c, power, step_s)
+            nodes, read = twin_response(net, pr, self.air_c, self.power, self.step_s)
         else:
-            nodes, read = twin_response(net, pr, air_f, power_f, step_f)
-        return nodes, read[:, cols], net, pr, d
+            nodes, read = twin_response(net, pr, self.air_f, self.power_f, self.step_f)
+        return nodes, read[:, self.cols], net, pr, d
 
-    def residual_for(names: list[str]):
+    def residual_for(self, names: list[str]):
         def fun(x: np.ndarray) -> np.ndarray:
-            _, read, *_ = model(dict(zip(names, np.exp(x))))
-            r = np.where(mask, read[rows] - obs0, 0.0)
+            _, read, *_ = self.model(dict(zip(names, np.exp(x))))
+            r = np.where(self.mask, read[self.rows] - self.obs0, 0.0)
             return r.T.reshape(-1)               # probe-major: one series per probe
         return fun
 
-
-    def residuals_part(names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
+    def residuals_part(self, names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
         """Residual vectors at several points, integrated together (a heater network)."""
         models = []
         for x in xs:
-            d, _ = apply_multipliers(template, params, dict(zip(names, np.exp(x))))
+            d, _ = apply_multipliers(self.template, self.params, dict(zip(names, np.exp(x))))
             models.append(build(d))
         out = []
-        for read in twin_readings_batch(models, air_f, power_f, step_f):
-            r = np.where(mask, read[:, cols][rows] - obs0, 0.0)
+        for read in twin_readings_batch(models, self.air_f, self.power_f, self.step_f):
+            r = np.where(self.mask, read[:, self.cols][self.rows] - self.obs0, 0.0)
             out.append(r.T.reshape(-1))
         return out
 
-    pool = None
-    if batched and workers > 1:
-        import multiprocessing
-        _JOB["fun"] = residuals_part
-        try:
-            pool = multiprocessing.get_context("fork").Pool(workers)
-            _JOB["pool"] = pool                      # closed by fit_thermal
-        except (ValueError, OSError, AssertionError):   # no fork, or a daemon: one process
-            pool = None
-
-    def residuals_batch(names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
+    def residuals_batch(self, names: list[str], xs: list[np.ndarray]) -> list[np.ndarray]:
         """The points in BATCH_PARTS fixed parts, in parallel when there is a pool."""
         k = int(math.ceil(len(xs) / BATCH_PARTS))
         parts = [(names, xs[i:i + k]) for i in range(0, len(xs), k)]
-        if pool is not None:
-            done = pool.map(_batch_part, parts, chunksize=1)
+        if self.pool is not None:
+            done = self.pool.map(_batch_part, parts, chunksize=1)
         else:
-            done = [residuals_part(*a) for a in parts]
+            done = [self.residuals_part(*a) for a in parts]
         return [r for part in done for r in part]
 
-    def fd_jac(names: list[str], x: np.ndarray, rel: float, bounded: bool) -> np.ndarray:
+    def fd_jac(self, names: list[str], x: np.ndarray, rel: float, bounded: bool) -> np.ndarray:
         """Forward differences with scipy's 2-point step (``rel·max(1, |x|)``, sign of x,
         reversed at an upper bound), the base point and every column in one batch."""
         x = np.asarray(x, dtype=float)
@@ -507,21 +518,21 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
             xp[j] += h[j]
             dx.append(xp[j] - x[j])
             pts.append(xp)
-        res = residuals_batch(names, pts)
+        res = self.residuals_batch(names, pts)
         J = np.empty((res[0].size, x.size))
         for j in range(x.size):
             J[:, j] = (res[j + 1] - res[0]) / dx[j]
         return J
 
-    def jac_at(names: list[str], x: np.ndarray, h: float = 1e-4) -> np.ndarray:
-        if batched:
-            J = np.empty((obs.size, len(names)))
+    def jac_at(self, names: list[str], x: np.ndarray, h: float = 1e-4) -> np.ndarray:
+        if self.batched:
+            J = np.empty((self.obs.size, len(names)))
             pts = [x] + [x + h * np.eye(len(names))[j] for j in range(len(names))]
-            res = residuals_batch(names, pts)
+            res = self.residuals_batch(names, pts)
             for j in range(len(names)):
                 J[:, j] = (res[j + 1] - res[0]) / h
             return J
-        fun = residual_for(names)
+        fun = self.residual_for(names)
         r0 = fun(x)
         J = np.empty((r0.size, len(names)))
         for j in range(len(names)):
@@ -530,24 +541,45 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
             J[:, j] = (fun(xp) - r0) / h
         return J
 
-    free = [p.name for p in params]
+
+def _optional(names: list[str]) -> list[bool]:
+    """Which parameters the screen may drop first (the heat sources' powers)."""
+    return [n.count(".power.") > 0 for n in names]
+
+
+def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: float,
+                 probe_names: tuple[str, ...], probes_c: np.ndarray, *, source: str,
+                 max_corr: float, workers: int) -> ThermalFit:
+    pb = _Problem(template, air_c, power, step_s, probe_names, probes_c, source=source,
+                  workers=workers)
+    free, refused = _screen_at_template(pb, max_corr)
+    res = _fit_screened(pb, free, refused, max_corr)
+    return _result(pb, res, free, refused)
+
+
+def _screen_at_template(pb: _Problem, max_corr: float) -> tuple[list[str], dict[str, str]]:
+    """The free parameters after the overall-scale pin and the screen at the template."""
+    free = [p.name for p in pb.params]
     refused: dict[str, str] = {}
-    pin = _overall_scale(free, lambda names, x: residual_for(names)(x))
+    pin = _overall_scale(free, lambda names, x: pb.residual_for(names)(x))
     if pin is not None:
         refused[free[pin]] = SCALE_REASON
         free.pop(pin)
-    J = jac_at(free, np.zeros(len(free)))
-    def optional(names: list[str]) -> list[bool]:
-        return [n.count(".power.") > 0 for n in names]
-
+    J = pb.jac_at(free, np.zeros(len(free)))
     while free:
-        s = screen(J, free, max_corr=max_corr, optional=optional(free))
+        s = screen(J, free, max_corr=max_corr, optional=_optional(free))
         if s is None:
             break
         i, why = s
         refused[free[i]] = why + " (at the template)"
         free.pop(i)
         J = np.delete(J, i, axis=1)
+    return free, refused
+
+
+def _fit_screened(pb: _Problem, free: list[str], refused: dict[str, str], max_corr: float):
+    """Fit ``free`` (refusing in place, one refusal per refit, until the screen passes at the
+    fitted values); the last fit, or None when nothing is left free."""
     res = None
     x = np.zeros(len(free))
     # one refusal per refit, until the screen passes: every refusal is followed by a fit on
@@ -559,11 +591,11 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
             res = None
             break
         names = list(free)
-        res = fit(residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
-                  segments=len(probe_names), diff_step=1e-6, batches=8,
-                  jac=(lambda x, names=names: fd_jac(names, x, 1e-6, True)) if batched
+        res = fit(pb.residual_for(free), x, free, bounds=(-_BOUND, _BOUND),
+                  segments=len(pb.probe_names), diff_step=1e-6, batches=8,
+                  jac=(lambda x, names=names: pb.fd_jac(names, x, 1e-6, True)) if pb.batched
                   else None)
-        s = (screen(res.jac, free, max_corr=max_corr, optional=optional(free))
+        s = (screen(res.jac, free, max_corr=max_corr, optional=_optional(free))
              or _undetermined(res, free))
         if s is None:
             break
@@ -571,6 +603,12 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
         refused[free[i]] = why + " (at the fitted values)"
         x = np.delete(res.x, i)
         free.pop(i)
+    return res
+
+
+def _result(pb: _Problem, res, free: list[str], refused: dict[str, str]) -> ThermalFit:
+    """The fitted twin on the recorded grid, its standard errors and the probes' RMS."""
+    template, params, probe_names, probes_c = pb.template, pb.params, pb.probe_names, pb.probes_c
     assert res is None or list(res.names) == free
     mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
     rel_se = dict(zip(free, res.se)) if res is not None else {}
@@ -579,13 +617,13 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
         # the probes' own error model (resolution, noise) carried through the Jacobian; the
         # reported standard error is the larger of it and the batch means (which also see
         # what the error model does not: a template family that cannot follow the unit)
-        _, read_fit, *_ = model(mult)
-        cq = quantised_covariance(res.jac, read_fit[rows], mask, pr0.noise_sigma_c[cols],
-                                  pr0.resolution_c[cols])
+        _, read_fit, *_ = pb.model(mult)
+        cq = quantised_covariance(res.jac, read_fit[pb.rows], pb.mask,
+                                  pb.pr0.noise_sigma_c[pb.cols], pb.pr0.resolution_c[pb.cols])
         se_q = dict(zip(free, np.sqrt(np.clip(np.diag(cq), 0, None))))
         rel_se = {k: max(v, se_q[k]) for k, v in rel_se.items()}
-    nodes, fitted_read, net, pr, fitted = model(mult, full=True)
-    _, template_read, *_ = model({}, full=True)
+    nodes, fitted_read, net, pr, fitted = pb.model(mult, full=True)
+    _, template_read, *_ = pb.model({}, full=True)
     fitted, changes = apply_multipliers(template, params, mult)
 
     def rms(pred):
@@ -595,7 +633,6 @@ def _fit_thermal(template: dict, air_c: np.ndarray, power: np.ndarray, step_s: f
             d = d[np.isfinite(d)]
             out[n] = float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan")
         return out
-    del by
     return ThermalFit(params=params, fit=res, multipliers=mult, rel_se=rel_se, refused=refused,
                       probe_names=tuple(probe_names), rms_template_c=rms(template_read),
                       rms_fitted_c=rms(fitted_read), fitted=fitted, changes=changes,

@@ -84,7 +84,6 @@ def recording_series(path: pathlib.Path, config, label: str, ctx, skip_s: float 
     docstring; the windows: :func:`rlgsim.lab.windows.recording_windows`); runs.py builds the
     series (this module imports nothing from it)."""
     from rlgsim.estimators.columns import Columns
-    from rlgsim.estimators.features import pairwise_gradients
     rec = load_recording(path)
     W = config.window_s
     axis = _axis(rec, config.gyro, str(ctx.source))
@@ -103,17 +102,7 @@ def recording_series(path: pathlib.Path, config, label: str, ctx, skip_s: float 
         raise UserInputError(f"{ctx.source}: data.window_s: recording {path.name} is shorter "
                              f"than one {W:g} s window")
     y, earth = w["y"], w["earth"]
-    cols: dict[str, np.ndarray] = {}
-    if config.temperature:
-        cols["T"] = w[f"mean:{config.temperature}"]
-        cols["dT/dt"] = w[f"slope:{config.temperature}"]
-    if config.uhfo:
-        cols["U"] = w["uhfo"]
-    for name in config.probes:
-        cols[name] = w[f"mean:{name}"]
-    if config.gradients:
-        cols.update(pairwise_gradients(Columns({g: w[f"mean:{g}"]
-                                                for g in config.gradients})).items())
+    cols = config.columns(w)
     keep = ~w["dropout"]
     if "power" in w:
         keep &= w["power"] >= 1.0

@@ -118,7 +118,7 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
     duration; every window is computed from its own samples only, so the result does not depend
     on the block size."""
     from rlgsim.estimators.columns import Columns
-    from rlgsim.estimators.features import pairwise_gradients, samples_per_window
+    from rlgsim.estimators.features import samples_per_window
 
     W = config.window_s
     with open_dataset(path) as ds:
@@ -163,17 +163,7 @@ def read_run(path: pathlib.Path, config: FeatureSpec, label: str, ctx: Ctx,
     k0 = coeff[f"gyro.k0[{axis}]"]
     earth = w["dtheta"] / W                                                    # rad/s
     y = bias_deg_per_h(w["counts"] / (k0 * W), earth)
-    cols: dict[str, np.ndarray] = {}
-    if config.temperature:
-        cols["T"] = w[f"mean:{config.temperature}"]
-        cols["dT/dt"] = w[f"slope:{config.temperature}"]
-    if config.uhfo:
-        cols["U"] = w["uhfo"]
-    for name in config.probes:
-        cols[name] = w[f"mean:{name}"]
-    if config.gradients:
-        cols.update(pairwise_gradients(Columns({g: w[f"mean:{g}"]
-                                                for g in config.gradients})).items())
+    cols = config.columns(w)
     keep = w["power"] & (np.arange(n_win) * W >= skip_s - 1e-9)
     return RunSeries(label=label, path=path, seed=seed, device_seed=device_seed,
                      time_s=((np.arange(n_win) + 1) * W)[keep], y=y[keep],

@@ -85,6 +85,25 @@ class FeatureSpec:
         names += [f"{a}-{b}" for a, b in itertools.combinations(self.gradients, 2)]
         return names
 
+    def columns(self, w: dict) -> dict:
+        """The input columns of a run's windows, named as :meth:`feature_names` lists them,
+        from the window series ``w`` of :mod:`rlgsim.lab.windows` (``mean:<probe>`` [°C],
+        ``slope:<probe>`` [K/s], ``uhfo`` [V]); gradients are differences of probe means."""
+        from rlgsim.estimators.columns import Columns
+        from rlgsim.estimators.features import pairwise_gradients
+        cols = {}
+        if self.temperature:
+            cols["T"] = w[f"mean:{self.temperature}"]
+            cols["dT/dt"] = w[f"slope:{self.temperature}"]
+        if self.uhfo:
+            cols["U"] = w["uhfo"]
+        for name in self.probes:
+            cols[name] = w[f"mean:{name}"]
+        if self.gradients:
+            cols.update(pairwise_gradients(Columns({g: w[f"mean:{g}"]
+                                                    for g in self.gradients})).items())
+        return cols
+
 
 def parse_runs(table: dict, key: str, ctx: Ctx) -> tuple[RunSpec, ...]:
     items = get_list(table, key, ctx, min_len=1)
