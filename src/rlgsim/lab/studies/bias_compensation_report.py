@@ -14,7 +14,8 @@ from rlgsim.lab.studies.bias_compensation_ranking import rankings
 from rlgsim.lab.studies.compensators import EQUATION_KINDS, RAW
 from rlgsim.lab.studies.fitting import Fitted
 from rlgsim.lab.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
-from rlgsim.lab.studies.report_text import (before_check, definitions, device_coefficients_section,
+from rlgsim.lab.studies.report_text import (before_check, definitions,
+                                            device_coefficients_section, first_test_navigation,
                                             fmt, truth_score_tables)
 from rlgsim.lab.studies.runs import RunSeries
 from rlgsim.lab.studies.scoring import has_truth, series_stability
@@ -89,17 +90,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
 
 
 def navigation(study: Study, config: Config, result: StudyResult):
-    """The first test run's navigation (docs/navigation.md, "In the studies"): (dataset,
-    introduction), or None for a recording."""
-    out: Outcome = result.details
-    rs = out.runs[config.test[0].key].series
-    if not has_truth(rs) or rs.path.suffix != ".h5":
-        return None
-    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
-    preds = out.predictions[config.test[0].label]
-    return single_gyro_navigation(rs.path, config.gyro, rs.time_s,
-                                  {f.spec.name: preds[f.spec.name] for f in out.fitted
-                                   if f.spec.name in preds}, config.window_s)
+    """The first test run's navigation (:func:`.report_text.first_test_navigation`)."""
+    return first_test_navigation(config, result.details)
 
 
 def _correlation_section(rep: Report, config: Config, Xtr, ytr: np.ndarray,

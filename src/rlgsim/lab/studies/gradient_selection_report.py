@@ -15,8 +15,9 @@ from rlgsim.lab.studies.fitting import Fitted
 from rlgsim.lab.studies.gradient_selection_config import Config, Outcome, PaperTable
 from rlgsim.lab.studies.gradient_selection_figures import figures, short
 from rlgsim.lab.studies.gradient_selection_ranking import excitations, rankings
-from rlgsim.lab.studies.report_text import (before_check, definitions, device_coefficients_section,
-                                             fmt, truth_score_tables)
+from rlgsim.lab.studies.report_text import (before_check, definitions,
+                                            device_coefficients_section, first_test_navigation,
+                                            fmt, truth_score_tables)
 from rlgsim.lab.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
 from rlgsim.lab.studies.scoring import has_truth
 
@@ -90,17 +91,8 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
 
 
 def navigation(study: Study, config: Config, result: StudyResult):
-    """The first test run's navigation (docs/navigation.md, "In the studies"): (dataset,
-    introduction), or None for a recording."""
-    out: Outcome = result.details
-    rs = out.runs[config.test[0].key].series
-    if not has_truth(rs) or rs.path.suffix != ".h5":
-        return None
-    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
-    preds = out.predictions[config.test[0].label]
-    return single_gyro_navigation(rs.path, config.gyro, rs.time_s,
-                                  {f.spec.name: preds[f.spec.name] for f in out.fitted
-                                   if f.spec.name in preds}, config.window_s)
+    """The first test run's navigation (:func:`.report_text.first_test_navigation`)."""
+    return first_test_navigation(config, result.details)
 
 
 def _matrix_records(points: tuple[str, ...], m: np.ndarray) -> list[dict[str, Any]]:

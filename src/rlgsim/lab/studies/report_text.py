@@ -106,3 +106,18 @@ def weight_spread(scores: dict[str, float], groups: dict[str, list[str]]
         if len(v) > 1 and min(v) > 0 and (max(v) - min(v)) / min(v) * 100 >= best:
             best, where = (max(v) - min(v)) / min(v) * 100, name
     return best, where
+
+
+def first_test_navigation(config, out):
+    """The navigation of a single-gyro study's first test run (docs/navigation.md, "In the
+    studies"): (dataset, introduction), or None for a recording; ``out`` the recipe's outcome
+    (``runs``, ``predictions``, ``fitted``)."""
+    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
+    from rlgsim.lab.studies.scoring import has_truth
+    rs = out.runs[config.test[0].key].series
+    if not has_truth(rs) or rs.path.suffix != ".h5":
+        return None
+    preds = out.predictions[config.test[0].label]
+    return single_gyro_navigation(rs.path, config.gyro, rs.time_s,
+                                  {f.spec.name: preds[f.spec.name] for f in out.fitted
+                                   if f.spec.name in preds}, config.window_s)
