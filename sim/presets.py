@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from importlib import resources
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.paths import file_kind
 
 #: Sub-folder of the ``scenarios`` package for each kind of file ("" = the package itself).
 KINDS: dict[str, str] = {"scenario": "", "device": "devices", "thermal": "thermal",
@@ -121,19 +122,6 @@ def parse_toml(text: str, source: str) -> dict:
         raise UserInputError(f"{source}: tables or arrays nested too deeply (at most "
                              f"{MAX_DEPTH} levels allowed)")
     return data
-
-
-_KINDS_OF_FILE = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                  (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                  (stat.S_ISSOCK, "a socket"))
-
-
-def file_kind(mode: int) -> str:
-    """What a non-regular file is, in words (for messages)."""
-    for test, words in _KINDS_OF_FILE:
-        if test(mode):
-            return words
-    return "not a regular file"
 
 
 def read_regular(path: pathlib.Path, source: str, *, max_bytes: int = MAX_TEXT_BYTES,

@@ -76,6 +76,24 @@ def test_run_in_memory_and_tree_times(short, tmp_path, monkeypatch):
     lazy.close()
 
 
+def test_dataset_trees_resample_on_a_lazy_timedelta_twin_of_sample_time(short):
+    _, path = short
+    with rlgsim.open_tree(path) as tree:
+        imu = tree["imu"].to_dataset()
+        n, f = imu.sizes["sample"], 10.0
+        el = imu["sample_elapsed"]
+        assert el.dtype == np.dtype("timedelta64[ns]") and imu["sample_time"].dtype == float
+        np.testing.assert_array_equal(el[[0, n - 1]].values.astype(np.int64),
+                                      np.round(np.array([1.0, n]) / f * 1e9).astype(np.int64))
+        per_min = imu["gyro_pulses"].resample(sample_elapsed="60s").sum()
+        g = imu["gyro_pulses"].values
+        m = int(60 * f)                       # a bin: the samples ending in [k·60 + 1/f, ...)
+        np.testing.assert_array_equal(per_min.values[:3], g[:3 * m].reshape(3, m, -1).sum(1))
+        probes = tree["probes"].to_dataset()
+        assert probes["elapsed"].dtype == np.dtype("timedelta64[ns]")
+        assert probes.resample(elapsed="10min").mean().sizes["elapsed"] > 1
+
+
 def test_window_table_dataset_vs_recording_and_independent(short, tmp_path):
     _, path = short
     df = rlgsim.window_table(path)

@@ -61,3 +61,140 @@ def test_uhfo_of_an_axis_that_is_no_gyro_is_one_line(tmp_path, capsys):
     assert main(["info", str(tmp_path / "log.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "column 'uhfo_q_v': axis 'q' not allowed" in err[0], err
+
+
+# ----------------------------------------------------------------------------- small logs
+
+SMALL = """\
+[recording]
+sample_rate_hz = 100
+{extra}
+[gyro]
+axes = ["x"]
+scale_factor_pulses_per_arcsec = 2.14
+
+[accelerometer]
+axes = ["x", "y", "z"]
+"""
+
+
+def _small(rows=50, rate=100.0):
+    t = np.arange(1, rows + 1) / rate
+    return pd.DataFrame({"time_s": t, "gyro_x_pulses": np.arange(rows),
+                         "accel_x_m_per_s2": 0.01 * np.arange(rows),
+                         "accel_y_m_per_s2": np.zeros(rows),
+                         "accel_z_m_per_s2": np.full(rows, 9.79)})
+
+
+def _info(path, capsys):
+    code = main(["info", str(path)])
+    cap = capsys.readouterr()
+    return code, cap.err.strip().splitlines(), cap.out
+
+
+def _one_line(path, capsys, expected):
+    before = path.read_bytes()
+    code, err, _ = _info(path, capsys)
+    assert code == 2 and len(err) == 1 and "Traceback" not in err[0], err
+    assert expected in err[0], err[0]
+    assert path.read_bytes() == before
+
+
+def test_accelerometers_in_m_per_s2_without_a_scale_factor(tmp_path):
+    df = _small()
+    df.to_csv(tmp_path / "a.csv", index=False)
+    (tmp_path / "a.toml").write_text(SMALL.format(extra=""))
+    imu = open_tree(tmp_path / "a.csv")["imu"]
+    assert "accel_pulses" not in imu                 # no pulses without a scale factor
+    sf = imu["specific_force"]
+    assert sf.attrs["units"] == "m s-2"
+    np.testing.assert_array_equal(sf.sel(accel="x").values, df["accel_x_m_per_s2"].to_numpy())
+    np.testing.assert_array_equal(sf.sel(accel="z").values, df["accel_z_m_per_s2"].to_numpy())
+    # with a scale factor, pulses too: a = pulses / (K/g0 · dt)
+    (tmp_path / "a.toml").write_text(SMALL.format(extra="") + "scale_factor_pulses_per_s_per_g"
+                                                              " = 5000.0\n")
+    imu = open_tree(tmp_path / "a.csv")["imu"]
+    from rlgsim.ground.units import G0
+    np.testing.assert_allclose(imu["accel_pulses"].sel(accel="z").values,
+                               9.79 / G0 * 5000.0 / 100.0, rtol=1e-14)
+
+
+def test_a_wrong_sample_rate_is_not_called_a_gap(tmp_path, capsys):
+    _small(rate=10.0).to_csv(tmp_path / "r.csv", index=False)
+    (tmp_path / "r.toml").write_text(SMALL.format(extra=""))
+    _one_line(tmp_path / "r.csv", capsys, "column 'time_s': the rows are 0.1 s apart (10 Hz) in "
+                                          "49 of 49 steps, but the sidecar's sample_rate_hz = "
+                                          "100 needs 0.01 s")
+    df = _small(rows=200).drop(index=[50, 51])           # a real gap still reads as one
+    df.to_csv(tmp_path / "r.csv", index=False)
+    _one_line(tmp_path / "r.csv", capsys, "row 51: a gap of 0.03 s (2 missing sample(s))")
+
+
+def test_semicolon_delimited_logs_with_decimal_points_or_commas(tmp_path, capsys):
+    df = _small()
+    df.to_csv(tmp_path / "s.csv", index=False, sep=";")
+    (tmp_path / "s.toml").write_text(SMALL.format(extra=""))
+    rec = load_recording(tmp_path / "s.csv")                # the header's ';' is found
+    np.testing.assert_array_equal(rec.time_s, df["time_s"].to_numpy())
+    df.to_csv(tmp_path / "s.csv", index=False, sep=";", decimal=",")
+    _one_line(tmp_path / "s.csv", capsys, "(a decimal comma: give [recording] decimal = \",\"")
+    (tmp_path / "s.toml").write_text(SMALL.format(extra='decimal = ","'))
+    rec = load_recording(tmp_path / "s.csv")
+    np.testing.assert_array_equal(rec.columns["accel_x_m_per_s2"],
+                                  df["accel_x_m_per_s2"].to_numpy())
+    # a tab-separated header that also has a comma in a name: the delimiter option
+    (tmp_path / "s.toml").write_text(SMALL.format(extra='delimiter = "\\t"'))
+    df.rename(columns={"accel_y_m_per_s2": "y, spare"}).to_csv(tmp_path / "s.csv", sep="\t",
+                                                               index=False)
+    (tmp_path / "s.toml").write_text(SMALL.format(extra='delimiter = "\\t"\nignore_columns = '
+                                                        '["y, spare"]').replace(
+        '["x", "y", "z"]', '["x", "z"]'))
+    assert load_recording(tmp_path / "s.csv").accel_axes == ["x", "z"]
+    (tmp_path / "s.toml").write_text(SMALL.format(extra='delimiter = ":"'))
+    _one_line(tmp_path / "s.csv", capsys, "s.toml: recording.delimiter: value ':' not allowed")
+
+
+def test_iso_timestamps_as_the_time_axis(tmp_path, capsys):
+    df = _small()
+    stamps = pd.Timestamp("2026-03-01T12:00:00") + pd.to_timedelta(df["time_s"], unit="s")
+    df.insert(0, "Zeit", stamps.dt.strftime("%Y-%m-%dT%H:%M:%S.%f"))
+    df = df.drop(columns="time_s")
+    df.to_csv(tmp_path / "i.csv", index=False)
+    (tmp_path / "i.toml").write_text(SMALL.format(extra="") + '\n[columns]\nZeit = "time_s"\n')
+    rec = load_recording(tmp_path / "i.csv")
+    np.testing.assert_allclose(rec.time_s, np.arange(1, 51) / 100.0, rtol=0, atol=1e-12)
+    assert rec.time_origin == "2026-03-01T12:00:00"
+    code, _, out = _info(tmp_path / "i.csv", capsys)
+    assert code == 0 and "time origin: 2026-03-01T12:00:00" in out
+    df.loc[7, "Zeit"] = "yesterday"
+    df.to_csv(tmp_path / "i.csv", index=False)
+    _one_line(tmp_path / "i.csv", capsys, "column 'Zeit', row 8: value 'yesterday' not allowed; "
+                                          "the time column holds ISO 8601 timestamps")
+
+
+def test_parquet_time_of_strings_refused_and_timestamps_read(tmp_path, capsys):
+    df = _small()
+    (tmp_path / "p.toml").write_text(SMALL.format(extra=""))
+    df.assign(time_s=df["time_s"].map(repr)).to_parquet(tmp_path / "p.parquet")
+    _one_line(tmp_path / "p.parquet", capsys, "column 'time_s': holds text (such as '0.01'); "
+                                              "Parquet columns must be numbers")
+    stamps = pd.Timestamp("2026-03-01T12:00:00", tz="Europe/Berlin") \
+        + pd.to_timedelta(df["time_s"], unit="s")
+    df.assign(time_s=stamps).to_parquet(tmp_path / "p.parquet")
+    rec = load_recording(tmp_path / "p.parquet")
+    np.testing.assert_allclose(rec.time_s, np.arange(1, 51) / 100.0, rtol=0, atol=1e-12)
+    assert rec.time_origin == "2026-03-01T11:00:00"            # UTC
+
+
+def test_trees_resample_on_a_timedelta_coordinate(tmp_path):
+    df = _small(rows=600)
+    df.to_csv(tmp_path / "a.csv", index=False)
+    (tmp_path / "a.toml").write_text(SMALL.format(extra=""))
+    imu = open_tree(tmp_path / "a.csv")["imu"].to_dataset()
+    assert imu["sample_time"].dtype == np.float64                 # the seconds are kept
+    out = imu["specific_force"].resample(sample_elapsed="2s").mean()
+    ref = df["accel_x_m_per_s2"].to_numpy()
+    # bins start at the first sample (0.01 s): rows 0..199, 200..399, 400..599
+    np.testing.assert_allclose(out.sel(accel="x").values, ref.reshape(3, 200).mean(axis=1),
+                               rtol=1e-15)
+

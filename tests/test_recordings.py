@@ -172,9 +172,12 @@ def test_export_simulated_dataset_round_trip(tmp_path, capsys):
                     '[[chamber.segments]]\ntype = "ramp"\nto_c = 30.0\nrate_c_per_min = 1.0\n')
     h5 = tmp_path / "short.h5"
     assert main(["run", str(scen), "-o", str(h5), "-q"]) == 0
-    for fmt in ("csv", "parquet"):
+    # the second format's default name keeps the first export's sidecar (issue 29)
+    for fmt, name in (("csv", "short_recording.csv"),
+                      ("parquet", "short_recording_parquet.parquet")):
         assert main(["export", str(h5), "--format", fmt, "-q"]) == 0
-        rec = load_recording(tmp_path / f"short_recording.{fmt}")
+        rec = load_recording(tmp_path / name)
+        assert load_recording(tmp_path / "short_recording.csv").n_samples == rec.n_samples
         assert scen.read_text().startswith('name = "short"')      # the scenario is untouched
         with h5py.File(h5, "r") as f:
             n = f["imu/gyro_pulses"].shape[0]
@@ -247,7 +250,8 @@ BAD = {
                         "bad.toml: recording.sample_rate_hz: missing"),
     "sidecar wrong rate": (lambda df, sc: (df, sc.replace("sample_rate_hz = 100",
                                                           "sample_rate_hz = 50")),
-                           "a step of 0.01 s; the sidecar's sample_rate_hz = 50 needs 0.02 s"),
+                           "the rows are 0.01 s apart (100 Hz) in 49 of 49 steps, but the sidecar's "
+                           "sample_rate_hz = 50 needs 0.02 s; set [recording] sample_rate_hz"),
     "sidecar axes": (lambda df, sc: (df, sc.replace('axes = ["x", "y", "z"]\nscale_factor_pulses'
                                                     '_per_arcsec', 'axes = ["x", "y"]\nscale_'
                                                     'factor_pulses_per_arcsec')),

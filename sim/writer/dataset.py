@@ -50,7 +50,7 @@ import numpy as np
 from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
                                           INCOMPLETE_ATTR, TIME,
                                           VERSION_ATTR, open_dataset)
-from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.paths import check_writable, sweep_temporaries
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -76,34 +76,6 @@ def _attr_value(value: Any) -> Any:
     if value is None:
         return ""
     return value
-
-
-def check_writable(path: str | os.PathLike) -> pathlib.Path:
-    """Check, before any work, that ``path`` can be written; return it absolute.
-
-    Raises UserInputError naming the path when the directory is missing or not writable or
-    the path is a directory.
-    """
-    out = pathlib.Path(path).expanduser()
-    if out.is_dir():
-        raise UserInputError(f"{out}: output path is a directory; give a file name such as "
-                             f"{out / 'run.h5'}")
-    parent = out.parent if str(out.parent) else pathlib.Path(".")
-    if not parent.is_dir():
-        raise UserInputError(f"{out}: cannot write output: directory {parent} does not exist")
-    probe = parent / f".{out.name}.probe-{os.getpid()}"
-    try:
-        with open(probe, "wb"):
-            pass
-    except OSError as exc:
-        raise UserInputError(f"{out}: cannot write output ({exc.strerror or exc}); "
-                             f"choose a writable location with -o") from None
-    finally:
-        try:
-            probe.unlink()
-        except OSError:
-            pass
-    return out.absolute()
 
 
 class GroupWriter:
@@ -391,27 +363,8 @@ def _close_stages(groups: Iterable[GroupWriter]) -> None:
 def remove_stale_temporaries(path: pathlib.Path) -> list[pathlib.Path]:
     """Delete ``<path>.tmp-<pid>`` files whose writing process no longer runs (a run killed
     with SIGKILL, a power cut); the temporary file of a live process is kept. Returns the
-    files removed."""
-    from rlgsim.ground.lifeline import process_alive
-    prefix = f"{path.name}.tmp-"
-    removed = []
-    try:
-        entries = list(path.parent.iterdir())
-    except OSError:
-        return removed
-    for p in entries:
-        pid = p.name[len(prefix):]
-        if not p.name.startswith(prefix) or not pid.isdigit() or int(pid) == os.getpid():
-            continue
-        if process_alive(int(pid)):
-            continue
-        try:
-            if p.is_file() and not p.is_symlink():
-                p.unlink()
-                removed.append(p)
-        except OSError:
-            pass
-    return removed
+    files removed (:func:`rlgsim.ground.paths.sweep_temporaries`, shared by every command)."""
+    return sweep_temporaries(path)
 
 
 class DatasetWriter:

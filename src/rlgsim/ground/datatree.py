@@ -6,7 +6,9 @@ the view adds what the file leaves implicit:
 
 - ``imu`` (and ``truth`` with per-sample truth): the coordinate ``sample_time`` on the
   ``sample`` dimension, ``(k+1)/f`` seconds (an :class:`xarray.indexes.RangeIndex`, so a
-  100 Hz run of days costs no memory);
+  100 Hz run of days costs no memory), and its timedelta twin ``sample_elapsed`` (computed
+  lazily, for ``imu.resample(sample_elapsed="60s")``); every float ``time`` coordinate of the
+  slow groups gets the twin ``elapsed``;
 - ``timeline``: ``t0``/``t1`` become coordinates of ``segment`` and ``setpoint_time`` of
   ``breakpoint``; the JSON details of a segment are the variable ``details`` (files of format
   version 1 call it ``attrs``, which clashes with xarray's ``.attrs``; the view renames it);
@@ -14,7 +16,8 @@ the view adds what the file leaves implicit:
 
 A recording (:mod:`rlgsim.ground.recording`) becomes a tree of the same shape: root attributes
 (``rlgsim_format = "rlgsim recording"``, ``sample_rate_hz``, site, nominal scale factors),
-``imu`` (``sample_time``, ``gyro_pulses``/``accel_pulses`` or rates, ``dropout``, ``uhfo`` on
+``imu`` (``sample_time``, ``gyro_pulses``/``accel_pulses`` or ``gyro_rate`` [°/h] and
+``specific_force`` [m/s²], ``dropout``, ``uhfo`` on
 ``time``), ``probes`` (``time``, ``probe``, ``temperature``), ``thermal`` (chamber air,
 setpoint, power) and ``turntable`` (angles) — so code written for one reads the other. There
 is no ``truth`` group: a recording has none.
@@ -31,7 +34,7 @@ import numpy as np
 
 from rlgsim.ground.recording import Recording, is_recording, load_recording
 
-__all__ = ["open_tree", "recording_tree", "SAMPLE_TIME"]
+__all__ = ["open_tree", "recording_tree", "SAMPLE_TIME", "SAMPLE_ELAPSED", "ELAPSED"]
 
 #: Name of the per-sample time coordinate added on the ``sample`` dimension.
 SAMPLE_TIME = "sample_time"
@@ -52,7 +55,59 @@ def _sample_coord(ds, rate_hz: float, n: int):
         coords = xr.Coordinates({SAMPLE_TIME: ("sample", (np.arange(n) + 1.0) / rate_hz)})
     out = ds.assign_coords(coords)
     out[SAMPLE_TIME].attrs.update(units="s", description="end of each sample interval, (k+1)/f")
-    return out
+    try:
+        elapsed = _lazy_elapsed(n, rate_hz)
+    except (ImportError, AttributeError, TypeError):      # an xarray without the backend API
+        elapsed = xr.Variable(("sample",), _timedelta((np.arange(n) + 1.0) / rate_hz))
+    return out.assign_coords({SAMPLE_ELAPSED: elapsed})
+
+
+#: Name of the timedelta twin of ``sample_time`` (what ``resample`` needs).
+SAMPLE_ELAPSED = "sample_elapsed"
+#: Name of the timedelta twin of the slow ``time`` coordinate.
+ELAPSED = "elapsed"
+
+
+def _timedelta(seconds: np.ndarray) -> np.ndarray:
+    """Seconds as ``timedelta64[ns]`` (rounded to the nanosecond)."""
+    return np.round(np.asarray(seconds, dtype=np.float64) * 1e9).astype(np.int64).astype(
+        "timedelta64[ns]")
+
+
+def _lazy_elapsed(n: int, rate_hz: float):
+    """The variable ``(k+1)/f`` as ``timedelta64[ns]`` on ``sample``, computed only for the
+    rows read (xarray's lazily indexed backend array), so a long run costs no memory until a
+    ``resample`` or selection reads it."""
+    import xarray as xr
+    from xarray.backends import BackendArray
+    from xarray.core import indexing
+
+    class _Elapsed(BackendArray):
+        def __init__(self):
+            self.shape = (n,)
+            self.dtype = np.dtype("timedelta64[ns]")
+
+        def __getitem__(self, key):
+            return indexing.explicit_indexing_adapter(key, self.shape,
+                                                      indexing.IndexingSupport.BASIC,
+                                                      self._rows)
+
+        def _rows(self, key):
+            k = key[0] if isinstance(key, tuple) else key
+            rows = (np.arange(*k.indices(n), dtype=np.float64) if isinstance(k, slice)
+                    else np.asarray(k, dtype=np.float64))
+            return _timedelta((rows + 1.0) / rate_hz)
+    return xr.Variable(("sample",), indexing.LazilyIndexedArray(_Elapsed()),
+                       {"description": "sample_time as a timedelta (for resample)"})
+
+
+def _with_elapsed(ds):
+    """``ds`` with ``elapsed`` (timedelta64) beside a float ``time`` coordinate in seconds."""
+    if "time" in ds.coords and ELAPSED not in ds.coords and ds["time"].ndim == 1 \
+            and ds["time"].dtype.kind == "f":
+        ds = ds.assign_coords({ELAPSED: (ds["time"].dims, _timedelta(ds["time"].values), {
+            "description": "time as a timedelta (for resample)"})})
+    return ds
 
 
 def open_tree(path: str | os.PathLike, *, load: bool = False):
@@ -80,7 +135,7 @@ def open_tree(path: str | os.PathLike, *, load: bool = False):
         if "sample" in d.dims and SAMPLE_TIME not in d.coords:
             f = float(d.attrs.get("sample_rate_hz", rate) or rate)
             d = _sample_coord(d, f, d.sizes["sample"])
-        nodes[name] = d
+        nodes[name] = _with_elapsed(d)
     out = xr.DataTree.from_dict(nodes, name=tree.name)
     out.set_close(tree.close)
     if load:
@@ -103,12 +158,13 @@ def recording_tree(rec: Recording):
         root["accel_sf_pulse_per_s_per_g"] = sc.accel_sf_pulse_per_s_per_g
     if sc.temperature_rate_hz is not None:
         root["temperature_rate_hz"] = sc.temperature_rate_hz
-    n = rec.n_samples
     t_slow, _ = rec.probes()
     imu = xr.Dataset(attrs={"description": "the recorded sensor outputs",
                             "sample_rate_hz": sc.sample_rate_hz})
     imu = imu.assign_coords({SAMPLE_TIME: ("sample", rec.time_s, {
-        "units": "s", "description": "end of each sample interval (the recording's time_s)"})})
+        "units": "s", "description": "end of each sample interval (the recording's time_s)"}),
+        SAMPLE_ELAPSED: ("sample", _timedelta(rec.time_s), {
+            "description": "sample_time as a timedelta (for resample)"})})
     for kind, axes, what in (("gyro", rec.gyro_axes, "gyro"), ("accel", rec.accel_axes,
                                                                 "accelerometer")):
         if not axes:
@@ -123,13 +179,13 @@ def recording_tree(rec: Recording):
             imu["gyro_rate"] = (("sample", "gyro"), rec.gyro_rate_deg_per_h(), {
                 "units": "degree h-1", "description": "mean gyro rate over the sample"})
         else:
-            dt = 1.0 / sc.sample_rate_hz
-            k = (sc.accel_sf_pulse_per_s_per_g or 1.0)
-            imu["accel_pulses"] = (("sample", "accel"), rec.accel_pulses() if
-                                   sc.accel_sf_pulse_per_s_per_g else
-                                   np.full((n, len(axes)), np.nan), {"units": "1",
-                                   "description": f"accelerometer pulses per sample at "
-                                                  f"{k:g} pulses/s/g over {dt:g} s"})
+            imu["specific_force"] = (("sample", "accel"), rec.accel_m_per_s2(), {
+                "units": "m s-2", "description": "mean specific force over the sample"})
+            if sc.accel_sf_pulse_per_s_per_g is not None:
+                imu["accel_pulses"] = (("sample", "accel"), rec.accel_pulses(), {
+                    "units": "1", "description": f"accelerometer pulses per sample at the "
+                                                 f"nominal {sc.accel_sf_pulse_per_s_per_g:g} "
+                                                 f"pulses/s/g (not whole numbers)"})
     imu["dropout"] = (("sample",), rec.dropout.astype(np.int8), {
         "units": "1", "description": "1: the sample's values are missing"})
     uhfo = {(g.get("axis") or (rec.gyro_axes[0] if rec.gyro_axes else "x")): name
@@ -173,7 +229,7 @@ def recording_tree(rec: Recording):
         groups["/turntable"] = xr.Dataset(table, coords={"time": ("time", t_slow,
                                                                   {"units": "s"})},
                                           attrs={"description": "turntable angles"})
-    return xr.DataTree.from_dict(groups)
+    return xr.DataTree.from_dict({k: _with_elapsed(v) for k, v in groups.items()})
 
 
 def is_path(x) -> bool:

@@ -13,6 +13,13 @@ the export gives the dataset's arrays bit for bit. The truth is not exported: a 
 none.
 
 Written block by block (:data:`BLOCK_ROWS` samples), so memory does not grow with the run.
+
+Every file written is checked first (:func:`rlgsim.ground.paths.output_files`): never an input
+(a recording's own sidecar is one), a link or a special file; an existing file that is not an
+earlier export of the same table (its sidecar names it) is replaced only with
+``overwrite=True`` (``--overwrite``). The default output is ``<stem>_recording.<ext>`` beside
+the source, so the source's own sidecar ``<stem>.toml`` (a recording's, or the scenario beside a
+dataset) is never the export's.
 """
 
 from __future__ import annotations
@@ -26,12 +33,13 @@ import numpy as np
 
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.paths import input_file, output_files
 from rlgsim.ground.recording_formats import EXPORT_FORMATS
-from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, _is_sidecar,
+from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, is_sidecar,
                                      is_recording, load_recording, sidecar_path, write_sidecar,
                                      write_table)
 
-__all__ = ["FORMATS", "BLOCK_ROWS", "Exported", "export"]
+__all__ = ["FORMATS", "BLOCK_ROWS", "Exported", "export", "planned_outputs"]
 
 FORMATS = EXPORT_FORMATS             # format name → the suffix written (one registry)
 #: Samples per written block.
@@ -61,38 +69,82 @@ def _out_path(src: pathlib.Path, fmt: str, out: str | os.PathLike | None) -> pat
         raise UserInputError(f"--format: value {fmt!r} not allowed; must be one of "
                              f"{', '.join(FORMATS)}")
     if out is not None:
-        p = pathlib.Path(out)
-    elif is_recording(src):
-        p = src.with_suffix(FORMATS[fmt])
-    else:                                # not <stem>.toml: the scenario often has that name
-        p = src.with_name(f"{src.stem}_recording{FORMATS[fmt]}")
+        p = pathlib.Path(out).expanduser()
+    else:       # <stem>_recording.<ext>; when its sidecar is another export's (the other
+        p = src.with_name(f"{src.stem}_recording{FORMATS[fmt]}")     # format): _<fmt> added
+        other = _sidecar_data(sidecar_path(p))
+        if other is not None and other != p.name:
+            p = src.with_name(f"{src.stem}_recording_{fmt}{FORMATS[fmt]}")
     if p.suffix.lower() != FORMATS[fmt]:
         raise UserInputError(f"{p}: a {fmt} table must end in {FORMATS[fmt]} (its sidecar is "
                              f"{p.with_suffix('.toml').name})")
-    if p.is_dir():
-        raise UserInputError(f"{p}: output path is a directory; give a file name")
-    if not p.parent.is_dir():
-        raise UserInputError(f"{p}: cannot write output: directory {p.parent} does not exist")
-    if p.resolve() == src.resolve() or sidecar_path(p).resolve() == src.resolve():
-        raise UserInputError(f"{p}: would overwrite the input {src}; choose another name with -o")
-    side = sidecar_path(p)
-    if side.exists() and not _is_sidecar(side):
-        raise UserInputError(f"{p}: its sidecar {side} would overwrite a file that is not a "
-                             f"recording sidecar; choose another name with -o")
     return p
 
 
-def export(source: str | os.PathLike, fmt: str = "csv",
-           out: str | os.PathLike | None = None) -> Exported:
-    """Export a dataset or a recording at ``source`` as a ``fmt`` (``csv``/``parquet``) table
-    at ``out`` (default: beside the source, same stem) with its sidecar (and programme)."""
-    src = pathlib.Path(source)
-    if not src.exists():
-        raise UserInputError(f"{src}: no such file")
+def _sidecar_data(side: pathlib.Path) -> str | None:
+    """The table an exporter's sidecar names (``[recording] data``), else None."""
+    if not is_sidecar(side):
+        return None
+    try:
+        rec = tomllib.loads(side.read_text(encoding="utf-8"))["recording"]
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError, KeyError, TypeError):
+        return None
+    data = rec.get("data")
+    return data if rec.get("format") == RECORDING_FORMAT and isinstance(data, str) else None
+
+
+def _exported_sidecar_of(table: pathlib.Path) -> bool:
+    """Whether the sidecar beside ``table`` is an exporter's sidecar naming that table (so the
+    table, the sidecar and the programme beside them are an earlier export's)."""
+    return _sidecar_data(sidecar_path(table)) == table.name
+
+
+def planned_outputs(source: str | os.PathLike, fmt: str = "csv",
+                    out: str | os.PathLike | None = None, *, overwrite: bool = False
+                    ) -> dict[str, pathlib.Path]:
+    """The files :func:`export` would write (``table``, ``sidecar`` and, for a dataset with
+    calibration windows, ``programme``), each checked (module docstring); nothing is
+    written."""
+    src = input_file(source, "an rlgsim dataset or a recording")
     p = _out_path(src, fmt, out)
+    outputs = {"table": p, "sidecar": sidecar_path(p)}
+    inputs = [src]
+    other = _sidecar_data(outputs["sidecar"])
+    if other is not None and other != p.name and not overwrite:
+        raise UserInputError(f"{outputs['sidecar']}: is the sidecar of the table {other}; a "
+                             f"second table of the stem {p.stem!r} would take it: choose "
+                             f"another -o (such as {p.stem}_{fmt}{FORMATS[fmt]}) or give "
+                             f"--overwrite")
     if is_recording(src):
-        return _export_recording(src, fmt, p)
-    return _export_dataset(src, fmt, p)
+        inputs.append(sidecar_path(src))
+    elif _has_calibration_windows(src):
+        outputs["programme"] = p.with_name(f"{p.stem}_programme.csv")
+    return output_files(outputs, inputs=inputs, overwrite=overwrite,
+                        own=lambda role, path: _exported_sidecar_of(p))
+
+
+def _has_calibration_windows(src: pathlib.Path) -> bool:
+    """Whether the dataset's timeline has calibration windows (then the programme is
+    written too); a file that is no dataset: False (the export says why)."""
+    from rlgsim.ground.dataset_format import TIMELINE
+    try:
+        with _open(src) as ds:
+            return ds.has(TIMELINE, "t0") and any(s["track"] == "calibration"
+                                                   for s in ds.segments())
+    except UserInputError:
+        return False
+
+
+def export(source: str | os.PathLike, fmt: str = "csv",
+           out: str | os.PathLike | None = None, *, overwrite: bool = False) -> Exported:
+    """Export a dataset or a recording at ``source`` as a ``fmt`` (``csv``/``parquet``) table
+    at ``out`` (default: ``<stem>_recording.<ext>`` beside the source) with its sidecar (and
+    programme); ``overwrite``: replace existing files that are not an earlier export."""
+    outputs = planned_outputs(source, fmt, out, overwrite=overwrite)
+    src = pathlib.Path(source)
+    if is_recording(src):
+        return _export_recording(src, fmt, outputs)
+    return _export_dataset(src, fmt, outputs)
 
 
 # ---------------------------------------------------------------------------- recordings
@@ -124,11 +176,12 @@ def _sidecar_tables(sc: Sidecar, data_name: str, rec) -> dict:
     return tables
 
 
-def _export_recording(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
+def _export_recording(src: pathlib.Path, fmt: str, outputs: dict) -> Exported:
+    p = outputs["table"]
     rec = load_recording(src)
     df = rec.to_dataframe()
     write_table(p, [df], fmt)
-    side = write_sidecar(sidecar_path(p), _sidecar_tables(rec.sidecar, p.name, rec),
+    side = write_sidecar(outputs["sidecar"], _sidecar_tables(rec.sidecar, p.name, rec),
                          comment=f"rlgsim recording sidecar (docs/recordings.md), exported from "
                                  f"{rec.path.name}")
     return Exported(p, side, None, len(df))
@@ -221,8 +274,9 @@ def _dataset_sidecar(src: pathlib.Path, p: pathlib.Path, a: dict, rate: float, s
     return tables
 
 
-def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
+def _export_dataset(src: pathlib.Path, fmt: str, outputs: dict) -> Exported:
     import pandas as pd
+    p = outputs["table"]
 
     from rlgsim.ground.dataset_format import IMU, TIMELINE
     with _open(src) as ds:
@@ -268,14 +322,12 @@ def _export_dataset(src: pathlib.Path, fmt: str, p: pathlib.Path) -> Exported:
                 yield pd.DataFrame(data)
 
         write_table(p, blocks(), fmt)
-        side = write_sidecar(sidecar_path(p),
+        side = write_sidecar(outputs["sidecar"],
                              _dataset_sidecar(src, p, a, rate, step, bool(slow), has_imu,
                                               gyro_axes, accel_axes),
                              comment="rlgsim recording sidecar (docs/recordings.md)")
         programme = None
-        if ds.has(TIMELINE, "t0"):
-            segs = ds.segments()
-            if any(s["track"] == "calibration" for s in segs):
-                from rlgsim.ground.programme import write_programme
-                programme = write_programme(p.with_name(f"{p.stem}_programme.csv"), segs)
+        if "programme" in outputs and ds.has(TIMELINE, "t0"):
+            from rlgsim.ground.programme import write_programme
+            programme = write_programme(outputs["programme"], ds.segments())
     return Exported(p, side, programme, n)

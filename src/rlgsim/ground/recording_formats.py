@@ -6,8 +6,8 @@ A recording is a table file with a TOML sidecar (docs/recordings.md). Each forma
 (what ``rlgsim export --format`` and the sidecar's reader call it), the file suffixes it is
 recognised by (the first is the one the exporter writes) and whether the exporter writes it.
 
-To add a format: one line here, its reader in ``recording._read_table`` and, when the exporter
-writes it, its writer in ``recording.write_table``.
+To add a format: one line here, its reader in ``recording_read._read_table`` and, when the exporter
+writes it, its writer in ``recording_write.write_table``.
 """
 
 from __future__ import annotations

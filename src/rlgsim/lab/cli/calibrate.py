@@ -73,9 +73,8 @@ def run(args: argparse.Namespace) -> int:
                                                open_reader, run_campaign)
     from rlgsim.ground.recording import is_recording as _is_recording
     from rlgsim.estimators.strapdown import SensorModel
-    from rlgsim.sim.writer.dataset import check_writable
 
-    from rlgsim.lab.cli.paths import input_file, output_file
+    from rlgsim.lab.cli.paths import check_writable, input_file, output_file
     path = input_file(args.dataset, "an rlgsim dataset or a recording",
                       missing="no such dataset file")
     if args.programme is not None and os.path.lexists(args.programme):

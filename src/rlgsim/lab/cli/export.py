@@ -23,8 +23,12 @@ def add_subparser(sub) -> None:
     e.add_argument("--format", choices=tuple(EXPORT_FORMATS), default="csv",
                    help="table format (default: csv)")
     e.add_argument("-o", "--output", metavar="PATH",
-                   help="output table (default: the source's stem with .csv or .parquet next to "
-                        "it); the sidecar is PATH with .toml")
+                   help="output table (default: <stem>_recording.csv or .parquet next to the "
+                        "source); the sidecar is PATH with .toml, the programme "
+                        "<stem>_programme.csv")
+    e.add_argument("--overwrite", action="store_true",
+                   help="replace existing files that are not an earlier export of this table "
+                        "(never an input, a link or a special file)")
     e.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     e.set_defaults(handler=run)
 
@@ -32,7 +36,7 @@ def add_subparser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """Export for parsed ``args``; returns the exit code."""
     from rlgsim.ground.recording_export import export
-    done = export(args.source, args.format, args.output)
+    done = export(args.source, args.format, args.output, overwrite=args.overwrite)
     if not args.quiet:
         print(f"table: {done.table} ({done.rows} rows)")
         print(f"sidecar: {done.sidecar}")

@@ -32,6 +32,9 @@ def add_subparser(sub) -> None:
                    help="also write <name>_next.toml: a chamber programme (a scenario on the "
                         "twin) that would separate the bias-law terms this recording could "
                         "not, with the predicted shrinkage of each standard error")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace files in the output folder that an earlier identification did "
+                        "not write (never an input, a link or a special file)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     p.set_defaults(handler=run)
 
@@ -43,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     src = input_file(args.recording, "a recording or an rlgsim dataset")
     r = identify(src, args.output, device_template=args.device_template,
                  thermal_template=args.thermal_template, name=args.name, gyro=args.gyro,
-                 suggest_programme=args.suggest_programme)
+                 suggest_programme=args.suggest_programme, overwrite=args.overwrite)
     if not args.quiet:
         th = r.thermal
         print(f"identified {r.name} from {args.recording} in {r.seconds:.1f} s")

@@ -284,24 +284,37 @@ def _scenario_text(data: RecordingData, name: str) -> str:
                             f"(rlgsim run {name}_replay.toml)")
 
 
+def _inputs(source: str, *templates: str | None) -> list[str]:
+    """The files identification reads: the recording (and its sidecar) and template files."""
+    from rlgsim.ground.recording import is_recording, sidecar_path
+    found = [source] + ([str(sidecar_path(source))] if is_recording(source) else [])
+    return found + [t for t in templates if t is not None and os.path.lexists(t)]
+
+
 def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
              device_template: str | None = None, thermal_template: str | None = None,
              name: str | None = None, gyro: str | None = None,
-             suggest_programme: bool = False) -> Identification:
+             suggest_programme: bool = False, overwrite: bool = False) -> Identification:
     """Identify a twin of the device in ``recording`` (a recording or an rlgsim dataset) and
-    write ``thermal.toml``, ``device.toml``, ``replay.toml`` and ``report.md``/``.html`` into
-    ``out_dir`` (module docstring, docs/identify.md). ``suggest_programme``: also write
-    ``<name>_next.toml``, a chamber programme that would separate the terms this recording
-    could not (:mod:`.next_experiment`)."""
+    write ``thermal.toml``, ``device.toml``, ``<name>_replay.toml`` and ``report.md``/``.html``
+    into ``out_dir`` (module docstring, docs/identify.md); the outputs are checked first
+    (:mod:`rlgsim.lab.identify.outputs`: never an input, a link or a special file; an existing
+    file an earlier identification did not write only with ``overwrite``).
+    ``suggest_programme``: also write ``<name>_next.toml``, a chamber programme that would
+    separate the terms this recording could not (:mod:`.next_experiment`)."""
+    from rlgsim.ground.paths import input_file
+    from rlgsim.lab.identify.outputs import check_name, planned_outputs
     t0 = time.perf_counter()
-    source = os.fspath(recording)
-    if not pathlib.Path(source).is_file():
-        raise UserInputError(f"{source}: no such file")
+    source = os.fspath(input_file(recording, "a recording or an rlgsim dataset"))
+    if name is not None:
+        check_name(name)
+    inputs = _inputs(source, device_template, thermal_template)
     dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
+    name = name or f"{dev_name}_twin"
+    planned_outputs(out_dir, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     data = read_recording(source, gyro=gyro)
     from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
     data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
-    name = name or f"{dev_name}_twin"
     # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
     # slows down on a shared machine (same reason as the thermal integrator)
     with threadpool_limits(limits=1, user_api="blas"):
@@ -309,10 +322,13 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
                               data.probes_c, source=source)
         laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
         sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
-    out = pathlib.Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"{out}: exists and is not a folder; -o needs a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    out = pathlib.Path(out_dir).expanduser()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"{out}: cannot create the output folder ({exc.strerror or exc})"
+                             ) from None
+    files = planned_outputs(out, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     fitted_thermal, ttext = _thermal_text(thermal, th_name, source)
     dev, comments = _device_dict(dev_t, laws, name, source)
     sf_lines = sf.lines if sf is not None else [scale_factor_line(data)]
@@ -339,13 +355,13 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
             ntext = scenario_text(suggestion, data, name)
     for text in (ttext, dtext, stext, ntext or ""):
         tomllib.loads(text)                        # never write what cannot be read back
-    tp, dp, sp = out / "thermal.toml", out / "device.toml", out / f"{name}_replay.toml"
+    tp, dp, sp = files["thermal"], files["device"], files["replay"]
     write_atomic(tp, ttext)
     write_atomic(dp, dtext)
     write_atomic(sp, stext)
     next_path = None
     if ntext is not None:
-        next_path = out / f"{name}_next.toml"
+        next_path = files["next"]
         write_atomic(next_path, ntext)
     seconds = time.perf_counter() - t0
     result = Identification(out_dir=out, device_path=dp, thermal_path=tp, scenario_path=sp,
