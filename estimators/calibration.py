@@ -66,7 +66,7 @@ from rlgsim.ground.units import ARCSEC, G0
 
 __all__ = ["PARAMETERS", "PAPER_PARAMETERS", "AXES", "CampaignError", "Parameter",
            "engineering_values", "to_accelerometer_frame", "WindowSpec", "find_windows", "DatasetReader", "CampaignSettings", "filter_settings",
-           "calibrate_one", "CampaignResult", "unit_of", "open_reader", "run_campaign"]
+           "calibrate_one", "CampaignResult", "unit_of", "open_reader", "run_campaign", "UNIT_NAMES"]
 
 #: Defaults when a dataset names no nominal values (paper 000 §4.1; sim presets' defaults).
 DEFAULT_GYRO_SF_PULSE_PER_ARCSEC = 2.14
@@ -119,6 +119,12 @@ def _parameters() -> list[Parameter]:
 
 
 PARAMETERS = _parameters()
+#: A parameter's unit as a column-name suffix.
+UNIT_NAMES = {"deg/h": "deg_per_h", "ppm": "ppm", "arcsec": "arcsec", "ug": "ug"}
+#: Row key -> (parameter, part) for the parameter columns (part: "", "_sigma", "_true",
+#: "_error").
+_PARAMETER_OF = {f"{p.name}{part}": (p, part) for p in PARAMETERS
+                 for part in ("", "_sigma", "_true", "_error")}
 #: The 15 temperature-related parameters of paper 000 (eqs. 19, 22).
 PAPER_PARAMETERS = [p.name for p in PARAMETERS if "_mis_" not in p.name]
 
@@ -494,20 +500,47 @@ class CampaignResult:
         return np.array([r.get(name, float("nan")) for r in self.rows])
 
     @property
+    def has_truth(self) -> bool:
+        """Whether any window has a true value (a simulated dataset; a recording has none)."""
+        return any(math.isfinite(r.get(f"{PARAMETERS[0].name}_true", float("nan")))
+                   for r in self.rows)
+
+    def table_columns(self) -> list[tuple[str, str]]:
+        """The user-facing table's columns as (header, row key): each parameter column's
+        header carries its unit (``gyro_bias_x_deg_per_h``, ``gyro_bias_x_sigma_deg_per_h``,
+        ``gyro_sf_x_ppm``, ``accel_bias_x_ug``, ``gyro_mis_xy_arcsec``); the ``_true`` and
+        ``_error`` columns only when some window has a truth."""
+        truth = self.has_truth
+        out = []
+        for key in self.columns:
+            p = _PARAMETER_OF.get(key)
+            if p is None:
+                out.append((key, key))
+                continue
+            param, part = p
+            if part in ("_true", "_error") and not truth:
+                continue
+            out.append((f"{param.name}{part}_{UNIT_NAMES[param.unit]}", key))
+        return out
+
+    @property
     def failed(self) -> list[dict]:
         return [r for r in self.rows if r["status"] != "ok"]
 
-    def write_csv(self, path: str | os.PathLike) -> pathlib.Path:
-        """Write the table as CSV (to a temporary name, renamed on success)."""
+    def write_csv(self, path: str | os.PathLike, *, units_in_names: bool = False
+                  ) -> pathlib.Path:
+        """Write the table as CSV (to a temporary name, renamed on success);
+        ``units_in_names``: the headers of :meth:`table_columns` (``rlgsim calibrate``'s
+        table), else the row keys :attr:`columns` (a study's working files)."""
         path = pathlib.Path(path)
         tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-        cols = self.columns
+        pairs = self.table_columns() if units_in_names else [(c, c) for c in self.columns]
         try:
             with open(tmp, "w", newline="") as fh:
                 w = csv.writer(fh)
-                w.writerow(cols)
+                w.writerow([h for h, _ in pairs])
                 for r in self.rows:
-                    w.writerow([_csv_value(r.get(c, "")) for c in cols])
+                    w.writerow([_csv_value(r.get(c, "")) for _, c in pairs])
             os.replace(tmp, path)
         finally:
             if tmp.exists():

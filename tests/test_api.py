@@ -207,5 +207,6 @@ def test_calibrate_api_uses_the_cli_filter_settings(tmp_path):
                  "--no-dataset"]) == 0
     cli = pd.read_csv(tmp_path / "cli.csv")
     assert list(api["status"]) == list(cli["status"]) == ["ok"]
-    for c in ("gyro_bias_x", "gyro_bias_y", "gyro_sf_z", "accel_bias_x", "gyro_bias_y_sigma"):
+    for c in ("gyro_bias_x_deg_per_h", "gyro_bias_y_deg_per_h", "gyro_sf_z_ppm",
+              "accel_bias_x_ug", "gyro_bias_y_sigma_deg_per_h", "gyro_bias_x_true_deg_per_h"):
         np.testing.assert_allclose(api[c].astype(float), cli[c], rtol=1e-6, err_msg=c)

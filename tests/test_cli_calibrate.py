@@ -39,7 +39,8 @@ def test_calibrate_writes_table_group_and_figures(run_h5, tmp_path, capsys):
         assert list(g["window"][:]) == [0, 1]
         assert [s.decode() for s in g["status"][:]] == ["ok", "ok"]
         assert g["gyro_bias_x"].attrs["units"] == "degree h-1"
-        np.testing.assert_allclose(g["gyro_bias_x"][:], [float(r["gyro_bias_x"]) for r in rows])
+        np.testing.assert_allclose(g["gyro_bias_x"][:],
+                                   [float(r["gyro_bias_x_deg_per_h"]) for r in rows])
         assert g["temperature_mean"].shape == (2, 2)
         assert "calibration.tmp" not in " ".join(f.keys())
     # a second run replaces the group
@@ -81,8 +82,9 @@ def test_calibrate_a_simulated_run_end_to_end(tmp_path, capsys):
     assert main(["calibrate", str(h5), "-o", str(out), "-q", "--workers", "1"]) == 0
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 2 and [r["status"] for r in rows] == ["ok", "ok"]
-    from rlgsim.estimators.calibration import PARAMETERS
-    z = np.array([[float(r[f"{p.name}_error"]) / float(r[f"{p.name}_sigma"]) for p in PARAMETERS]
+    from rlgsim.estimators.calibration import PARAMETERS, UNIT_NAMES
+    z = np.array([[float(r[f"{p.name}_error_{UNIT_NAMES[p.unit]}"])
+                   / float(r[f"{p.name}_sigma_{UNIT_NAMES[p.unit]}"]) for p in PARAMETERS]
                   for r in rows])
     assert np.abs(z).max() < 5.0 and np.sqrt((z ** 2).mean()) < 1.6
     assert 2.0 < float(rows[0]["nis"]) < 4.0

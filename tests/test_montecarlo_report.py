@@ -31,7 +31,8 @@ def _records(n: int = 8) -> list[UnitRecord]:
     ("r2_true", "1"), ("improvement_factor", "1"), ("gyro_bias_x.rmse", ""),
     ("gyro_bias_x.residual_variance", ""), ("avg_improvement_rmse_pct", "%"),
     ("nav_error_end_m", "m"), ("nav_radial_rate_nmi_per_h", "nmi/h"),
-    ("nav_heading_end_arcmin", "′")])
+    ("nav_heading_end_arcmin", "′"),
+    ("resid_std_true", "°/h"), ("law_resid_std", "°/h"), ("law_resid_std@test2", "°/h")])
 def test_metric_units(metric, unit):
     assert metric_unit(metric) == unit
 

@@ -198,3 +198,52 @@ def test_trees_resample_on_a_timedelta_coordinate(tmp_path):
     np.testing.assert_allclose(out.sel(accel="x").values, ref.reshape(3, 200).mean(axis=1),
                                rtol=1e-15)
 
+
+
+def test_with_changes_of_a_device_parameter():
+    import tomllib
+
+    import rlgsim
+    from rlgsim.ground.errors import UserInputError
+    sc = rlgsim.load_scenario("demo_cycle")
+    before = sc.device.tables["gyro"]["bias"]["c1_deg_per_h_per_k"]
+    ch = rlgsim.with_changes(sc, {"device.gyro.bias.c1_deg_per_h_per_k": 2.5e-4,
+                                  "chamber.start_c": 21.0}, seed=9)
+    assert ch.device.tables["gyro"]["bias"]["c1_deg_per_h_per_k"] == 2.5e-4 != before
+    assert ch.device.parts["gyro"] is not sc.device.parts["gyro"]      # validated again
+    assert ch.seed == 9 and ch.tables["chamber"]["start_c"] == 21.0
+    assert tomllib.loads(ch.device.text)["gyro"]["bias"]["c1_deg_per_h_per_k"] == 2.5e-4
+    assert ch.device.text.startswith("# device trplg_001, from ")
+    assert sc.device.tables["gyro"]["bias"]["c1_deg_per_h_per_k"] == before    # untouched
+    with pytest.raises(UserInputError, match="gyro.bias.c1_typo: unknown key"):
+        rlgsim.with_changes(sc, {"device.gyro.bias.c1_typo": 1.0})
+
+
+FAST = """\
+name = "fast"
+device = "trplg_001"
+seed = 1
+duration_s = {duration}
+
+[acquisition]
+sample_rate_hz = 100000
+
+[chamber]
+start_c = 20.0
+"""
+
+
+def test_a_short_run_at_100_khz_is_not_refused_by_the_block_budget(tmp_path, capsys):
+    (tmp_path / "fast.toml").write_text(FAST.format(duration=10))
+    assert main(["run", str(tmp_path / "fast.toml"), "-o", str(tmp_path / "fast.h5"),
+                 "--chunk-s", "5", "-q"]) == 0
+    import h5py
+    with h5py.File(tmp_path / "fast.h5", "r") as f:
+        assert f["imu/gyro_pulses"].shape[0] == 1_000_000
+    # a run of many 600 s blocks at that rate needs the whole block, whatever the chunk
+    (tmp_path / "fast.toml").write_text(FAST.format(duration=7200))
+    assert main(["run", str(tmp_path / "fast.toml"), "-o", str(tmp_path / "long.h5"),
+                 "--chunk-s", "5", "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "samples per block, whatever the chunk" in err[0], err
+    assert not (tmp_path / "long.h5").exists()

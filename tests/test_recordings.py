@@ -109,7 +109,8 @@ def test_calibrate_a_recording_with_its_programme(hand, tmp_path, capsys):
     # independent: the device's true parameters (drawn by the test), inside 5σ of the filter
     truth = hand["truth"]
     for i, a in enumerate("xyz"):
-        est, sig = rec[f"gyro_bias_{a}"].to_numpy(), rec[f"gyro_bias_{a}_sigma"].to_numpy()
+        est = rec[f"gyro_bias_{a}_deg_per_h"].to_numpy()
+        sig = rec[f"gyro_bias_{a}_sigma_deg_per_h"].to_numpy()
         true = truth.d_g[i] / (math.pi / 180 / 3600)
         assert np.all(np.abs(est - true) < 5 * sig + 1e-3), (a, est, true, sig)
         est_sf = rec[f"gyro_sf_{a}_pulse_per_arcsec"].to_numpy()
@@ -125,11 +126,15 @@ def test_calibrate_a_recording_with_its_programme(hand, tmp_path, capsys):
     assert main(["calibrate", str(hand["h5"]), "-o", str(ds_out), "-q", "--workers", "1",
                  "--no-dataset"]) == 0
     ds = pd.read_csv(ds_out)
-    for c in ("gyro_bias_x", "gyro_bias_y", "gyro_sf_z", "accel_bias_z", "accel_sf_neg_x",
-              "gyro_mis_xy", "gyro_bias_y_sigma", "temp_ax_c"):
+    for c in ("gyro_bias_x_deg_per_h", "gyro_bias_y_deg_per_h", "gyro_sf_z_ppm",
+              "accel_bias_z_ug", "accel_sf_neg_x_ppm", "gyro_mis_xy_arcsec",
+              "gyro_bias_y_sigma_deg_per_h", "temp_ax_c"):
         np.testing.assert_allclose(rec[c].to_numpy(), ds[c].to_numpy(), rtol=1e-6, atol=1e-12,
                                    err_msg=c)
-    assert rec["gyro_bias_x_true"].isna().all()          # a recording has no truth
+    # a recording has no truth: no _true/_error columns at all (the dataset has them)
+    assert not [c for c in rec.columns if c.endswith(("_true", "_error")) or "_true_" in c
+                or "_error_" in c]
+    assert "gyro_bias_x_true_deg_per_h" in ds.columns and "gyro_bias_x_error_deg_per_h" in ds
 
 
 def test_calibrate_recording_needs_a_programme(hand, capsys):

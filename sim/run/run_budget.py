@@ -8,8 +8,9 @@
    at least :data:`rlgsim.sim.motion.turntable.MIN_MOTION_S` (checked when the scenario is read).
 2. :func:`check_budget` — after every group has declared its variables: the output size (exact
    bytes per row of every growing variable × rows; an upper bound, since pulse counts are
-   stored packed), the memory one block needs (working arrays of one 600 s block plus the rows
-   buffered for ``chunk_s``) and the wall time. A run whose output does not fit the free disk
+   stored packed), the memory one block needs (working arrays of one 600 s block — or of the
+   whole run when it is shorter: its only block is that long — plus the rows buffered for
+   ``chunk_s``, which cannot split a block) and the wall time. A run whose output does not fit the free disk
    space, or whose block needs more than :data:`MAX_BLOCK_BYTES` (or more than the memory
    available), is refused with one line naming the scenario, the key and what to change; a run
    expected to take longer than :data:`LONG_RUN_S` or to write more than
@@ -188,13 +189,15 @@ def check_budget(f: h5py.File, scenario, out: pathlib.Path, *, n_steps: int,
         worst = max(parts, key=parts.get)
         if worst == "chunk":
             key = (f"acquisition.chunk_s (or --chunk-s): {est.buffered_blocks} blocks buffered "
-                   f"per write; use a smaller chunk")
+                   f"per write; use a smaller chunk (at least one {block_s:g} s block)")
         elif worst == "step":
             key = (f"acquisition.thermal_step_s = {acq.thermal_step_s:g} "
                    f"({est.steps_per_block} steps per block); use a larger step")
         else:
             key = (f"acquisition.sample_rate_hz = {acq.sample_rate_hz:g} "
-                   f"({est.samples_per_block} samples per block); use a lower rate")
+                   f"({est.samples_per_block} samples per block, whatever the chunk); use a "
+                   f"lower rate" + (f" or a run shorter than {block_s:g} s" if
+                                    est.n_steps > est.steps_per_block else ""))
         raise UserInputError(
             f"{where}: {key}: one {block_s:g} s block would need about "
             f"{human_bytes(est.block_bytes)} of memory; at most {human_bytes(limit)} allowed")

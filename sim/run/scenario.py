@@ -94,6 +94,21 @@ class Device:
     thermal: ThermalPreset
     tables: dict[str, dict] = field(default_factory=dict)   # raw tables, by name
     parts: dict[str, Any] = field(default_factory=dict)     # validated tables (DEVICE_TABLES)
+    base_dir: Any = None                  # where the preset's relative references resolve
+
+    def with_changes(self, changes: Mapping[str, Any]) -> "Device":
+        """This preset with dotted keys changed (``{"gyro.bias.c1_deg_per_h_per_k": 2e-4}``),
+        validated again; its ``text`` is the preset's TOML edited in place (comments kept)
+        under a comment naming the changes — the text every dataset embeds."""
+        from rlgsim.ground.toml_text import value_text, with_values
+        said = ", ".join(f"{k} = {value_text(v) if v is not None else '(removed)'}"
+                         for k, v in changes.items())
+        text = (f"# device {self.name}, from {self.source}, with {said}\n"
+                + with_values(self.text, dict(changes)))
+        source = f"{self.source} (changed: {', '.join(changes)})"
+        return device_from_file(presets.TomlFile(
+            name=self.name, source=source, base_dir=self.base_dir, text=text,
+            data=presets.parse_toml(text, source)))
 
 
 def load_thermal_preset(ref: str, *, base_dir: pathlib.Path | None = None,
@@ -125,7 +140,11 @@ def validate_device_tables(data: Mapping[str, Any], ctx: Ctx) -> tuple[dict, dic
 def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
                 context: str | None = None) -> Device:
     """Load and validate a device preset (``scenarios/devices/<name>.toml`` or a path)."""
-    f = presets.load_device_file(ref, base_dir=base_dir, context=context)
+    return device_from_file(presets.load_device_file(ref, base_dir=base_dir, context=context))
+
+
+def device_from_file(f: "presets.TomlFile") -> Device:
+    """The validated :class:`Device` of a parsed preset file."""
     ctx = Ctx(f.source)
     check_known_keys(f.data, ["device", *DEVICE_TABLES], ctx)
     dev = get_table(f.data, "device", ctx)
@@ -140,7 +159,8 @@ def load_device(ref: str, *, base_dir: pathlib.Path | None = None,
     return Device(name=get_str(dev, "name", dctx, f.name),
                   description=get_str(dev, "description", dctx, ""),
                   reference=get_str(dev, "source", dctx, ""),
-                  source=f.source, text=f.text, thermal=thermal, tables=tables, parts=parts)
+                  source=f.source, text=f.text, thermal=thermal, tables=tables, parts=parts,
+                  base_dir=f.base_dir)
 
 
 # --------------------------------------------------------------------------- scenario tables
@@ -246,13 +266,20 @@ class Scenario:
         (:mod:`rlgsim.sim.run.scenario_changes`)."""
         from rlgsim.sim.run.scenario_changes import changed_text
         todo = {**(changes or {}), **keys}
-        if not todo:
-            return self
-        src = pathlib.Path(self.source)
-        return parse_scenario(changed_text(self, todo),
-                              f"{self.source} (changed: {', '.join(todo)})",
-                              base_dir=src.parent if src.is_file() else None,
-                              default_name=self.name)
+        # "device.<table>.<key>" changes a key of the device preset the scenario names
+        dev = {k[len("device."):]: v for k, v in todo.items() if k.startswith("device.")}
+        todo = {k: v for k, v in todo.items() if not k.startswith("device.")}
+        out = self
+        if todo:
+            src = pathlib.Path(self.source)
+            out = parse_scenario(changed_text(self, todo),
+                                 f"{self.source} (changed: {', '.join(todo)})",
+                                 base_dir=src.parent if src.is_file() else None,
+                                 default_name=self.name)
+        if dev:
+            import dataclasses
+            out = dataclasses.replace(out, device=out.device.with_changes(dev))
+        return out
 
 
 def _parse_turntable(table: dict | None, ctx: Ctx) -> TurntableProgram:

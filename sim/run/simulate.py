@@ -210,8 +210,11 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
             else:
                 writers[s.group] = w.group(s.group, s.description)
                 s.declare(writers[s.group])
-        check_budget(w._file, scenario, out, n_steps=n_steps, steps_per_block=per_block,
-                     buffered_blocks=blocks_per_write + 1, block_s=BLOCK_S,
+        # a run shorter than one block fills only its length: the honest block
+        check_budget(w._file, scenario, out, n_steps=n_steps,
+                     steps_per_block=min(per_block, n_steps),
+                     buffered_blocks=blocks_per_write + 1,
+                     block_s=min(BLOCK_S, n_steps * step),
                      progress=progress)    # refuse what cannot fit (run_budget)
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]

@@ -117,7 +117,9 @@ def calibrate(source: str | os.PathLike, programme: str | os.PathLike | None = N
         from rlgsim.lab.recordings import calibration_source
         src = calibration_source(source, programme)
     result = run_campaign(src, CampaignSettings(workers=workers))
-    return pd.DataFrame([{c: r.get(c, np.nan) for c in result.columns} for r in result.rows])
+    pairs = result.table_columns()
+    return pd.DataFrame([{h: r.get(c, np.nan) for h, c in pairs} for r in result.rows],
+                        columns=[h for h, _ in pairs])
 
 
 # ---------------------------------------------------------------------------- studies

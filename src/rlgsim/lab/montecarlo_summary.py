@@ -35,8 +35,8 @@ def metric_unit(metric: str) -> str:
         return "1"
     if name.startswith("nav_"):                   # the navigation scores (docs/navigation.md)
         return {"m": "m", "h": "nmi/h", "arcmin": "′"}.get(name.rsplit("_", 1)[-1], "")
-    if "." not in base and name.startswith(("stability", "rmse", "mae", "residual", "floor",
-                                            "bias", "std")):
+    if "." not in base and name.startswith(("stability", "rmse", "mae", "residual", "resid_",
+                                            "law_resid", "floor", "bias", "std")):
         return "°/h"
     return ""
 

@@ -247,12 +247,16 @@ class Report:
                 if item.extra["title"]:
                     body.append(f"<h4>{html.escape(item.extra['title'])}</h4>")
                 body.append(f"<pre>{html.escape(item.payload)}</pre>")
-        style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
-                 "color:#222}table{border-collapse:collapse;margin:.5em 0 1.5em}"
-                 "th,td{border:1px solid #bbb;padding:.25em .6em;text-align:right;"
-                 "max-width:24em;overflow-wrap:break-word}"
+        # the page takes the window's width (up to 1900 px) so tables and figures are not
+        # squeezed into a text column; prose keeps a readable measure; a table's cells wrap
+        # (long names anywhere) before its box scrolls; figures at their own size
+        style = ("body{font-family:sans-serif;max-width:1900px;margin:2em auto;padding:0 1.5em;"
+                 "color:#222}p,ul,ol,h1,h2,h3,h4,figcaption{max-width:80em}"
+                 "table{border-collapse:collapse;margin:.5em 0 1.5em;font-size:.92em}"
+                 "th,td{border:1px solid #bbb;padding:.2em .45em;text-align:right;"
+                 "max-width:16em;overflow-wrap:anywhere}"
                  ".table-wrap{max-width:100%;overflow-x:auto}"   # a wide table scrolls inside
-                 "th{background:#eee}figure{margin:1em 0}img{max-width:100%}"
+                 "th{background:#eee}figure{margin:1em 0}img{max-width:100%;height:auto}"
                  "pre{background:#f6f6f6;padding:.8em;overflow-x:auto}.note{font-style:italic}")
         return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
                 f"<title>{html.escape(self.title)}</title><style>{style}</style></head><body>"

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t0
-    table = result.write_csv(out)
+    table = result.write_csv(out, units_in_names=True)
     wrote_group = False
     if not args.no_dataset and source is path:        # recordings are never modified
         try:

@@ -62,16 +62,20 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     if recorded:
         rep.paragraph(recordings_paragraph(recorded, truth))
 
-    _correlation_section(rep, config, Xtr, ytr, rs_test)
-    _paper_tables_section(rep, config, fitted, sc, test_label)
+    # a user's own study (no paper key, no published numbers) has no paper columns or claims
+    paper = bool(study.paper) or any(bool(v) for v in config.published.values()) \
+        or any(f.spec.published for f in fitted)
+    _correlation_section(rep, config, Xtr, ytr, rs_test, paper)
+    _paper_tables_section(rep, config, fitted, sc, test_label, paper)
     _fitted_section(rep, fitted, per_test, truth)
 
     # -- rankings
     from rlgsim.lab.studies.input_range import range_section
     range_section(rep, [(fitted, {s.label: runs[s.key].series for s in config.test})])
-    rep.heading("Rankings: the paper's claims against ours", 2)
-    for para in rankings(config, fitted, sc, int(ytr.size), out.train):
-        rep.paragraph(para)
+    if paper:
+        rep.heading("Rankings: the paper's claims against ours", 2)
+        for para in rankings(config, fitted, sc, int(ytr.size), out.train):
+            rep.paragraph(para)
 
     # -- figures, per test run
     multi = len(config.test) > 1
@@ -94,30 +98,37 @@ def navigation(study: Study, config: Config, result: StudyResult):
     return first_test_navigation(config, result.details)
 
 
-def _correlation_section(rep: Report, config: Config, Xtr, ytr: np.ndarray,
-                         rs_test: RunSeries) -> None:
-    """Paper 001 Table 1: the bias's correlation with each input, ours beside the paper's."""
-    rep.heading("Correlation of the bias with the inputs (paper 001 Table 1)", 2)
+def _correlation_section(rep: Report, config: Config, Xtr, ytr, rs_test: RunSeries, paper: bool) -> None:
+    """The correlation of the bias with each input (paper 001 Table 1 beside ours when the
+    study follows a paper)."""
+    rep.heading("Correlation of the bias with the inputs"
+                + (" (paper 001 Table 1)" if paper else ""), 2)
     corr_pub = config.published.get("correlation", {})
     recs = []
     for name in Xtr.names:
-        recs.append({"input": name,
-                     "paper": corr_pub.get(name),
-                     "ours (train, measured y)": fmt(np.corrcoef(Xtr[name], ytr)[0, 1]),
-                     "ours (test, measured y)": fmt(np.corrcoef(rs_test.X[name], rs_test.y)[0, 1]),
-                     "ours (test, true b)": fmt(np.corrcoef(rs_test.X[name],
-                                                             rs_test.true_bias)[0, 1])})
+        rec = {"input": name}
+        if paper:
+            rec["paper"] = corr_pub.get(name)
+        rec.update({"ours (train, measured y)": fmt(np.corrcoef(Xtr[name], ytr)[0, 1]),
+                    "ours (test, measured y)": fmt(np.corrcoef(rs_test.X[name],
+                                                               rs_test.y)[0, 1]),
+                    "ours (test, true b)": fmt(np.corrcoef(rs_test.X[name],
+                                                           rs_test.true_bias)[0, 1])})
+        recs.append(rec if paper else {k.removeprefix("ours "): v for k, v in rec.items()})
     rep.table(Table.from_records("Correlation coefficients", recs, csv_name="correlation.csv"))
 
 
 def _paper_tables_section(rep: Report, config: Config, fitted: list[Fitted], sc: dict,
-                          test_label: str) -> None:
-    """The paper's tables beside ours (paper-style scores on the first test run)."""
+                  test_label: str, paper: bool) -> None:
+    """The scores of every compensator on the test run, per paper table; the published
+    numbers beside ours only when the study follows a paper."""
     before_pub = config.published.get("stability_before")
     tables: dict[str, list[Fitted]] = {}
     for f in fitted:
-        tables.setdefault(f.spec.table or "Other compensators", []).append(f)
-    rep.heading(f"Paper-style scores on test run {test_label} (ours beside the paper)", 2)
+        tables.setdefault(f.spec.table or ("Other compensators" if paper else "Compensators"),
+                          []).append(f)
+    rep.heading(f"Paper-style scores on test run {test_label} (ours beside the paper)" if paper
+                else f"Scores on test run {test_label}", 2)
     if before_pub:
         # raw: y − constant, so its stability_after is the raw bias stability
         rep.paragraph(before_check(sc[RAW]["stability_after"], before_pub))
@@ -137,19 +148,24 @@ def _paper_tables_section(rep: Report, config: Config, fitted: list[Fitted], sc:
                         "after (paper) °/h": pub.get("stability_deg_per_h"),
                         "improvement (ours) %": fmt(s["improvement_pct"]),
                         "improvement (paper) %": pub.get("improvement_pct")})
+            if not paper:
+                rec = {k.replace(" (ours)", ""): v for k, v in rec.items()
+                       if "(paper)" not in k}
             recs.append(rec)
         cols: list[str] = []
         for rec in recs:
             cols += [k for k in rec if k not in cols]
         recs = [{k: rec.get(k) for k in cols} for rec in recs]
-        note = "paper: the published value; — where the paper gives none."
-        if "c (ours)" in cols:          # kernel models only: their hyper-parameters
+        note = "paper: the published value; — where the paper gives none." if paper else ""
+        if "c (ours)" in cols or "c" in cols:          # kernel models only
             note += (" c is the LS-SVM regularisation (gamma), σ² the squared kernel width in "
-                     "standardised inputs (ours; the paper does not say whether it "
-                     "standardised). The paper's F(x) column is not reproduced: the paper "
-                     "does not define it.")
-        rep.table(Table.from_records(tname, recs, csv_name=f"paper_{slug(tname)}.csv",
-                                     note=note))
+                     "standardised inputs" + (" (ours; the paper does not say whether it "
+                                              "standardised). The paper's F(x) column is not "
+                                              "reproduced: the paper does not define it."
+                                              if paper else "."))
+        rep.table(Table.from_records(tname, recs, csv_name=f"paper_{slug(tname)}.csv"
+                                     if paper else f"scores_{slug(tname)}.csv",
+                                     note=note.strip()))
 
 
 def _fitted_section(rep: Report, fitted: list[Fitted], per_test: dict, truth: bool) -> None:
