@@ -238,8 +238,16 @@ def test_a_short_run_at_100_khz_is_not_refused_by_the_block_budget(tmp_path, cap
     assert main(["run", str(tmp_path / "fast.toml"), "-o", str(tmp_path / "fast.h5"),
                  "--chunk-s", "5", "-q"]) == 0
     import h5py
+    import json
+    from importlib.metadata import version
     with h5py.File(tmp_path / "fast.h5", "r") as f:
         assert f["imu/gyro_pulses"].shape[0] == 1_000_000
+        made = json.loads(f.attrs["software_versions"])        # provenance (issue 29)
+    assert list(made) == ["rlgsim", "numpy", "scipy", "h5py", "numba"]
+    assert all(made[k] == version(k) for k in made)
+    assert main(["info", str(tmp_path / "fast.h5")]) == 0
+    assert f"made with: rlgsim {version('rlgsim')}, numpy {version('numpy')}" in \
+        capsys.readouterr().out
     # a run of many 600 s blocks at that rate needs the whole block, whatever the chunk
     (tmp_path / "fast.toml").write_text(FAST.format(duration=7200))
     assert main(["run", str(tmp_path / "fast.toml"), "-o", str(tmp_path / "long.h5"),

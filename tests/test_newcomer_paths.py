@@ -211,3 +211,16 @@ def test_identify_output_checks(tmp_path, capsys):
     _refused(["identify", str(tmp_path / "f.csv"), "-o", str(out)], capsys,
              "f.csv: is a FIFO (named pipe), not a regular file")
     assert (tmp_path / "file").read_text() == "x"
+
+
+def test_parquet_without_pyarrow_is_one_line(tmp_path, capsys, monkeypatch):
+    src = _log(tmp_path)
+    monkeypatch.setitem(sys.modules, "pyarrow", None)        # as if not installed
+    before = _digest(tmp_path)
+    _refused(["export", str(src), "--format", "parquet"], capsys,
+             "writing Parquet needs pyarrow, which is not installed; pip install "
+             "\"rlgsim[parquet]\"")
+    assert _digest(tmp_path) == before
+    (tmp_path / "p.parquet").write_bytes(b"PAR1")
+    (tmp_path / "p.toml").write_text(SIDECAR)
+    _refused(["info", str(tmp_path / "p.parquet")], capsys, "reading Parquet needs pyarrow")

@@ -49,4 +49,9 @@ def test_own_study_has_no_paper_columns_nor_claims(tmp_path, capsys):
                      own), own
     assert not list((tmp_path / "out").glob("paper_*.csv"))
     assert (tmp_path / "out" / "scores_compensators.csv").is_file()
-    # a shipped study that follows a paper keeps its columns (tests/test_studies.py: demo)
+    # provenance: every report says which versions made it
+    from importlib.metadata import version
+    assert md.rstrip().endswith(f"*Made with rlgsim {version('rlgsim')}, numpy "
+                                f"{version('numpy')}, scipy {version('scipy')}, h5py "
+                                f"{version('h5py')}, numba {version('numba')}.*")
+    assert "Made with rlgsim" in (tmp_path / "out" / "report.html").read_text()

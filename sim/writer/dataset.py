@@ -38,6 +38,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import itertools
+import json
 import os
 import pathlib
 import sys
@@ -51,6 +52,7 @@ from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, I
                                           INCOMPLETE_ATTR, TIME,
                                           VERSION_ATTR, open_dataset)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
+from rlgsim.ground.provenance import versions_json
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -384,6 +386,8 @@ class DatasetWriter:
         # incomplete, so the temporary file of a killed run is never taken for a dataset.
         self._file.attrs[INCOMPLETE_ATTR] = INCOMPLETE
         self._file.attrs["software_version"] = software_version()
+        # provenance: the versions of the libraries behind the stored numbers (issue 29)
+        self._file.attrs["software_versions"] = versions_json()
         for key, value in attrs.items():
             self._file.attrs[key] = _attr_value(value)
 
@@ -476,6 +480,12 @@ def summary(path: str | os.PathLike) -> str:
         a = ds.attrs
         lines = [f"{path}: {FORMAT} v{_text(a.get(VERSION_ATTR))}, "
                  f"rlgsim {_text(a.get('software_version', '?'))}"]
+        if "software_versions" in a:            # datasets written since issue 29
+            try:
+                made = json.loads(_text(a["software_versions"]))
+                lines.append("  made with: " + ", ".join(f"{k} {v}" for k, v in made.items()))
+            except (ValueError, AttributeError):
+                pass
         for key, label in (("scenario_name", "scenario"), ("scenario_source", "scenario file"),
                            ("device", "device"), ("seed", "seed"),
                            ("duration_s", "duration [s]"),

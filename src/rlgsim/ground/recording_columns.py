@@ -21,7 +21,7 @@ from rlgsim.ground.units import DEG, G0, HOUR
 __all__ = ["COLUMN_RULES", "SLOW_KINDS", "TEMPERATURE_RANGE_C", "UHFO_RANGE_V",
            "GYRO_RATE_LIMIT_DEG_PER_S", "ACCEL_LIMIT_M_PER_S2", "ALLOWED_NAMES", "column_rule",
            "unknown_column", "rate_rad_per_s", "is_slow_kind", "numeric_column", "time_column",
-           "check_range"]
+           "check_range", "need_pyarrow"]
 
 #: Allowed range of each kind of value (what the messages say is allowed).
 TEMPERATURE_RANGE_C = (-100.0, 200.0)
@@ -133,6 +133,16 @@ def numeric_column(path: pathlib.Path, name: str, raw: np.ndarray,
 
 
 _TABLE_NAMES = {"parquet": "Parquet", "hdf5": "HDF5"}
+
+
+def need_pyarrow(path: pathlib.Path, doing: str) -> None:
+    """pyarrow is an optional dependency (only Parquet needs it, ~170 MB): its absence is one
+    line saying how to install it."""
+    try:
+        import pyarrow  # noqa: F401 - only whether it imports
+    except ImportError:
+        raise UserInputError(f"{path}: {doing} Parquet needs pyarrow, which is not installed; "
+                             f"pip install \"rlgsim[parquet]\" (or use CSV)") from None
 
 
 def time_column(path: pathlib.Path, name: str, raw: np.ndarray, table: str,

@@ -107,6 +107,9 @@ def planned_outputs(source: str | os.PathLike, fmt: str = "csv",
     written."""
     src = input_file(source, "an rlgsim dataset or a recording")
     p = _out_path(src, fmt, out)
+    if fmt == "parquet":
+        from rlgsim.ground.recording_columns import need_pyarrow
+        need_pyarrow(p, "writing")
     outputs = {"table": p, "sidecar": sidecar_path(p)}
     inputs = [src]
     other = _sidecar_data(outputs["sidecar"])

@@ -21,7 +21,8 @@ import numpy as np
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.paths import input_file
 from rlgsim.ground.recording_columns import (check_range, column_rule, is_slow_kind,
-                                             numeric_column, time_column, unknown_column)
+                                             need_pyarrow, numeric_column, time_column,
+                                             unknown_column)
 from rlgsim.ground.recording_formats import DATA_SUFFIXES, TABLE_FORMATS
 from rlgsim.ground.recording_sidecar import Sidecar, read_sidecar, sidecar_path
 from rlgsim.ground.recording_table import Recording
@@ -123,6 +124,7 @@ def _read_table(path: pathlib.Path, kind: str, sc: Sidecar) -> tuple[list[str], 
         return names, raw, len(df)
     if kind == "parquet":
         import pandas as pd
+        need_pyarrow(path, "reading")
         try:
             df = pd.read_parquet(path)
         except Exception as exc:   # noqa: BLE001 - pyarrow raises many types for a bad file

@@ -33,6 +33,9 @@ def write_table(path: str | os.PathLike, blocks, fmt: str) -> pathlib.Path:
     block by block (memory bounded by one block), to a temporary name renamed on success.
     Floats are written with full precision, so a CSV reads back to identical float64."""
     p = pathlib.Path(path)
+    if fmt == "parquet":
+        from rlgsim.ground.recording_columns import need_pyarrow
+        need_pyarrow(p, "writing")
     tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
     writer = None
     try:

@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
+from rlgsim.ground.provenance import versions_line
+
 
 def write_atomic(path: pathlib.Path, data: bytes | str) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and rename."""
@@ -212,6 +214,7 @@ class Report:
                 if item.extra["title"]:
                     out += [f"**{item.extra['title']}**", ""]
                 out += [f"```{item.extra['language']}", item.payload.rstrip("\n"), "```", ""]
+        out += ["---", "", f"*Made with {versions_line()}.*", ""]
         return "\n".join(out)
 
     def html(self) -> str:
@@ -258,6 +261,7 @@ class Report:
                  ".table-wrap{max-width:100%;overflow-x:auto}"   # a wide table scrolls inside
                  "th{background:#eee}figure{margin:1em 0}img{max-width:100%;height:auto}"
                  "pre{background:#f6f6f6;padding:.8em;overflow-x:auto}.note{font-style:italic}")
+        body.append(f"<hr><p class='note'>Made with {html.escape(versions_line())}.</p>")
         return ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
                 f"<title>{html.escape(self.title)}</title><style>{style}</style></head><body>"
                 + "\n".join(body) + "</body></html>")
