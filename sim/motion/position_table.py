@@ -40,6 +40,8 @@ def _read(path: pathlib.Path):
     import pandas as pd
     try:
         if path.suffix.lower() in (".parquet", ".pq"):
+            from rlgsim.ground.recording_columns import need_pyarrow
+            need_pyarrow(path, "reading")           # an optional dependency: one line
             return pd.read_parquet(path)
         return pd.read_csv(path)
     except (OSError, ValueError, UnicodeDecodeError) as e:

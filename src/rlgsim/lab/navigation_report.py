@@ -127,6 +127,9 @@ def write(ds, out_dir: str | pathlib.Path, fmt: str = "csv") -> dict[str, Any]:
     """solution.csv|parquet (every variant's error series), summary.csv, navigation.png and
     report.md into ``out_dir``; returns the paths."""
     out = pathlib.Path(out_dir)
+    if fmt == "parquet":
+        from rlgsim.ground.recording_columns import need_pyarrow
+        need_pyarrow(out / "solution.parquet", "writing")   # optional: one line, before work
     out.mkdir(parents=True, exist_ok=True)
     series = ds.drop_vars([k for k in ds.data_vars if ds[k].dims == ("variant",)])
     df = series.to_dataframe().reset_index()
