@@ -255,3 +255,17 @@ def test_a_short_run_at_100_khz_is_not_refused_by_the_block_budget(tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "samples per block, whatever the chunk" in err[0], err
     assert not (tmp_path / "long.h5").exists()
+
+
+def test_every_gyro_rate_unit_of_the_grammar_reads(tmp_path):
+    """gyro_<axis>_rate_deg_per_h, _deg_per_s and _rate_rad_per_s (the split once lost the
+    last one's underscore): the same rate through each."""
+    n = 20
+    rates = {"deg_per_h": 3600.0, "deg_per_s": 1.0, "rad_per_s": np.pi / 180}
+    for unit, v in rates.items():
+        pd.DataFrame({"time_s": np.arange(1, n + 1) / 10.0,
+                      f"gyro_x_rate_{unit}": np.full(n, v)}).to_csv(tmp_path / "g.csv",
+                                                                     index=False)
+        (tmp_path / "g.toml").write_text("[recording]\nsample_rate_hz = 10\n")
+        np.testing.assert_allclose(load_recording(tmp_path / "g.csv").gyro_rate_deg_per_h(),
+                                   3600.0, rtol=1e-12)

@@ -38,8 +38,8 @@ COLUMN_RULES: list[tuple[str, str, str, str]] = [
      "gyro_<axis>_rate_deg_per_h"),
     (r"gyro_(?P<axis>[A-Za-z0-9]+)_rate_deg_per_s", "gyro", "deg_per_s",
      "gyro_<axis>_rate_deg_per_s"),
-    (r"gyro_(?P<axis>[A-Za-z0-9]+)rate_rad_per_s", "gyro", "rad_per_s",
-     "gyro_<axis>rate_rad_per_s"),
+    (r"gyro_(?P<axis>[A-Za-z0-9]+)_rate_rad_per_s", "gyro", "rad_per_s",
+     "gyro_<axis>_rate_rad_per_s"),
     (r"accel_(?P<axis>[A-Za-z0-9]+)_pulses", "accel", "pulses",
      "accel_<axis>_pulses (whole pulses per sample)"),
     (r"accel_(?P<axis>[A-Za-z0-9]+)_m_per_s2", "accel", "m_per_s2", "accel_<axis>_m_per_s2"),
@@ -62,7 +62,7 @@ ALLOWED_NAMES = ", ".join(d.split(" (")[0] for _, _, _, d in COLUMN_RULES)
 _PREFIX_HINTS = [
     (r"time_", "time is in seconds: time_s"),
     (r"gyro_[A-Za-z0-9]+_", "gyro columns are gyro_<axis>_pulses or gyro_<axis>_rate_deg_per_h "
-                            "(also _rate_deg_per_s, rate_rad_per_s)"),
+                            "(also _rate_deg_per_s, _rate_rad_per_s)"),
     (r"accel_[A-Za-z0-9]+_", "accelerometer columns are accel_<axis>_pulses or "
                              "accel_<axis>_m_per_s2"),
     (r"probe_", "probe temperatures are in °C: probe_<name>_c"),
