@@ -257,17 +257,14 @@ def test_only_the_dataset_rooms_import_h5py():
 MAX_FILE_LINES = 700
 REASON_FILE_LINES = 400
 MAX_FUNCTION_LINES = 100
-#: the words a file over 400 lines gives its reason after (in its module docstring)
-LONG_REASON = "Why this file is long:"
+#: the words a file over 400 lines gives its reason after (in its module docstring): "Why this
+#: file is long:" or, as tests/test_sim_rooms.py asks of the simulator, "Why this file is over
+#: 400 lines:"
+LONG_REASONS = ("Why this file is long:", "Why this file is over 400 lines:")
 #: Files and functions over the limits that their owners are splitting (file, or
 #: "file:function"); the lists may only shrink.
 KNOWN_LONG_FILES: list[str] = [
     "estimators/identify/term_selection.py",
-    "sim/motion/kinematics.py", "sim/motion/trajectory.py", "sim/motion/turntable.py",
-    "sim/thermal/network_builder.py",
-    "sim/sensors/anomalies.py", "sim/sensors/imu.py", "sim/sensors/sensor_triad.py",
-    "sim/thermal/chamber.py", "sim/thermal/integrator.py", "sim/thermal/network.py",
-    "sim/writer/dataset.py", "sim/writer/schema.py",
     "src/rlgsim/lab/identify/hop_fit.py", "src/rlgsim/lab/identify/thermal_fit.py",
 ]
 KNOWN_LONG_FUNCTIONS: list[str] = [
@@ -300,7 +297,7 @@ def test_no_file_is_too_long_and_a_long_one_says_why():
             over.append(_rel(path))
         elif n > REASON_FILE_LINES:
             doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
-            if LONG_REASON not in doc:
+            if not any(reason in doc for reason in LONG_REASONS):
                 unexplained.append(_rel(path))
     assert [f for f in over + unexplained if f not in KNOWN_LONG_FILES] == []
     assert [f for f in KNOWN_LONG_FILES if f not in over + unexplained] == [], \

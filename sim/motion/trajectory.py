@@ -1,8 +1,8 @@
 """Exact sensor inputs of an IMU on a moving vehicle over the WGS-84 ellipsoid.
 
-(Over 400 lines because one object holds the route's three views that must agree to the last
-bit — the increments, the truth states and the standing-still runs — with the NumPy forms of
-the formulas the compiled kernel is tested against.)
+Why this file is over 400 lines: one object holds the route's three views that must agree to
+the last bit — the increments, the truth states and the standing-still runs — with the NumPy
+forms of the formulas the compiled kernel is tested against.
 
 The motion is a sequence of legs (:mod:`rlgsim.sim.motion.legs`: heading, pitch, roll and the
 body-frame ground velocity as polynomials of time) from an initial geodetic position. Navigation
