@@ -41,6 +41,106 @@ def _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt):  # pragma: no cover - compi
 
 
 @njit(cache=True, nogil=True)
+def _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T):  # pragma: no cover - compiled
+    """P ← F_k P F_kᵀ in place (no Q yet): T = F_d P over the moving rows' non-zero columns
+    (``T`` (nd, n_x) is scratch), the (d, d) block T F_dᵀ computed once per symmetric pair, the
+    (d, rest) blocks copied from T; the identity rows' (rest, rest) block is unchanged."""
+    nd = f_dyn.shape[1]
+    n_x = f_dyn.shape[2]
+    for r in range(nd):                       # T = F_d P (the moving rows)
+        for m in range(n_x):
+            T[r, m] = 0.0
+        for ii in range(nz_cnt[r]):
+            c = nz_idx[r, ii]
+            a = f_dyn[k, r, c]
+            for m in range(n_x):
+                T[r, m] += a * P[c, m]
+    for r in range(nd):                       # block (d, d): T F_dᵀ, symmetric
+        for i in range(r + 1):
+            acc = 0.0
+            for ii in range(nz_cnt[r]):
+                c = nz_idx[r, ii]
+                acc += T[i, c] * f_dyn[k, r, c]
+            P[i, r] = acc
+            P[r, i] = acc
+    for i in range(nd):                       # blocks (d, rest) and (rest, d)
+        for m in range(nd, n_x):
+            P[i, m] = T[i, m]
+            P[m, i] = T[i, m]
+
+
+@njit(cache=True, nogil=True)
+def _add_process_noise(qs, k, q_dd, Q, full_q, P):  # pragma: no cover - compiled
+    """P += Q_k: the step's (6, 6) navigation noise ``qs[k]`` placed into ``q_dd`` (nd, nd)
+    and added over the moving block, or with ``full_q`` into ``Q`` (n_x, n_x), added whole."""
+    for a in range(6):
+        for b in range(6):
+            q_dd[a, b] = qs[k, a, b]
+    if full_q:
+        for a in range(6):
+            for b in range(6):
+                Q[a, b] = qs[k, a, b]
+        for i in range(P.shape[0]):
+            for m in range(P.shape[0]):
+                P[i, m] += Q[i, m]
+    else:
+        for i in range(q_dd.shape[0]):
+            for m in range(q_dd.shape[0]):
+                P[i, m] += q_dd[i, m]
+
+
+@njit(cache=True, nogil=True)
+def _innovation_inverse(P, r2, si):  # pragma: no cover - compiled
+    """S⁻¹ into ``si`` (3, 3) for S = H P Hᵀ + r2 I = P[3:6, 3:6] + r2 I (the adjugate over
+    the determinant, expanded along the first column)."""
+    s00 = P[3, 3] + r2
+    s11 = P[4, 4] + r2
+    s22 = P[5, 5] + r2
+    s01, s02, s12 = P[3, 4], P[3, 5], P[4, 5]
+    s10, s20, s21 = P[4, 3], P[5, 3], P[5, 4]
+    c00 = s11 * s22 - s12 * s21
+    c01 = s02 * s21 - s01 * s22
+    c02 = s01 * s12 - s02 * s11
+    det = s00 * c00 + s10 * c01 + s20 * c02
+    si[0, 0] = c00 / det
+    si[0, 1] = c01 / det
+    si[0, 2] = c02 / det
+    si[1, 0] = (s12 * s20 - s10 * s22) / det
+    si[1, 1] = (s00 * s22 - s02 * s20) / det
+    si[1, 2] = (s02 * s10 - s00 * s12) / det
+    si[2, 0] = (s10 * s21 - s11 * s20) / det
+    si[2, 1] = (s01 * s20 - s00 * s21) / det
+    si[2, 2] = (s00 * s11 - s01 * s10) / det
+
+
+@njit(cache=True, nogil=True)
+def _joseph_update(P, K, r2, prow, B):  # pragma: no cover - compiled
+    """P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ in place, R = r2 I and H = [0 I 0] (rows 3:6), as
+    A = P − K H P, B = r2 K − A Hᵀ, P = A + B Kᵀ (``prow`` (3, n_x), ``B`` (n_x, 3) scratch);
+    then P symmetrised (the average with its transpose drops the Joseph form's rounding skew)."""
+    n_x = P.shape[0]
+    for a in range(3):
+        for m in range(n_x):
+            prow[a, m] = P[3 + a, m]
+    for i in range(n_x):                      # A = P − K H P  (in place)
+        k0, k1, k2 = K[i, 0], K[i, 1], K[i, 2]
+        for m in range(n_x):
+            P[i, m] -= k0 * prow[0, m] + k1 * prow[1, m] + k2 * prow[2, m]
+    for i in range(n_x):                      # B = r2 K − A Hᵀ
+        for b in range(3):
+            B[i, b] = r2 * K[i, b] - P[i, 3 + b]
+    for i in range(n_x):                      # P = A + B Kᵀ
+        b0, b1, b2 = B[i, 0], B[i, 1], B[i, 2]
+        for m in range(n_x):
+            P[i, m] += b0 * K[m, 0] + b1 * K[m, 1] + b2 * K[m, 2]
+    for i in range(n_x):                      # P is symmetric: drop the rounding skew
+        for m in range(i):
+            a = 0.5 * (P[i, m] + P[m, i])
+            P[i, m] = a
+            P[m, i] = a
+
+
+@njit(cache=True, nogil=True)
 def filter_loop(f_dyn, nz_idx, nz_cnt, qs, q_dd, Q, full_q, mask, z_all, r2, P, x, gains,
                 s_inv, nis):  # pragma: no cover - compiled; tested through run_filter
     """Run the predict/update steps in place on ``P`` (n_x, n_x) and ``x`` (n_x,), internal
@@ -60,61 +160,12 @@ def filter_loop(f_dyn, nz_idx, nz_cnt, qs, q_dd, Q, full_q, mask, z_all, r2, P, 
     for k in range(n_steps):
         # ---- predict: x ← F x; P ← F P Fᵀ + Q
         _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt)
-        for r in range(nd):                       # T = F_d P (the moving rows)
-            for m in range(n_x):
-                T[r, m] = 0.0
-            for ii in range(nz_cnt[r]):
-                c = nz_idx[r, ii]
-                a = f_dyn[k, r, c]
-                for m in range(n_x):
-                    T[r, m] += a * P[c, m]
-        for r in range(nd):                       # block (d, d): T F_dᵀ, symmetric
-            for i in range(r + 1):
-                acc = 0.0
-                for ii in range(nz_cnt[r]):
-                    c = nz_idx[r, ii]
-                    acc += T[i, c] * f_dyn[k, r, c]
-                P[i, r] = acc
-                P[r, i] = acc
-        for i in range(nd):                       # blocks (d, rest) and (rest, d)
-            for m in range(nd, n_x):
-                P[i, m] = T[i, m]
-                P[m, i] = T[i, m]
-        for a in range(6):
-            for b in range(6):
-                q_dd[a, b] = qs[k, a, b]
-        if full_q:
-            for a in range(6):
-                for b in range(6):
-                    Q[a, b] = qs[k, a, b]
-            for i in range(n_x):
-                for m in range(n_x):
-                    P[i, m] += Q[i, m]
-        else:
-            for i in range(nd):
-                for m in range(nd):
-                    P[i, m] += q_dd[i, m]
+        _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T)
+        _add_process_noise(qs, k, q_dd, Q, full_q, P)
         if not mask[k]:
             continue
         # ---- update with H = [0 I 0] (internal rows 3:6), Joseph form
-        s00 = P[3, 3] + r2
-        s11 = P[4, 4] + r2
-        s22 = P[5, 5] + r2
-        s01, s02, s12 = P[3, 4], P[3, 5], P[4, 5]
-        s10, s20, s21 = P[4, 3], P[5, 3], P[5, 4]
-        c00 = s11 * s22 - s12 * s21
-        c01 = s02 * s21 - s01 * s22
-        c02 = s01 * s12 - s02 * s11
-        det = s00 * c00 + s10 * c01 + s20 * c02
-        si[0, 0] = c00 / det
-        si[0, 1] = c01 / det
-        si[0, 2] = c02 / det
-        si[1, 0] = (s12 * s20 - s10 * s22) / det
-        si[1, 1] = (s00 * s22 - s02 * s20) / det
-        si[1, 2] = (s02 * s10 - s00 * s12) / det
-        si[2, 0] = (s10 * s21 - s11 * s20) / det
-        si[2, 1] = (s01 * s20 - s00 * s21) / det
-        si[2, 2] = (s00 * s11 - s01 * s10) / det
+        _innovation_inverse(P, r2, si)
         for i in range(n_x):                      # K = P Hᵀ S⁻¹
             for b in range(3):
                 K[i, b] = P[i, 3] * si[0, b] + P[i, 4] * si[1, b] + P[i, 5] * si[2, b]
@@ -123,25 +174,7 @@ def filter_loop(f_dyn, nz_idx, nz_cnt, qs, q_dd, Q, full_q, mask, z_all, r2, P, 
         y2 = z_all[k, 2] - x[5]
         for i in range(n_x):
             x[i] += K[i, 0] * y0 + K[i, 1] * y1 + K[i, 2] * y2
-        for a in range(3):
-            for m in range(n_x):
-                prow[a, m] = P[3 + a, m]
-        for i in range(n_x):                      # A = P − K H P  (in place)
-            k0, k1, k2 = K[i, 0], K[i, 1], K[i, 2]
-            for m in range(n_x):
-                P[i, m] -= k0 * prow[0, m] + k1 * prow[1, m] + k2 * prow[2, m]
-        for i in range(n_x):                      # B = r2 K − A Hᵀ
-            for b in range(3):
-                B[i, b] = r2 * K[i, b] - P[i, 3 + b]
-        for i in range(n_x):                      # P = A + B Kᵀ
-            b0, b1, b2 = B[i, 0], B[i, 1], B[i, 2]
-            for m in range(n_x):
-                P[i, m] += b0 * K[m, 0] + b1 * K[m, 1] + b2 * K[m, 2]
-        for i in range(n_x):                      # P is symmetric: drop the rounding skew
-            for m in range(i):
-                a = 0.5 * (P[i, m] + P[m, i])
-                P[i, m] = a
-                P[m, i] = a
+        _joseph_update(P, K, r2, prow, B)
         for i in range(n_x):
             for b in range(3):
                 gains[j, i, b] = K[i, b]

@@ -11,7 +11,9 @@ eq. 7.1.1.1-11), quaternion update q_k = q_{k-1} ⊗ exp(φ_k/2) with the produc
 output, the exact constant-rate velocity rotation correction ΔV = Δv + ½Δθ×Δv +
 (1/12)Δθ×(Δθ×Δv) rotated into i0 with the attitude at the sample start and into ENU with the
 Earth rotation to the sample middle (Rodrigues), gravity removed, velocity summed in sample
-order. Equal to the numpy formulation to rounding (tests/test_strapdown.py).
+order. Equal to the numpy formulation to rounding (tests/test_strapdown.py). The coning vector,
+the quaternion product and the rotation of a vector by a quaternion are the navigator's too
+(:mod:`rlgsim.estimators._rotation_kernel`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,28 @@ import math
 
 import numpy as np
 from numba import njit
+
+from rlgsim.estimators._rotation_kernel import coning_vector, cross, quat_mul, quat_rotate
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _velocity_increment(tx, ty, tz, ux, uy, uz):  # pragma: no cover - compiled
+    """ΔV = Δv + ½Δθ×Δv + (1/12)Δθ×(Δθ×Δv) [m/s] in the body frame: the exact constant-rate
+    rotation correction (``navigate``'s docstring) of one sample's increments."""
+    cx, cy, cz = cross(tx, ty, tz, ux, uy, uz)
+    ex, ey, ez = cross(tx, ty, tz, cx, cy, cz)
+    return ux + 0.5 * cx + ex / 12.0, uy + 0.5 * cy + ey / 12.0, uz + 0.5 * cz + ez / 12.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _to_enu(ix, iy, iz, kx, ky, kz, ang):  # pragma: no cover - compiled
+    """Rotate the i0 vector (ix, iy, iz) about the unit axis k by ``ang`` [rad] (Rodrigues)."""
+    ca, sa = math.cos(ang), math.sin(ang)
+    kv = ix * kx + iy * ky + iz * kz
+    ox = ix * ca + (ky * iz - kz * iy) * sa + kv * kx * (1.0 - ca)
+    oy = iy * ca + (kz * ix - kx * iz) * sa + kv * ky * (1.0 - ca)
+    oz = iz * ca + (kx * iy - ky * ix) * sa + kv * kz * (1.0 - ca)
+    return ox, oy, oz
 
 
 @njit(cache=True, nogil=True)
@@ -43,51 +67,23 @@ def strapdown_loop(dtheta, dv, dt_s, q0, is_break, k_axis, rate, g):  # pragma: 
             px, py, pz = tx, ty, tz
         else:
             px, py, pz = dtheta[k - 1, 0], dtheta[k - 1, 1], dtheta[k - 1, 2]
-        # coning-corrected rotation vector φ = Δθ + (Δθ_prev × Δθ)/12
-        fx = tx + (py * tz - pz * ty) / 12.0
-        fy = ty + (pz * tx - px * tz) / 12.0
-        fz = tz + (px * ty - py * tx) / 12.0
+        fx, fy, fz = coning_vector(px, py, pz, tx, ty, tz)
         a = math.sqrt(fx * fx + fy * fy + fz * fz)
         cw = math.cos(0.5 * a)
         s = math.sin(0.5 * a) / a if a != 0.0 else 0.5     # sin(a/2)/a
-        bx, by, bz = s * fx, s * fy, s * fz
         # running product ⊗ exp(φ/2)
-        nw = aw * cw - ax * bx - ay * by - az * bz
-        nx = aw * bx + ax * cw + ay * bz - az * by
-        ny = aw * by - ax * bz + ay * cw + az * bx
-        nz = aw * bz + ax * by - ay * bx + az * cw
-        aw, ax, ay, az = nw, nx, ny, nz
+        aw, ax, ay, az = quat_mul(aw, ax, ay, az, cw, s * fx, s * fy, s * fz)
         norm = math.sqrt(aw * aw + ax * ax + ay * ay + az * az)
         q_out[k, 0] = aw / norm
         q_out[k, 1] = ax / norm
         q_out[k, 2] = ay / norm
         q_out[k, 3] = az / norm
-        # velocity increment with the rotation correction (body)
-        ux, uy, uz = dv[k, 0], dv[k, 1], dv[k, 2]
-        cx = ty * uz - tz * uy
-        cy = tz * ux - tx * uz
-        cz = tx * uy - ty * ux
-        ex = ty * cz - tz * cy
-        ey = tz * cx - tx * cz
-        ez = tx * cy - ty * cx
-        Vx = ux + 0.5 * cx + ex / 12.0
-        Vy = uy + 0.5 * cy + ey / 12.0
-        Vz = uz + 0.5 * cz + ez / 12.0
-        # into i0 with the attitude at the sample start: V + w t + u × t, t = 2 u × V
-        t1 = 2.0 * (sy * Vz - sz * Vy)
-        t2 = 2.0 * (sz * Vx - sx * Vz)
-        t3 = 2.0 * (sx * Vy - sy * Vx)
-        ix = Vx + sw * t1 + (sy * t3 - sz * t2)
-        iy = Vy + sw * t2 + (sz * t1 - sx * t3)
-        iz = Vz + sw * t3 + (sx * t2 - sy * t1)
+        Vx, Vy, Vz = _velocity_increment(tx, ty, tz, dv[k, 0], dv[k, 1], dv[k, 2])
+        # into i0 with the attitude at the sample start
+        ix, iy, iz = quat_rotate(sw, sx, sy, sz, Vx, Vy, Vz)
         # into ENU: rotation about k by rate × (sample middle time)
         if rate != 0.0:
-            ang = rate * ((k + 1.0) * dt_s - 0.5 * dt_s)
-            ca, sa = math.cos(ang), math.sin(ang)
-            kv = ix * kx + iy * ky + iz * kz
-            ox = ix * ca + (ky * iz - kz * iy) * sa + kv * kx * (1.0 - ca)
-            oy = iy * ca + (kz * ix - kx * iz) * sa + kv * ky * (1.0 - ca)
-            oz = iz * ca + (kx * iy - ky * ix) * sa + kv * kz * (1.0 - ca)
+            ox, oy, oz = _to_enu(ix, iy, iz, kx, ky, kz, rate * ((k + 1.0) * dt_s - 0.5 * dt_s))
         else:
             ox, oy, oz = ix, iy, iz
         vx += ox

@@ -268,9 +268,9 @@ KNOWN_LONG_FILES: list[str] = [
     "src/rlgsim/lab/identify/hop_fit.py", "src/rlgsim/lab/identify/thermal_fit.py",
 ]
 KNOWN_LONG_FUNCTIONS: list[str] = [
-    "estimators/_kalman_kernel.py:filter_loop", "estimators/c_codegen.py:generate_c",
+    "estimators/c_codegen.py:generate_c",
     "estimators/identify/term_selection.py:select_terms",
-    "estimators/identify/term_selection.py:_averaging", "estimators/ins/_kernel.py:ins_loop",
+    "estimators/identify/term_selection.py:_averaging",
     "estimators/optimize/hho.py:harris_hawks",
     "src/rlgsim/lab/identify/hop_fit.py:_map",
     "src/rlgsim/lab/identify/identify_report.py:build_report",

@@ -3,7 +3,9 @@
 The recursion is sequential (each sample's attitude, velocity and position start from the
 previous ones), so it runs as one pass in numba; numpy could only vectorise it with many
 (n, 3) temporaries and still needs a loop for the position-dependent terms. The algorithm and
-its sources are in the mechanization module's docstring; this file holds only the arithmetic.
+its sources are in the mechanization module's docstring; this file holds only the arithmetic,
+one inlined helper per step (frame rates, specific force, position, attitude) and the rotation
+algebra shared with the calibration's strapdown loop (:mod:`rlgsim.estimators._rotation_kernel`).
 The WGS-84 constants and the Earth rate come from :mod:`rlgsim.ground.earth` and
 :mod:`rlgsim.ground.units` (numba freezes them at compile time).
 
@@ -22,6 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
+from rlgsim.estimators._rotation_kernel import coning_vector, cross, quat_mul, quat_rotate
 from rlgsim.ground.earth import (WGS84_A, WGS84_E2, WGS84_F, WGS84_GAMMA_E, WGS84_K,
                                  WGS84_M)
 from rlgsim.ground.units import EARTH_RATE
@@ -65,6 +68,58 @@ def _half_exp(a2):  # pragma: no cover - compiled
     return math.cos(0.5 * a), math.sin(0.5 * a) / a
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _frame_rates(me, mn, sl, cl, rm_i, re_i, tl_re):  # pragma: no cover - compiled
+    """Earth rate ω_ie^n (North, Up) and transport rate ω_en^n (E, N, U) [rad/s] in ENU at the
+    velocity (me, mn) [m/s] (Groves eqs. 2.123, 5.44; T&W eq. 3.87)."""
+    wie_n, wie_u = EARTH_RATE * cl, EARTH_RATE * sl
+    return wie_n, wie_u, -mn * rm_i, me * re_i, me * tl_re
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _specific_force_increment(tx, ty, tz, ux, uy, uz, ptx, pty, ptz, pvx, pvy, pvz,
+                              qw, qx, qy, qz, zx, zy, zz):  # pragma: no cover - compiled
+    """The sample's specific-force velocity increment [m/s] in the navigation frame at the
+    middle of the frame's turn: Δv + ½Δθ×Δv + two-sample sculling (Savage 2007 §7.2.2.2) in
+    the body frame, rotated by q (the attitude at the sample start), then by (I − ½[ζ×])."""
+    cx, cy, cz = cross(tx, ty, tz, ux, uy, uz)
+    s1x = pty * uz - ptz * uy + pvy * tz - pvz * ty
+    s1y = ptz * ux - ptx * uz + pvz * tx - pvx * tz
+    s1z = ptx * uy - pty * ux + pvx * ty - pvy * tx
+    bx = ux + 0.5 * cx + s1x / 12.0
+    by = uy + 0.5 * cy + s1y / 12.0
+    bz = uz + 0.5 * cz + s1z / 12.0
+    # into the navigation frame at the sample start: C_b^n(k-1) ΔV
+    fx, fy, fz = quat_rotate(qw, qx, qy, qz, bx, by, bz)
+    # ... then to the middle of the frame's turn: (I − ½[ζ×])
+    rx, ry, rz = cross(zx, zy, zz, fx, fy, fz)
+    return fx - 0.5 * rx, fy - 0.5 * ry, fz - 0.5 * rz
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _attitude_step(qw, qx, qy, qz, tx, ty, tz, ptx, pty, ptz, zx, zy,
+                   zz):  # pragma: no cover - compiled
+    """q ← exp(−ζ/2) ⊗ q ⊗ exp(φ/2), φ with two-sample coning (Savage 2007 §7.1.1.1), then
+    renormalised: 1/√s ≈ (3 − s)/2 near s = 1, error O((s − 1)²) ~ 1e-30."""
+    px, py, pz = coning_vector(ptx, pty, ptz, tx, ty, tz)
+    cw, sc = _half_exp(px * px + py * py + pz * pz)
+    nw, nx, ny, nz = quat_mul(qw, qx, qy, qz, cw, sc * px, sc * py, sc * pz)
+    cw, sc = _half_exp(zx * zx + zy * zy + zz * zz)
+    qw, qx, qy, qz = quat_mul(cw, -sc * zx, -sc * zy, -sc * zz, nw, nx, ny, nz)
+    norm = 0.5 * (3.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
+    return qw * norm, qx * norm, qy * norm, qz * norm
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _position_step(lat, lon, oe, on, ve, vn, sl, cl, rm_i, re_i, dt):  # pragma: no cover
+    """Latitude and longitude [rad] after one sample: trapezoidal velocity (previous o, new v
+    [m/s]), radii at the sample start, 1/cos of the mid latitude as 1/cos L (1 + tan L · ΔL/2),
+    exact to O(ΔL²)."""
+    lat_new = lat + 0.5 * (on + vn) * rm_i * dt
+    lon = lon + 0.5 * (oe + ve) * re_i / cl * (1.0 + sl / cl * 0.5 * (lat_new - lat)) * dt
+    return lat_new, lon
+
+
 @njit(cache=True, nogil=True)
 def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - compiled
     """Navigate ``n`` samples; returns (q (m, 4), v (m, 3), pos (m, 3) [lat rad, lon rad, h m])
@@ -105,67 +160,27 @@ def ins_loop(dtheta, dv, dt, state, href, hold, every):  # pragma: no cover - co
             sl, cl, rm_i, re_i, tl_re, grav = _earth(lat, h)
         # velocity extrapolated to the sample middle for Coriolis and the frame rotation
         me, mn, mu = 1.5 * ve - 0.5 * oe, 1.5 * vn - 0.5 * on, 1.5 * vu - 0.5 * ou
-        wie_n, wie_u = EARTH_RATE * cl, EARTH_RATE * sl
-        wen_e, wen_n, wen_u = -mn * rm_i, me * re_i, me * tl_re
+        wie_n, wie_u, wen_e, wen_n, wen_u = _frame_rates(me, mn, sl, cl, rm_i, re_i, tl_re)
         zx, zy, zz = wen_e * dt, (wie_n + wen_n) * dt, (wie_u + wen_u) * dt   # ζ = ω_in Δt
-        # --- specific-force increment: rotation + two-sample sculling (Savage 2007 §7.2.2.2)
-        cx, cy, cz = ty * uz - tz * uy, tz * ux - tx * uz, tx * uy - ty * ux
-        s1x = pty * uz - ptz * uy + pvy * tz - pvz * ty
-        s1y = ptz * ux - ptx * uz + pvz * tx - pvx * tz
-        s1z = ptx * uy - pty * ux + pvx * ty - pvy * tx
-        bx = ux + 0.5 * cx + s1x / 12.0
-        by = uy + 0.5 * cy + s1y / 12.0
-        bz = uz + 0.5 * cz + s1z / 12.0
-        # into the navigation frame at the sample start: C_b^n(k-1) ΔV = V + w t + u × t
-        r1 = 2.0 * (qy * bz - qz * by)
-        r2 = 2.0 * (qz * bx - qx * bz)
-        r3 = 2.0 * (qx * by - qy * bx)
-        fx = bx + qw * r1 + (qy * r3 - qz * r2)
-        fy = by + qw * r2 + (qz * r1 - qx * r3)
-        fz = bz + qw * r3 + (qx * r2 - qy * r1)
-        # ... then to the middle of the frame's turn: (I − ½[ζ×])
-        gx = fx - 0.5 * (zy * fz - zz * fy)
-        gy = fy - 0.5 * (zz * fx - zx * fz)
-        gz = fz - 0.5 * (zx * fy - zy * fx)
+        gx, gy, gz = _specific_force_increment(tx, ty, tz, ux, uy, uz, ptx, pty, ptz,
+                                               pvx, pvy, pvz, qw, qx, qy, qz, zx, zy, zz)
         # --- velocity: + (g − (2ω_ie + ω_en) × v) Δt   (T&W eq. 3.73, ENU)
-        ae, an, au = wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u
-        cor_e = an * mu - au * mn
-        cor_n = au * me - ae * mu
-        cor_u = ae * mn - an * me
+        cor_e, cor_n, cor_u = cross(wen_e, 2.0 * wie_n + wen_n, 2.0 * wie_u + wen_u,
+                                    me, mn, mu)
         oe, on, ou = ve, vn, vu
         ve = ve + gx - cor_e * dt
         vn = vn + gy - cor_n * dt
         vu = vu + gz - (grav + cor_u) * dt
         # --- position: trapezoidal velocity, radii at the sample start
-        lat_new = lat + 0.5 * (on + vn) * rm_i * dt
-        # 1/cos of the mid latitude: 1/cos L (1 + tan L · ΔL/2), exact to O(ΔL²)
-        lon = lon + 0.5 * (oe + ve) * re_i / cl * (1.0 + sl / cl * 0.5 * (lat_new - lat)) * dt
-        lat = lat_new
+        lat, lon = _position_step(lat, lon, oe, on, ve, vn, sl, cl, rm_i, re_i, dt)
         if hold:
             hn = href[k]
             vu = (hn - h) / dt
             h = hn
         else:
             h = h + 0.5 * (ou + vu) * dt
-        # --- attitude: q ← exp(−ζ/2) ⊗ q ⊗ exp(φ/2), φ with two-sample coning (Savage §7.1.1.1)
-        px = tx + (pty * tz - ptz * ty) / 12.0
-        py = ty + (ptz * tx - ptx * tz) / 12.0
-        pz = tz + (ptx * ty - pty * tx) / 12.0
-        cw, sc = _half_exp(px * px + py * py + pz * pz)
-        bw, bx, by, bz = cw, sc * px, sc * py, sc * pz
-        nw = qw * bw - qx * bx - qy * by - qz * bz
-        nx = qw * bx + qx * bw + qy * bz - qz * by
-        ny = qw * by - qx * bz + qy * bw + qz * bx
-        nz = qw * bz + qx * by - qy * bx + qz * bw
-        cw, sc = _half_exp(zx * zx + zy * zy + zz * zz)
-        ew, ex, ey, ez = cw, -sc * zx, -sc * zy, -sc * zz
-        qw = ew * nw - ex * nx - ey * ny - ez * nz
-        qx = ew * nx + ex * nw + ey * nz - ez * ny
-        qy = ew * ny - ex * nz + ey * nw + ez * nx
-        qz = ew * nz + ex * ny - ey * nx + ez * nw
-        # renormalise: 1/√s ≈ (3 − s)/2 near s = 1, error O((s − 1)²) ~ 1e-30
-        norm = 0.5 * (3.0 - (qw * qw + qx * qx + qy * qy + qz * qz))
-        qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
+        # --- attitude
+        qw, qx, qy, qz = _attitude_step(qw, qx, qy, qz, tx, ty, tz, ptx, pty, ptz, zx, zy, zz)
         ptx, pty, ptz, pvx, pvy, pvz = tx, ty, tz, ux, uy, uz
         count += 1
         if count == every and j < m:
