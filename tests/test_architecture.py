@@ -271,7 +271,6 @@ KNOWN_LONG_FUNCTIONS: list[str] = [
     "estimators/c_codegen.py:generate_c",
     "estimators/identify/term_selection.py:select_terms",
     "estimators/identify/term_selection.py:_averaging",
-    "estimators/optimize/hho.py:harris_hawks",
     "src/rlgsim/lab/identify/hop_fit.py:_map",
     "src/rlgsim/lab/identify/identify_report.py:build_report",
     "src/rlgsim/lab/identify/law_fit.py:fit_laws",

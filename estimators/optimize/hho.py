@@ -50,6 +50,7 @@ is truncated, never exceeded).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -162,6 +163,87 @@ def accept_dive(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray) -> np.ndarray
 
 
 # --------------------------------------------------------------------------------- the driver
+class _Draws(NamedTuple):
+    """One iteration's random numbers, every one drawn for every hawk (n hawks, d dims)."""
+    E0: np.ndarray          # (n,) U(-1, 1), eq. 3
+    q: np.ndarray           # (n,) U(0, 1), exploration rule
+    r: np.ndarray           # (n,) U(0, 1), the prey's escape chance
+    r1: np.ndarray          # (n,) r1..r5 U(0, 1)
+    r2: np.ndarray
+    r3: np.ndarray
+    r4: np.ndarray
+    r5: np.ndarray
+    rand_idx: np.ndarray    # (n,) the random hawk of eq. 1
+    S: np.ndarray           # (n, d) U(0, 1), eq. 8
+    u: np.ndarray           # (n, d) N(0, 1), Lévy numerator (eq. 9)
+    v: np.ndarray           # (n, d) N(0, 1), Lévy denominator (eq. 9)
+
+
+def _draw(rng: np.random.Generator, n: int, dim: int) -> _Draws:
+    """All of one iteration's draws in the fixed order (E0, q, r, r1..r5, random hawk, S, u,
+    v) that makes a run reproducible from its seed whatever rules then fire."""
+    E0 = rng.uniform(-1.0, 1.0, n)
+    q = rng.random(n)
+    r = rng.random(n)
+    r1, r2, r3, r4, r5 = rng.random((5, n))
+    rand_idx = rng.integers(0, n, n)
+    S = rng.random((n, dim))
+    u = rng.standard_normal((n, dim))
+    v = rng.standard_normal((n, dim))
+    return _Draws(E0, q, r, r1, r2, r3, r4, r5, rand_idx, S, u, v)
+
+
+def _propose(X: np.ndarray, rabbit: np.ndarray, d: _Draws, E: np.ndarray, J: np.ndarray,
+             phase: np.ndarray, lower: np.ndarray,
+             upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every hawk's new position by its rule (eqs. 1, 4-7, 12), the dives' second candidate Z
+    (eqs. 8, 13), both clipped to the bounds, and the mask of the diving hawks."""
+    X_mean = X.mean(axis=0)
+    new = X.copy()
+    m = phase == EXPLORE_RANDOM_HAWK
+    new[m] = explore_random_hawk(X[m], X[d.rand_idx[m]], d.r1[m], d.r2[m])
+    m = phase == EXPLORE_MEAN
+    new[m] = explore_mean(rabbit, X_mean, d.r3[m], d.r4[m], lower, upper)
+    m = phase == SOFT_BESIEGE
+    new[m] = soft_besiege(X[m], rabbit, E[m], J[m])
+    m = phase == HARD_BESIEGE
+    new[m] = hard_besiege(X[m], rabbit, E[m])
+    m = phase == SOFT_DIVES
+    new[m] = soft_dive_y(X[m], rabbit, E[m], J[m])
+    m = phase == HARD_DIVES
+    new[m] = hard_dive_y(X_mean, rabbit, E[m], J[m])
+    dive = (phase == SOFT_DIVES) | (phase == HARD_DIVES)
+    Z = dive_z(new, d.S, levy_flight(d.u, d.v))        # used only for the diving hawks
+    np.clip(new, lower, upper, out=new)
+    np.clip(Z, lower, upper, out=Z)
+    return new, Z, dive
+
+
+def _move(evaluate: Evaluator, X: np.ndarray, fX: np.ndarray, new: np.ndarray, Z: np.ndarray,
+          dive: np.ndarray, counts: dict[str, int]) -> None:
+    """Evaluate and accept in place on ``X``/``fX``: one batch of the moved hawks' new positions
+    and the dives' Y in hawk order (hawks beyond the budget stay), then Z where Y is rejected,
+    and each dive's choice by eq. 10 (counted in ``counts``)."""
+    f_new = evaluate(new)
+    done = f_new.size                           # hawks beyond `done` ran out of budget
+    idx = np.arange(done)
+    direct = idx[~dive[:done]]
+    X[direct], fX[direct] = new[direct], f_new[direct]
+    divers = idx[dive[:done]]
+    f_x, f_y = fX[divers], f_new[divers]
+    f_z = np.full(divers.size, np.inf)          # Z is evaluated only where Y is rejected
+    need_z = np.flatnonzero(f_y >= f_x)
+    if need_z.size:
+        got = evaluate(Z[divers[need_z]])
+        f_z[need_z[:got.size]] = got
+    decision = accept_dive(f_x, f_y, f_z)
+    take_y, take_z = divers[decision == 1], divers[decision == 2]
+    X[take_y], fX[take_y] = new[take_y], f_y[decision == 1]
+    X[take_z], fX[take_z] = Z[take_z], f_z[decision == 2]
+    counts["dives_kept_y"] += int(take_y.size)
+    counts["dives_kept_z"] += int(take_z.size)
+
+
 def harris_hawks(fun: Fitness, bounds, n_hawks: int = 30, max_iter: int | None = 500,
                  max_evals: int | None = None, random_state=None,
                  vectorized: bool = True) -> OptimizeResult:
@@ -204,60 +286,14 @@ def harris_hawks(fun: Fitness, bounds, n_hawks: int = 30, max_iter: int | None =
         if budget is not None:
             progress = max(progress, evaluate.nfev / budget)
         rabbit = evaluate.best_x
-        # Fixed draw order: every draw happens for every hawk, whatever rule it then uses.
-        E0 = rng.uniform(-1.0, 1.0, n)
-        q = rng.random(n)
-        r = rng.random(n)
-        r1, r2, r3, r4, r5 = rng.random((5, n))
-        rand_idx = rng.integers(0, n, n)
-        S = rng.random((n, dim))
-        u = rng.standard_normal((n, dim))
-        v = rng.standard_normal((n, dim))
-
-        E = escape_energy(E0, progress)
-        J = jump_strength(r5)
-        X_mean = X.mean(axis=0)
-        phase = select_phase(E, q, r)
+        d = _draw(rng, n, dim)
+        E = escape_energy(d.E0, progress)
+        J = jump_strength(d.r5)
+        phase = select_phase(E, d.q, d.r)
         for code, name in enumerate(PHASE_NAMES):
             counts[name] += int(np.count_nonzero(phase == code))
-
-        new = X.copy()
-        m = phase == EXPLORE_RANDOM_HAWK
-        new[m] = explore_random_hawk(X[m], X[rand_idx[m]], r1[m], r2[m])
-        m = phase == EXPLORE_MEAN
-        new[m] = explore_mean(rabbit, X_mean, r3[m], r4[m], lower, upper)
-        m = phase == SOFT_BESIEGE
-        new[m] = soft_besiege(X[m], rabbit, E[m], J[m])
-        m = phase == HARD_BESIEGE
-        new[m] = hard_besiege(X[m], rabbit, E[m])
-        m = phase == SOFT_DIVES
-        new[m] = soft_dive_y(X[m], rabbit, E[m], J[m])
-        m = phase == HARD_DIVES
-        new[m] = hard_dive_y(X_mean, rabbit, E[m], J[m])
-        dive = (phase == SOFT_DIVES) | (phase == HARD_DIVES)
-        Z = dive_z(new, S, levy_flight(u, v))        # used only for the diving hawks
-        np.clip(new, lower, upper, out=new)
-        np.clip(Z, lower, upper, out=Z)
-
-        # One batch: the moved hawks' new positions and the dives' Y, in hawk order.
-        f_new = evaluate(new)
-        done = f_new.size                           # hawks beyond `done` ran out of budget
-        idx = np.arange(done)
-        direct = idx[~dive[:done]]
-        X[direct], fX[direct] = new[direct], f_new[direct]
-        divers = idx[dive[:done]]
-        f_x, f_y = fX[divers], f_new[divers]
-        f_z = np.full(divers.size, np.inf)          # Z is evaluated only where Y is rejected
-        need_z = np.flatnonzero(f_y >= f_x)
-        if need_z.size:
-            got = evaluate(Z[divers[need_z]])
-            f_z[need_z[:got.size]] = got
-        decision = accept_dive(f_x, f_y, f_z)
-        take_y, take_z = divers[decision == 1], divers[decision == 2]
-        X[take_y], fX[take_y] = new[take_y], f_y[decision == 1]
-        X[take_z], fX[take_z] = Z[take_z], f_z[decision == 2]
-        counts["dives_kept_y"] += int(take_y.size)
-        counts["dives_kept_z"] += int(take_z.size)
+        new, Z, dive = _propose(X, rabbit, d, E, J, phase, lower, upper)
+        _move(evaluate, X, fX, new, Z, dive, counts)
         t += 1
         curve.append(evaluate.best_f)
         nfev_curve.append(evaluate.nfev)
