@@ -214,6 +214,8 @@ LAST_ENV = GOOD.index('[[environment]]\nname = "5 °C/min"')
     ('scenario = "paper002_const_60", seed = 2103',
      'scenario = "paper002_const_70", seed = 2103', "unknown scenario 'paper002_const_70'"),
     ("ddof = 1", "ddof = 2", "metrics.ddof: value 2 not allowed"),
+    ('published_before = "mean"', 'published_before = "median"',
+     "metrics.published_before: value 'median' not allowed"),
 ])
 def test_bad_study_files_are_one_line_user_errors(old, new, expected, tmp_path):
     assert old in GOOD
@@ -363,6 +365,36 @@ def test_rows_depend_on_study_and_unit_only(study, folder, tmp_path):
     assert other["params"].keys() == res.params.keys()
     assert other["params"]["gyro.bias.c1[x]"] != res.params["gyro.bias.c1[x]"]
     assert [(c, m) for c, m, _ in other["rows"]] == [(c, m) for c, m, _ in again["rows"]]
+
+
+def test_table1_read_as_mean_before_sigma_after(folder, tmp_path):
+    """published_before = "mean" (paper 002's reading, docs/studies.md): the reading's table
+    holds the test run's mean raw bias, σ after on the test and train runs and |mean|/σ,
+    recomputed here from the HDF5 files with numpy alone."""
+    from rlgsim.lab.studies.environments_reading import reading_table, reading_text
+    text = STUDY.replace("ddof = 1", 'ddof = 1\npublished_before = "mean"', 1)
+    study = parse_study(text, str(folder / "mean.toml"), base_dir=folder)
+    recipe = recipe_module(study)
+    cfg = recipe.check(study)
+    assert cfg.published_before == "mean"
+    res = recipe.run(study, cfg, tmp_path, unit=0, progress=False)
+    r = res.details.results[0]                                        # 20 °C, published
+    table = reading_table(res.details.results, cfg)
+    rec = dict(zip(table.columns, table.rows[0]))
+    test = _series(r.tests[0].path)
+    mean = float(np.mean(test["y"]))
+    assert rec["ours: mean, test (×10⁻³ °/h)"] == pytest.approx(1e3 * mean, rel=1e-9)
+    after = rec["ours σ after, test (×10⁻⁴ °/h)"] * 1e-4
+    assert after == pytest.approx(r.scores["MLR"]["stability_after"], rel=1e-9)
+    assert rec["ours factor, test"] == pytest.approx(abs(mean) / after, rel=1e-9)
+    assert rec["paper factor"] == pytest.approx(4.87)
+    assert rec["paper before: mean (×10⁻³ °/h)"] == pytest.approx(6.796)
+    train = _series(r.train[0].path)
+    assert rec["ours factor, in-sample"] == pytest.approx(
+        abs(np.mean(train["y"])) / r.train_after["MLR"], rel=1e-9)
+    assert len(table.rows) == 2 * len(METHODS)
+    assert any(p.startswith("Read as the mean zero bias") for p in reading_text(
+        res.details.results, cfg))
 
 
 def test_several_test_runs_give_per_run_rows_and_their_mean(folder, tmp_path):

@@ -24,7 +24,10 @@ ENV_PUBLISHED_KEYS = ("stability_before_deg_per_h", "stability_after_deg_per_h",
 PER_COMPENSATOR = {"stability_after_deg_per_h": "σ after compensation [°/h]",
                    "improvement_factor": "before/after", "running_time_s": "seconds"}
 COMPENSATOR_PUBLISHED_KEYS = ("equation",)
-METRIC_KEYS = ("cluster_s", "ddof")
+METRIC_KEYS = ("cluster_s", "ddof", "published_before")
+#: What the paper's "before" figure (``stability_before_deg_per_h``) measures: a bias
+#: stability σ, or the mean bias of the run (paper 002's reading, docs/studies.md).
+PUBLISHED_BEFORE = ("sigma", "mean")
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,7 @@ class Config(FeatureSpec):
     compensators: tuple[CompensatorSpec, ...] = ()
     cluster_s: float = 100.0
     ddof: int = 1
+    published_before: str = "sigma"   # what the paper's "before" figure is (PUBLISHED_BEFORE)
 
 
 def _parse_published(env: dict, ectx: Ctx, names: list[str]) -> EnvPublished:
@@ -124,6 +128,10 @@ def parse_config(study: Study) -> Config:
     for env in envs:
         check_scenarios(study, env.train + env.test)
         check_features_on_devices(study, env.train + env.test, features)
-    _, _, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
+    mtable, mctx, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
+    before = get_str(mtable, "published_before", mctx, "sigma")
+    if before not in PUBLISHED_BEFORE:
+        raise mctx.error("published_before", f"value {before!r} not allowed; allowed: "
+                                             f"{', '.join(PUBLISHED_BEFORE)}")
     return Config(**vars(features), environments=envs, compensators=comps,
-                  cluster_s=cluster_s, ddof=ddof)
+                  cluster_s=cluster_s, ddof=ddof, published_before=before)

@@ -41,6 +41,10 @@ Study tables (runs and features: :mod:`rlgsim.lab.studies.study_tables`; compens
     [metrics]
     cluster_s = 100                   # bias-stability cluster [s], a multiple of window_s
     ddof = 1                          # of the bias-stability std (the paper does not say)
+    published_before = "mean"         # the paper's "before" figure is the run's mean bias
+                                      # (default "sigma": a bias stability); with "mean" the
+                                      # report adds Table 1 under that reading
+                                      # (:mod:`rlgsim.lab.studies.environments_reading`)
 
 Scores (:func:`rlgsim.lab.studies.scoring.scores`) are computed per test run against its raw
 bias stability; with several test runs the environment's score is their mean (and each run's
