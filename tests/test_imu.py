@@ -3,6 +3,7 @@ independence, truth that reproduces the pulses, and physical plausibility of eve
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -213,7 +214,7 @@ def test_truth_reproduces_the_pulses(short_run):
 
 
 def _paper_run(tmp_path, name: str, rate_hz: int, static: bool = False,
-               step_s: float | None = None) -> str:
+               step_s: float | None = None, device_seed: int | None = None) -> str:
     """A paper's shipped scenario at a lower sample rate (``rate_hz``: the 100 s statistics do
     not depend on it — white noise and the pulse step average the same way), optionally on a
     static mount instead of its turntable programme and with a coarser thermal step."""
@@ -224,6 +225,8 @@ def _paper_run(tmp_path, name: str, rate_hz: int, static: bool = False,
     if static:
         text = text[:text.index("[turntable]")] + '[turntable]\nprogram = "static"\n'
     sc = parse_scenario(text, f"{name}.toml")
+    if device_seed is not None:
+        sc = dataclasses.replace(sc, device_seed=device_seed)
     return str(simulate(sc, tmp_path / f"{name}.h5", progress=False))
 
 
@@ -270,14 +273,18 @@ def test_trplg_preset_correlation_signs_and_stability(tmp_path):
     assert 0.0185 / 1.5 < _stability(b) < 0.0185 * 1.5
 
 
-@pytest.mark.parametrize("name,paper", [("paper002_const_20", 6.796e-3),
-                                        ("paper002_cycle_5cpm", 6.806e-3)])
-def test_rlg002_preset_stability(tmp_path, name, paper):
-    """Paper 002 Table 1, before compensation (8 h at 100 s averaging): 6.796e-3 °/h at 20 °C,
-    6.806e-3 °/h cycling at 5 °C/min — within a factor 1.5 (10 Hz; the first hour — the
-    warm-up at constant temperature, unpowered in the cycle — is left out, as in the study)."""
-    d = _hundred_s(_paper_run(tmp_path, name, 10), powered_from_s=3600.0)
-    assert paper / 1.5 < _stability(d["rate"][:, 0]) < paper * 1.5
+@pytest.mark.parametrize("name,mean,sigma", [("paper002_const_20", 6.796e-3, 1.3953e-3),
+                                             ("paper002_cycle_5cpm", 6.806e-3, 1.4122e-3)])
+def test_rlg002_preset_mean_and_stability(tmp_path, name, mean, sigma):
+    """Paper 002 Table 1 read as docs/studies.md does (8 h of 100 s means): 'before' is the mean
+    zero bias (6.796e-3 °/h at 20 °C, 6.806e-3 cycling at 5 °C/min), MLR's 'after' the σ of the
+    100 s means about their model (1.3953e-3 / 1.4122e-3 °/h). The study's unit (device_seed
+    2002), 10 Hz, the first hour left out as in the study: the mean within 20 % (one run's slow
+    random bias moves it by a few %), the raw σ within a factor 1.5."""
+    d = _hundred_s(_paper_run(tmp_path, name, 10, device_seed=2002), powered_from_s=3600.0)
+    b = d["rate"][:, 0]
+    assert 0.8 < np.mean(b) / mean < 1.2
+    assert sigma / 1.5 < _stability(b) < sigma * 1.5
 
 
 @pytest.mark.parametrize("name,paper", [("paper003_cycles", 0.0258), ("paper003_random", 0.0283)])
