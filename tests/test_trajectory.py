@@ -171,6 +171,37 @@ def test_increments_are_the_exact_integrals(rate_hz, t0, n):
     assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < tol_v
 
 
+def constant_attitude_legs() -> list:
+    """Legs of constant attitude (the 2- and 3-point quadratures of
+    sim/motion/_trajectory_block.py): a minimum-jerk (quintic) speed-up to 30 m/s in 8 s, a
+    climb at 20 m/s up along a 25° pitch held, a quintic stop, a hold at rest."""
+    x = np.zeros(6)
+    x[0], x[1] = 40.0 * DEG, 25.0 * DEG
+    legs = [smooth_leg(x, x + np.array([0, 0, 0, 0, 30.0, 0]), 8.0)]
+    legs.append(rate_leg(legs[-1].end(), np.zeros(6), 20.0))
+    x = legs[-1].end()
+    legs.append(smooth_leg(x, x * np.array([1, 1, 1, 0, 0, 0]), 6.0))
+    legs.append(rate_leg(legs[-1].end(), np.zeros(6), 10.0))
+    return legs
+
+
+@pytest.mark.parametrize("rate_hz, t0, n", [(100.0, 0.0, 50), (100.0, 3.5, 40),
+                                            (100.0, 27.9, 30), (1.0, 0.0, 40), (0.5, 0.0, 20)])
+def test_constant_attitude_legs_are_exact_integrals(rate_hz, t0, n):
+    """The legs of constant attitude take 3 (velocity changing) or 2 (holding) Gauss–Legendre
+    points per ≤ 0.02-s sub-interval with the dense position at each: still the integrals to
+    float64 rounding of the 10-point reference, at 100 Hz and across 1-s and 2-s samples."""
+    traj = Trajectory(constant_attitude_legs(), START, until_s=50.0)
+    assert list(traj._level) == [1, 2, 1, 2, 2]          # and the hold to the end
+    mb = traj.increments(t0, n, rate_hz)
+    k0 = round(t0 * rate_hz)
+    ref_th, ref_v = fine_integrals(traj, (k0 + np.arange(n + 1)) / rate_hz, rate_hz)
+    tol_th = 64 * np.finfo(float).eps * np.max(np.abs(ref_th)) + 1e-22
+    tol_v = 64 * np.finfo(float).eps * np.max(np.abs(ref_v))
+    assert np.max(np.abs(mb.dtheta_rad - ref_th)) < tol_th
+    assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < tol_v
+
+
 def test_at_rest_the_vehicle_senses_earth_rate_and_gravity():
     traj = Trajectory([rate_leg(np.zeros(6), np.zeros(6), 50.0)], START, until_s=100.0)
     mb = traj.increments(40.0, 3000, 100.0)

@@ -32,16 +32,21 @@ with the Earth rate, the transport rate ω_en^n and WGS-84 normal gravity of
 
 **Increments.** Δθ_k = ∫ω_ib^b dt and Δv_k = ∫f^b dt over each sample interval
 [k/f, (k+1)/f), split at the leg boundaries (where rates may jump), by composite Gauss–Legendre
-quadrature: each piece cut into sub-intervals of at most :data:`MAX_SUBINTERVAL_S`, 4 nodes on
-each (exact for polynomials of degree 7). Its error on a sub-interval of length h is
+quadrature on sub-intervals of at most :data:`MAX_SUBINTERVAL_S`: 4 nodes (exact for
+polynomials of degree 7) where the attitude turns, whose error on a sub-interval of length h is
 h⁹ (4!)⁴/(9 (8!)³) |F⁽⁸⁾| ≈ 5.6e-10 h⁹ |F⁽⁸⁾| (Abramowitz & Stegun 25.4.30); inside a leg the
 integrands are smooth with time scales set by the angular rates w, |F⁽⁸⁾| ≲ |F| w⁸, so at
 h = 0.02 s and w = 3 rad/s the relative error is ~2e-20 — far below float64's resolution (1.1e-16)
-of the increments. The increments are thus the exact integrals to rounding, as on the turntable.
+of the increments. Legs of constant attitude take 3 or 2 nodes (their integrands are
+polynomials of the velocity and slow functions of the position; the bounds are in
+:mod:`rlgsim.sim.motion._trajectory_block`). The increments are thus the exact integrals to
+rounding, as on the turntable.
 
 **Truth.** Position, ground velocity and attitude at each sample's end (:meth:`Trajectory.states`).
 
-Vectorised over samples; the Python loops run over the legs that touch a block.
+A block's increments and truth states are computed by compiled loops over its samples
+(:mod:`rlgsim.sim.motion._trajectory_block`); the NumPy forms here (:meth:`Trajectory.rates`,
+:meth:`Trajectory.states`) are what the tests compare them with.
 """
 
 from __future__ import annotations
@@ -62,7 +67,11 @@ from rlgsim.sim.motion.legs import Leg, rate_leg
 
 #: longest quadrature sub-interval [s] (see the module docstring for the error bound)
 MAX_SUBINTERVAL_S = 0.02
-_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(4)
+#: nodes and weights of the quadrature levels (sim/motion/_trajectory_block.py): 4 points with
+#: the Hermite position, 3 and 2 on the legs of constant attitude (padded with zeros)
+_QUADS = np.zeros((3, 2, 4))
+for _lv, _pts in enumerate((4, 3, 2)):
+    _QUADS[_lv, :, :_pts] = np.polynomial.legendre.leggauss(_pts)
 #: tolerances of the position integration (rad, rad, m)
 _RTOL = 1e-13
 _ATOL = (1e-15, 1e-15, 1e-9)
@@ -74,9 +83,9 @@ _EARTH = np.array([WGS84_A, WGS84_E2, EARTH_RATE, WGS84_GAMMA_E, WGS84_K, WGS84_
 
 
 def _kernel():
-    """The compiled quadrature (imported on first use: numba loads in ~0.5 s)."""
-    from rlgsim.sim.motion import _trajectory_kernel
-    return _trajectory_kernel
+    """The compiled block kernels (imported on first use: numba loads in ~0.5 s)."""
+    from rlgsim.sim.motion import _trajectory_block
+    return _trajectory_block
 
 
 @dataclass(frozen=True)
@@ -172,16 +181,27 @@ class Trajectory:
         self._t1 = t[1:]
         self._end_s = float(t[-1])
         self._coef = np.stack([leg.coef for leg in legs])           # (m, 6, 6)
-        self._dcoef = self._coef[:, :, 1:] * np.arange(1, self._coef.shape[2])
-        self._d2coef = self._dcoef[:, :, 1:] * np.arange(1, self._dcoef.shape[2])
+        self._dcoef = np.ascontiguousarray(self._coef[:, :, 1:]
+                                           * np.arange(1, self._coef.shape[2]))
+        self._d2coef = np.ascontiguousarray(self._dcoef[:, :, 1:]
+                                            * np.arange(1, self._dcoef.shape[2]))
         #: 1 where a leg's channels 3-5 are the geodetic position (a table), 0: body velocity
         self._geodetic = np.array([leg.frame == "geodetic" for leg in legs], dtype=np.int64)
         #: legs in which the vehicle stands still (body frame, no rates, no velocity): every
         #: whole sample inside one has the same increments, bit for bit (its channels are
         #: their constant terms exactly and its position the leg's start)
         self._still = np.array([leg.frame == "body" and not np.any(leg.coef[:, 1:])
-                                and not np.any(leg.coef[3:, 0]) for leg in legs])
+                                and not np.any(leg.coef[3:, 0]) for leg in legs],
+                               dtype=np.int64)
+        #: the quadrature of each leg (sim/motion/_trajectory_block.py): 1 constant attitude,
+        #: 2 constant attitude and velocity, 0 any other (and a table of positions)
+        att_const = [leg.frame == "body" and not np.any(leg.coef[:3, 1:]) for leg in legs]
+        self._level = np.array([0 if not ac else 2 if not np.any(leg.coef[3:, 1:]) else 1
+                                for ac, leg in zip(att_const, legs)], dtype=np.int64)
         self._position = self._integrate_positions()
+        self._legs_i, self._legs_f, self._dense = _leg_tables(
+            self._position, self._geodetic, self._t0, np.array([leg.duration_s for leg in legs]),
+            self._level, self._still)
 
     # ---- the legs ---------------------------------------------------------------------
     @property
@@ -347,19 +367,11 @@ class Trajectory:
         SI): ``lat``, ``lon`` [rad], ``height`` [m], ``v_n`` (k, 3) [m/s], ``q_bn`` (k, 4),
         ``euler`` (k, 3) heading, pitch, roll [rad] — :meth:`states`' numbers, the velocity and
         attitude computed by the compiled kernel (the same formulas)."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        t = np.ascontiguousarray(np.atleast_1d(np.asarray(t_s, dtype=float)))
         k = t.size
-        j = self.leg_of(t, side="left")
-        tau = t - self._t0[j]
         v, q, e, p = np.empty((k, 3)), np.empty((k, 4)), np.empty((k, 3)), np.empty((k, 3))
-        _kernel().sample_states(tau, j.astype(np.int64), self._coef,
-                                np.ascontiguousarray(self._dcoef),
-                                np.ascontiguousarray(self._d2coef), self._geodetic, _EARTH,
-                                v, q, e, p)
-        for leg in np.unique(j):
-            if not self._geodetic[leg]:
-                sel = np.flatnonzero(j == leg)
-                p[sel] = self._positions(int(leg), tau[sel]).T
+        _kernel().states_at(t, self._coef, self._dcoef, self._d2coef, self._legs_i,
+                            self._legs_f, self._dense, _EARTH, p, v, q, e)
         return {"lat": p[:, 0], "lon": p[:, 1], "height": p[:, 2], "v_n": v, "q_bn": q,
                 "euler": e}
 
@@ -385,63 +397,17 @@ class Trajectory:
         k0 = round(t0_s * rate_hz)
         if abs(k0 - t0_s * rate_hz) > 1e-6:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
-        edges = _edges(k0, np.arange(n + 1), rate_hz)
-        dth, dv = np.zeros((n, 3)), np.zeros((n, 3))
-        constant: tuple[tuple[int, int], ...] = ()
-        if n:
-            inside = self._t0[(self._t0 > edges[0]) & (self._t0 < edges[-1])]
-            pts = np.union1d(edges, inside) if inside.size else edges
-            a, b = pts[:-1], pts[1:]
-            delta = b - a
-            if inside.size:
-                sample = np.searchsorted(edges, a, side="right") - 1     # piece → sample
-                whole = np.isin(a, edges) & np.isin(b, edges)
-                delta[whole] = 1.0 / rate_hz      # a whole sample lasts exactly 1/f
-            else:
-                sample = None
-                delta[:] = 1.0 / rate_hz
-            leg = self.leg_of(a)                                         # piece → leg
-            # a run of whole samples standing still in one leg: its first one computed, the
-            # others hold it (the same numbers), and the run is told to the IMU stage
-            still = self._still[leg] if sample is None else self._still[leg] & whole
-            first = np.ones(a.size, dtype=bool)
-            first[1:] = ~(still[1:] & still[:-1] & (leg[1:] == leg[:-1]))
-            need = np.flatnonzero(first)
-            w_out, f_out = self._piece_integrals(a[need], delta[need], leg[need], rate_hz)
-            if need.size < a.size:
-                held = np.maximum.accumulate(np.where(first, np.arange(a.size), 0))
-                w_out, f_out = w_out[np.searchsorted(need, held)], f_out[np.searchsorted(need,
-                                                                                       held)]
-                constant = _still_runs(still, leg, sample)
-            if sample is None:
-                dth, dv = w_out, f_out
-            else:
-                np.add.at(dth, sample, w_out)
-                np.add.at(dv, sample, f_out)
+        dth, dv = np.empty((n, 3)), np.empty((n, 3))
+        runs = np.empty((n, 2), dtype=np.int64)
+        sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
+        r = _kernel().block_increments(k0, n, float(rate_hz), sub, self._coef, self._dcoef,
+                                       self._d2coef, self._legs_i, self._legs_f, self._dense,
+                                       _QUADS, _EARTH, dth, dv, runs)
+        constant = tuple((int(lo), int(hi)) for lo, hi in runs[:r])
         block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, constant)
         if angles:
             block.outer_deg, block.inner_deg, block.segment = self.angles(block.t_s)
         return block
-
-    def _piece_integrals(self, a: np.ndarray, delta: np.ndarray, leg: np.ndarray,
-                         rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
-        """∫ω_ib^b and ∫f^b (p, 3) over pieces [a, a + delta) of legs ``leg`` (the compiled
-        quadrature; the positions at the ends of every sub-interval from the legs)."""
-        sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
-        frac = np.arange(sub + 1) / sub
-        pos = np.empty((a.size, sub + 1, 3))
-        for j in np.unique(leg):
-            sel = np.flatnonzero(leg == j)
-            tau = (a[sel, None] - self._t0[j]) + delta[sel, None] * frac[None, :]
-            # the sub-interval ends, evaluated once each in time order
-            u, inv = np.unique(tau.ravel(), return_inverse=True)
-            pos[sel] = self._positions(int(j), u)[:, inv].T.reshape(sel.size, sub + 1, 3)
-        w_out, f_out = np.empty((a.size, 3)), np.empty((a.size, 3))
-        _kernel().piece_integrals(a, delta, sub, leg.astype(np.int64), self._t0, self._coef,
-                                  np.ascontiguousarray(self._dcoef),
-                                  np.ascontiguousarray(self._d2coef), self._geodetic, pos,
-                                  _NODES, _WEIGHTS, _EARTH, w_out, f_out)
-        return w_out, f_out
 
     # ---- checks -------------------------------------------------------------------------
     def peak_inputs(self, step_s: float = 0.5) -> tuple[float, float, float]:
@@ -475,14 +441,30 @@ def _dense(sol, tau: np.ndarray) -> np.ndarray:
     return out
 
 
-def _still_runs(still: np.ndarray, leg: np.ndarray, sample: np.ndarray | None
-                ) -> tuple[tuple[int, int], ...]:
-    """The runs (lo, hi) of whole samples standing still in one leg (pieces ``still`` of legs
-    ``leg``; ``sample`` the piece → sample map, None when pieces are samples)."""
-    idx = np.arange(still.size) if sample is None else sample
-    change = np.flatnonzero(np.diff(still.astype(np.int8)) | (np.diff(leg) != 0)) + 1
-    out = []
-    for lo, hi in zip(np.r_[0, change], np.r_[change, still.size]):
-        if still[lo] and hi - lo > 1:
-            out.append((int(idx[lo]), int(idx[hi - 1]) + 1))
-    return tuple(out)
+def _leg_tables(position: list, geodetic: np.ndarray, t0: np.ndarray, duration: np.ndarray,
+                level: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The legs and their positions as the compiled kernels take them
+    (:mod:`rlgsim.sim.motion._trajectory_kernel`: ``legs_i``, ``legs_f``, ``dense``): per leg
+    how its position is found (the DOP853 dense output, its own channels, its start), its
+    first dense step and their number, its quadrature level, whether it stands still, whether
+    it is a table of positions; its start, duration and start position; per dense step its
+    ``t_old``, ``h``, the seven rows F and ``y_old`` of scipy's DOP853 interpolant."""
+    from rlgsim.sim.motion import _trajectory_kernel as K
+    m = len(position)
+    legs_i = np.zeros((m, 6), dtype=np.int64)
+    legs_f = np.zeros((m, 5))
+    rows: list[np.ndarray] = []
+    for j, (start, sol) in enumerate(position):
+        kind = K.POS_GEODETIC if geodetic[j] else K.POS_FIXED if sol is None else K.POS_DENSE
+        legs_i[j] = (kind, len(rows), 0, level[j], still[j], geodetic[j])
+        legs_f[j, :2] = t0[j], duration[j]
+        if start is not None:
+            legs_f[j, 2:] = start
+        if kind == K.POS_DENSE:
+            if sol.side != "left" or not sol.ascending:      # pragma: no cover - DOP853's
+                raise ValueError("dense output of an unexpected kind")
+            for f in sol.interpolants:
+                rows.append(np.concatenate([[f.t_old, f.h], np.ravel(f.F), f.y_old]))
+            legs_i[j, 2] = len(sol.interpolants)
+    dense = np.array(rows, dtype=float).reshape(-1, 26)
+    return legs_i, legs_f, np.ascontiguousarray(dense)
