@@ -397,6 +397,25 @@ def test_table1_read_as_mean_before_sigma_after(folder, tmp_path):
         res.details.results, cfg))
 
 
+def test_reading_evidence_from_the_published_numbers():
+    """The reading's evidence lines on the shipped study's published numbers: every factor is
+    before/after (18 pairs); the expected range of k normal draws against the analytic 2/√π
+    for k = 2 and a 200 000-sample Monte Carlo for k = 6 (its standard error ≈ 0.002)."""
+    from types import SimpleNamespace
+    from rlgsim.lab.studies.environment_tables import parse_config
+    from rlgsim.lab.studies.environments_reading import evidence, expected_range
+    assert expected_range(2) == pytest.approx(2.0 / math.sqrt(math.pi), rel=1e-8)
+    draws = np.random.default_rng(1).standard_normal((200_000, 6))
+    mc = float(np.mean(draws.max(axis=1) - draws.min(axis=1)))
+    assert expected_range(6) == pytest.approx(mc, abs=0.01)
+    cfg = parse_config(load_study("paper002"))
+    res = [SimpleNamespace(env=e, tests=[SimpleNamespace(y=np.zeros(288))])
+           for e in cfg.environments]
+    lines = evidence(res)
+    assert "(18 pairs, largest difference 0.11 %" in lines[0]
+    assert "MLR (BIC) 2.30 %" in lines[1] and "spread by 10.6 %" in lines[1]
+
+
 def test_several_test_runs_give_per_run_rows_and_their_mean(folder, tmp_path):
     text = STUDY.replace('test = [{ scenario = "cycle.toml", seed = 22, skip_h = 0.5 }]',
                          'test = [{ scenario = "cycle.toml", seed = 22, skip_h = 0.5 }, '

@@ -101,14 +101,8 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
     times = fit_times(results)
     rep.table(table1(results, config, times))
     if config.published_before == "mean":
-        from rlgsim.lab.studies.environments_reading import reading_table, reading_text
-        rep.paragraph("The paper's 'before' figure is read as the run's mean zero bias and its "
-                      "'after' figures as σ of the compensated 100 s means (study file, "
-                      "[metrics] published_before = \"mean\"; evidence in docs/studies.md, "
-                      "Paper 002). The table above keeps the paper's labels; under the reading:")
-        rep.table(reading_table(results, config))
-        for para in reading_text(results, config):
-            rep.paragraph(para)
+        from rlgsim.lab.studies.environments_reading import add_section
+        add_section(rep, results, config)
     else:
         before_table, before_text = before_check(results)
         rep.paragraph(before_text)
