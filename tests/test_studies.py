@@ -289,8 +289,9 @@ def test_a_recipe_without_a_report_hook_gets_its_score_rows(tmp_path, monkeypatc
 
 
 def test_demo_navigation_section(demo):
-    """The single gyro navigates as the North axis of an ideal IMU (docs/navigation.md):
-    raw, every compensator, the gyro oracle and the truth floor, with a reason per ranking."""
+    """The gyro navigates in an IMU of three such gyros (docs/navigation.md): raw, every
+    compensator (fitted per unit), the gyro oracle and the truth floor, with a reason per
+    ranking; the two drawn units' runs sit beside the study's datasets."""
     import csv
     with open(demo / "navigation.csv", newline="") as fh:
         rows = {r["variant"]: r for r in csv.DictReader(fh)}
@@ -304,3 +305,5 @@ def test_demo_navigation_section(demo):
     assert all(resid["oracle (gyros)"] <= resid[k] for k in resid if k != "truth")
     md = (demo / "report.md").read_text()
     assert md.count("ranks before") == len(rows) - 1 and "(navigation.png)" in md
+    assert "IMU of three such gyros" in md
+    assert len(list((demo / "data").glob("*-unit1048576.h5"))) == 2      # train and test

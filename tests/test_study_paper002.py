@@ -256,6 +256,9 @@ def test_report_files_and_table1_rows(ran):
         assert (ran / fig).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"({fig})" in md
     assert html.count("src='data:image/png;base64,") == 4
     assert "Navigation: free-inertial position and heading errors" in md
+    nav = _csv(ran / "navigation.csv")              # every environment, every variant
+    assert {r["environment"] for r in nav} == {"20 °C", "5 °C/min"}
+    assert len(nav) == 2 * len({r["variant"] for r in nav})
     rows = _csv(ran / "table1.csv")
     cols = list(rows[0])
     assert cols == ["quantity", "method", "20 °C ours", "20 °C paper", "5 °C/min ours",
@@ -361,6 +364,7 @@ def test_rows_depend_on_study_and_unit_only(study, folder, tmp_path):
     nav = again["rows"][n:]
     assert nav and all(m.startswith("nav_") and math.isfinite(v) for _, m, v in nav)
     assert {c for c, _, _ in nav} == {"raw", *METHODS, "oracle (gyros)", "truth"}
+    assert {m.split("@")[1] for _, m, _ in nav} == {"20 °C", "5 °C/min"}   # every environment
     other = study_unit(payload, 1)                      # Monte Carlo unit: another device
     assert other["params"].keys() == res.params.keys()
     assert other["params"]["gyro.bias.c1[x]"] != res.params["gyro.bias.c1[x]"]

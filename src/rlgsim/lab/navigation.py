@@ -281,6 +281,10 @@ NAV_METRICS = {"nav_error_end_m": "error_end_m",
 
 def nav_rows(ds) -> list[tuple[str, str, float]]:
     """(variant, metric, value) rows of a navigation run for the Monte Carlo summaries (the
-    variants are named like the study's compensators, plus ``oracle (gyros)`` and ``truth``)."""
+    variants are named like the study's compensators, plus ``oracle (gyros)`` and ``truth``);
+    ``ds`` a navigation dataset, or a mapping environment → dataset (metric names then
+    ``metric@environment``, as the environments recipe names its rows)."""
+    if isinstance(ds, dict):
+        return [(v, f"{m}@{env}", x) for env, d in ds.items() for v, m, x in nav_rows(d)]
     return [(str(v), metric, float(ds[key].sel(variant=v)))
             for v in ds["variant"].values for metric, key in NAV_METRICS.items()]

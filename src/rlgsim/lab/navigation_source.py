@@ -15,7 +15,7 @@ import math
 import os
 import pathlib
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -179,58 +179,105 @@ def _from_recording(path: pathlib.Path) -> NavSource:
                      rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude)
 
 
-def single_gyro_source(path: str | os.PathLike, gyro: str | None = None,
-                       mount: int = 1) -> NavSource:
-    """A single gyro of a simulated dataset as one axis of an otherwise ideal IMU.
+def gyro_units_source(units: Sequence[tuple[str | os.PathLike, str | None, int]]
+                      ) -> NavSource:
+    """Single gyros of simulated datasets as the axes of one otherwise ideal IMU.
 
-    The virtual IMU's increments are the exact ones of the run's motion (the truth), except on
-    body axis ``mount`` (0 x, 1 y, 2 z; default 1: North for a table at zero), which carries
-    the true increment of that axis plus the gyro's own error (its pulses × nominal weight
+    ``units``: (dataset, gyro axis or None for its first gyro, body axis it is mounted on:
+    0 x, 1 y, 2 z) per unit, each dataset a run of the same scenario (the same motion, site
+    and sample grid; another drawn unit and other noise). The first dataset gives the site,
+    the power-on, the alignment segment and the true motion. The virtual IMU's increments are
+    the exact ones of the motion (the truth), except on each unit's body axis, which carries the
+    true increment of that axis plus the unit's own gyro error (its pulses × nominal weight
     minus the true increment along its input axis). Its law (``law_gyro``) sits on the same
     axis; the accelerometers are ideal (``law_accel`` None: no accelerometer oracle)."""
     import h5py
 
     from rlgsim.ground import dataset_format as fmt
-    p = pathlib.Path(path)
-    with fmt.open_dataset(p):
-        pass
-    f = h5py.File(p, "r")
+    if not units or len({m for _, _, m in units}) != len(units):
+        raise ValueError("gyro_units_source: one unit per body axis")
+    opened: list[tuple[Any, int, int, float, int]] = []     # file, gyro col, body col, w, mount
+    laws: list[tuple[int, np.ndarray]] = []
+    base: NavSource | None = None
     try:
-        gyros = [_text(a) for a in f["imu/gyro"][...]]
-        axis = gyro if gyro is not None else gyros[0]
-        if axis not in gyros:
-            raise UserInputError(f"{p}: no gyro {axis!r} (gyros: {', '.join(gyros)})")
-        i = gyros.index(axis)
-        bodies = [_text(a) for a in f["truth/body"][...]]
-        b = bodies.index(axis) if axis in bodies else None
-        if b is None:
-            raise UserInputError(f"{p}: gyro {axis!r} is not a body axis ({', '.join(bodies)})")
-        tr = f["truth"]
-        coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
-            tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
-        w = 1.0 / _weight(coef, f"gyro.k0[{axis}]", "pulses/rad", p)
-        law = np.zeros((tr["gyro_bias"].shape[0], 3))
-        law[:, mount] = np.asarray(tr["gyro_bias"][:, i]) - np.asarray(tr["gyro_bias_random"][:, i])
-    finally:
-        f.close()
-    base = _from_dataset_static(p)
+        for path, gyro, mount in units:
+            p = pathlib.Path(path)
+            with fmt.open_dataset(p):
+                pass
+            f = h5py.File(p, "r")
+            opened.append((f, 0, 0, 0.0, mount))
+            gyros = [_text(a) for a in f["imu/gyro"][...]]
+            axis = gyro if gyro is not None else gyros[0]
+            if axis not in gyros:
+                raise UserInputError(f"{p}: no gyro {axis!r} (gyros: {', '.join(gyros)})")
+            i = gyros.index(axis)
+            bodies = [_text(a) for a in f["truth/body"][...]]
+            if axis not in bodies:
+                raise UserInputError(f"{p}: gyro {axis!r} is not a body axis "
+                                     f"({', '.join(bodies)})")
+            tr = f["truth"]
+            coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
+                tr["coefficient"][...], tr["coefficient_value"][...],
+                tr["coefficient_units"][...])}
+            w = 1.0 / _weight(coef, f"gyro.k0[{axis}]", "pulses/rad", p)
+            opened[-1] = (f, i, bodies.index(axis), w, mount)
+            laws.append((mount, np.asarray(tr["gyro_bias"][:, i])
+                         - np.asarray(tr["gyro_bias_random"][:, i])))
+            if base is None:
+                base = _from_dataset_static(p)
+            elif (int(f["imu/gyro_pulses"].shape[0]), float(f.attrs["sample_rate_hz"])) != (
+                    base.n, base.rate_hz):
+                raise UserInputError(f"{p}: {f['imu/gyro_pulses'].shape[0]} samples at "
+                                     f"{float(f.attrs['sample_rate_hz']):g} Hz; the IMU's first "
+                                     f"unit has {base.n} at {base.rate_hz:g} Hz")
+    except BaseException:
+        for f, *_ in opened:
+            f.close()
+        if base is not None:
+            base.close()
+        raise
+    assert base is not None
+    law = np.zeros((min(len(x) for _, x in laws), 3))
+    for mount, x in laws:
+        law[:, mount] = x[:law.shape[0]]
     truth = base.truth
+    memo: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def exact(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+        """The motion's increments of samples k0..k1−1, kept for the chunk's second ask."""
+        if (k0, k1) not in memo:
+            memo.clear()
+            memo[(k0, k1)] = truth(k0, k1)
+        return memo[(k0, k1)]
 
     def read(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
-        dth, dv = truth(k0, k1)
+        dth, dv = exact(k0, k1)
         out = dth.copy()
-        with h5py.File(p, "r") as fh:
-            pulses = np.asarray(fh["imu/gyro_pulses"][k0:k1, i], dtype=float)
-        out[:, mount] = dth[:, mount] + (pulses * w - dth[:, b])
+        for f, i, b, w, mount in opened:
+            pulses = np.asarray(f["imu/gyro_pulses"][k0:k1, i], dtype=float)
+            out[:, mount] = dth[:, mount] + (pulses * w - dth[:, b])
         return out, dv
 
-    base.name = f"{p.name} (gyro {axis} on body axis {'xyz'[mount]} of an ideal IMU)"
+    names = ", ".join(f"{pathlib.Path(p).name} gyro {g or 'first'} on {'xyz'[m]}"
+                      for p, g, m in units)
+    base.name = f"an ideal IMU with {names}" if len(units) > 1 else (
+        f"{pathlib.Path(units[0][0]).name} (gyro {units[0][1] or 'first'} on body axis "
+        f"{'xyz'[units[0][2]]} of an ideal IMU)")
     base.read = read
+    base.truth = exact
     base.gyro_weight = np.ones(3)
     base.accel_weight = np.ones(3)
     base.law_gyro = law
     base.law_accel = None
+    base.closers.extend(f.close for f, *_ in opened)
     return base
+
+
+def single_gyro_source(path: str | os.PathLike, gyro: str | None = None,
+                       mount: int = 1) -> NavSource:
+    """One gyro of a simulated dataset as body axis ``mount`` (default 1: North for a table at
+    zero) of an otherwise ideal IMU (:func:`gyro_units_source` with one unit)."""
+    return gyro_units_source([(path, gyro, mount)])
 
 
 def open_source(path: str | os.PathLike) -> NavSource:

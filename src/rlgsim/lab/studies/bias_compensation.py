@@ -54,6 +54,7 @@ from rlgsim.lab.studies.bias_compensation_config import (Config, DATA_KEYS, METR
                                                          TOP_KEYS)
 from rlgsim.lab.studies.compensators import RAW, parse_compensators
 from rlgsim.lab.studies.fitting import fit_all
+from rlgsim.lab.studies.imu_axes import parse_navigation
 from rlgsim.lab.studies.runs import load_experiment, worth_showing
 from rlgsim.lab.studies.scoring import score_run
 from rlgsim.lab.studies.study_tables import parse_experiment, parse_metrics
@@ -72,6 +73,7 @@ def check(study: Study) -> Config:
     names = [c.name for c in comps]
     mtable, mctx, cluster_s, ddof = parse_metrics(data, ctx, window_s, METRIC_KEYS)
     baseline = get_str(mtable, "baseline", mctx, RAW, choices=[RAW] + names)
+    parse_navigation(study, names)              # the three-gyro IMU's [navigation] table
 
     ptable, pctx = get_section(data, "published", ctx, PUBLISHED_KEYS, {})
     published: dict[str, Any] = {}

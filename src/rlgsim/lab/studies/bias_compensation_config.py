@@ -15,7 +15,7 @@ from rlgsim.lab.studies.runs import LoadedRun, RunSeries
 from rlgsim.lab.studies.study_tables import FeatureSpec, RunSpec
 
 
-TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published")
+TOP_KEYS = ("study", "data", "features", "compensator", "metrics", "published", "navigation")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
 
 

@@ -95,7 +95,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
 
 def navigation(study: Study, config: Config, result: StudyResult):
     """The first test run's navigation (:func:`.report_text.first_test_navigation`)."""
-    return first_test_navigation(config, result.details)
+    return first_test_navigation(study, config, result.details)
 
 
 def _correlation_section(rep: Report, config: Config, Xtr, ytr, rs_test: RunSeries, paper: bool) -> None:

@@ -15,7 +15,8 @@ from rlgsim.lab.studies.study_tables import (FeatureSpec, RunSpec, check_feature
                                              check_scenarios, parse_data, parse_features,
                                              parse_metrics, parse_runs)
 
-TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics")
+TOP_KEYS = ("study", "data", "features", "compensator", "environment", "metrics",
+            "navigation")
 DATA_KEYS = ("window_s", "gyro")
 ENVIRONMENT_KEYS = ("name", "train", "test", "published")
 ENV_PUBLISHED_KEYS = ("stability_before_deg_per_h", "stability_after_deg_per_h",
@@ -125,6 +126,8 @@ def parse_config(study: Study) -> Config:
     comps = parse_compensators(data, ctx, features.feature_names(), COMPENSATOR_PUBLISHED_KEYS,
                                base_dir=study.base_dir)
     envs = _parse_environments(data, ctx, [c.name for c in comps])
+    from rlgsim.lab.studies.imu_axes import parse_navigation
+    parse_navigation(study, [c.name for c in comps])    # the three-gyro IMU's [navigation]
     for env in envs:
         check_scenarios(study, env.train + env.test)
         check_features_on_devices(study, env.train + env.test, features)

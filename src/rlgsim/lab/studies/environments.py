@@ -141,9 +141,10 @@ def fitted_models(config: Config, result: StudyResult) -> list:
 
 
 def navigation(study: Study, config: Config, result: StudyResult):
-    """One environment's navigation (:func:`rlgsim.lab.studies.environments_report.navigation`):
-    (dataset, introduction), or None."""
-    return environments_report.navigation(config, result.details.results)
+    """Every environment's navigation (:func:`rlgsim.lab.studies.environments_report.
+    navigation`): ({environment: dataset}, introduction), or None."""
+    out: Outcome = result.details
+    return environments_report.navigation(study, config, out.results, out.loaded, out.unit)
 
 
 def report(study: Study, config: Config, result: StudyResult) -> Report:

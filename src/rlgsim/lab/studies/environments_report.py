@@ -31,22 +31,31 @@ from rlgsim.lab.study import Study
 SPREADS = (0.3, 0.5, 1.0, 2.0)
 
 
-def navigation(config: Config, results: list[EnvResult]):
-    """One environment's navigation (the first whose test runs carry the truth; the others
-    navigate alike with ``rlgsim navigate``): (dataset, introduction), or None."""
-    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
-    nav = next((r for r in results if all(has_truth(t) for t in r.tests)
-                and r.tests[0].path.suffix == ".h5"), None)
-    if nav is None:
+def navigation(study: Study, config: Config, results: list[EnvResult], loaded: dict,
+               unit: int):
+    """Every environment's navigation by the three-gyro IMU
+    (:func:`rlgsim.lab.studies.imu_axes.imu_navigation`) on its first test run:
+    ({environment: dataset}, introduction), or None when no environment's test run is a
+    simulated dataset."""
+    from rlgsim.lab.studies.imu_axes import ImuRun, imu_navigation
+    out = {}
+    for r in results:
+        if not all(has_truth(t) for t in r.tests) or r.tests[0].path.suffix != ".h5":
+            continue
+        test = r.env.test[0]
+        exp = ImuRun(loaded, tuple(r.env.train), test, r.fitted, r.predictions[test.label])
+        nav = imu_navigation(study, config, exp, unit=unit)
+        if nav is not None:
+            out[r.env.name] = nav[0]
+    if not out:
         return None
-    rs0 = nav.tests[0]
-    preds = nav.predictions[rs0.label]
-    return single_gyro_navigation(rs0.path, config.gyro, rs0.time_s,
-                                  {f.spec.name: preds[f.spec.name] for f in nav.fitted
-                                   if f.spec.name in preds}, config.window_s,
-                                  note=f"Environment {nav.env.name}, test run {rs0.label} (the "
-                                       f"first environment with the truth; the others navigate "
-                                       f"alike through rlgsim navigate).")
+    from rlgsim.lab.studies.imu_axes import intro, parse_navigation
+    ds = next(iter(out.values()))
+    span_h = (ds.attrs["navigation_end_s"] - ds.attrs["align_end_s"]) / 3600.0
+    plan = parse_navigation(study, [c.name for c in config.compensators])
+    return out, intro(plan, unit, "(each environment's first)", span_h,
+                      "Every environment navigates the IMU of the same three units, each "
+                      "compensator fitted per environment and axis.")
 
 
 def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: float,
@@ -167,10 +176,10 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     figures(rep, results, config)
-    nav = navigation(config, results)
+    nav = navigation(study, config, results, loaded, unit)
     if nav is not None:
-        from rlgsim.lab.studies.navigation_section import add_section
-        add_section(rep, *nav)
+        from rlgsim.lab.studies.navigation_section import add_env_section
+        add_env_section(rep, *nav)
     if results[0].tests[0].coefficients:
         device_coefficients_section(rep, results[0].tests[0].coefficients,
                                     results[0].tests[0].path)

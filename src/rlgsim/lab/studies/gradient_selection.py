@@ -155,10 +155,19 @@ def fitted_models(config: Config, result: StudyResult) -> list:
 
 def navigation(study: Study, config: Config, result: StudyResult):
     """The first test run's navigation (:func:`.gradient_selection_report.navigation`):
-    (dataset, introduction), or None for a recording."""
-    return gradient_selection_report.navigation(study, config, result)
+    (dataset, introduction), or None for a recording. Each drawn unit of the IMU selects its
+    gradients on its own train windows, as :func:`run` does."""
+    return gradient_selection_report.navigation(study, config, result, _selector(config))
+
+
+def _selector(config: Config):
+    """prepare(spec, X, y) -> spec: :func:`select_inputs` of the compensators that select."""
+    def prepare(spec: CompensatorSpec, X, y) -> CompensatorSpec:
+        sel = config.selections.get(spec.name)
+        return spec if sel is None else select_inputs(spec, sel, X, y)[0]
+    return prepare
 
 
 def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report of a run (:mod:`rlgsim.lab.studies.gradient_selection_report`)."""
-    return gradient_selection_report.report(study, config, result)
+    return gradient_selection_report.report(study, config, result, _selector(config))

@@ -19,7 +19,8 @@ from rlgsim.lab.studies.runs import LoadedRun
 from rlgsim.lab.studies.study_tables import (FeatureSpec, RunSpec, parse_experiment, parse_metrics,
                                              str_list)
 
-TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics")
+TOP_KEYS = ("study", "data", "features", "compensator", "correlation", "paper_table", "metrics",
+            "navigation")
 DATA_KEYS = ("train", "test", "window_s", "gyro")
 SELECT_KEYS = ("among", "min_abs_r")
 CORRELATION_KEYS = ("points", "published")
@@ -155,6 +156,8 @@ def parse(study: Study) -> Config:
         if not c.inputs and c.name not in selections:
             raise c.ctx.error("inputs", "empty: give inputs or a select table")
     names = [c.name for c in comps]
+    from rlgsim.lab.studies.imu_axes import parse_navigation
+    parse_navigation(study, names)              # the three-gyro IMU's [navigation] table
 
     ctable, cctx = get_section(data, "correlation", ctx, CORRELATION_KEYS, {})
     points: tuple[str, ...] = ()

@@ -29,9 +29,10 @@ def improvement_over_traditional(trad_pct: float, prop_pct: float) -> float:
     return 100.0 * (prop_pct - trad_pct) / trad_pct if trad_pct else float("nan")
 
 
-def report(study: Study, config: Config, result: StudyResult) -> Report:
+def report(study: Study, config: Config, result: StudyResult, prepare=None) -> Report:
     """The report of a run (Table 3, the selection, Tables 4-5 beside the paper, truth-based
-    scores, the ranking, figures)."""
+    scores, the ranking, figures); ``prepare``: the recipe's gradient selection, for the
+    navigation's drawn units (:func:`navigation`)."""
     from rlgsim.sim.writer.dataset import software_version
 
     out: Outcome = result.details
@@ -81,7 +82,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     _series_attachments(rep, config, runs, predictions)
     figures(rep, config, runs, per_test, predictions, fitted, corr)
     first = runs[config.test[0].key].series
-    nav = navigation(study, config, result)
+    nav = navigation(study, config, result, prepare)
     if nav is not None:
         from rlgsim.lab.studies.navigation_section import add_section
         add_section(rep, *nav)
@@ -90,9 +91,11 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     return rep
 
 
-def navigation(study: Study, config: Config, result: StudyResult):
-    """The first test run's navigation (:func:`.report_text.first_test_navigation`)."""
-    return first_test_navigation(config, result.details)
+def navigation(study: Study, config: Config, result: StudyResult, prepare=None):
+    """The first test run's navigation (:func:`.report_text.first_test_navigation`);
+    ``prepare(spec, X, y) -> spec``: the recipe's gradient selection, so that each drawn
+    unit's compensators select their gradients on that unit's own train windows."""
+    return first_test_navigation(study, config, result.details, prepare)
 
 
 def _matrix_records(points: tuple[str, ...], m: np.ndarray) -> list[dict[str, Any]]:

@@ -3,7 +3,9 @@
 :func:`add_section` puts a navigation run (:func:`rlgsim.lab.navigation.navigate`) into a
 :class:`~rlgsim.lab.report.Report`: the conditions, one table of the scores per variant (raw,
 the study's compensators, the oracles, the truth floor), one sentence per observed ranking with
-its reason (:func:`rlgsim.lab.navigation_report.ranking_reasons`) and the error figure.
+its reason (:func:`rlgsim.lab.navigation_report.ranking_reasons`) and the error figure;
+:func:`add_env_section` the same for several environments (paper 002: one table, one panel per
+environment). The single-gyro studies' IMU of three units is :mod:`rlgsim.lab.studies.imu_axes`.
 
 :func:`paper000_navigation` is paper 000's: its IMU navigates as it is, on the test run, after
 the alignment on the lead-in; the compensators' variants are the system-level compensated
@@ -102,47 +104,62 @@ def paper000_navigation(data_path: pathlib.Path, desired: dict[str, dict], desir
                          "model (nominal pulse weights throughout).")
 
 
-def _window_predictor(ends: np.ndarray, pred_deg_h: np.ndarray, window_s: float, mount: int):
-    """f(t) → (m, 3) [rad/s]: the prediction of the window holding t on axis ``mount``
-    (0 outside the windows)."""
-    ends = np.asarray(ends, float)
-    vals = np.asarray(pred_deg_h, float) * DEG / HOUR
+def add_env_section(rep: Report, dss: dict[str, Any], intro: str, *,
+                    csv_name: str = "navigation.csv") -> None:
+    """The navigation section of a study with several environments (paper 002): one table with
+    a row per environment and variant, the ranking reasons per environment, and one figure with
+    a panel of horizontal error per environment (``dss``: environment → navigation dataset)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
 
-    def f(t: np.ndarray) -> np.ndarray:
-        j = np.searchsorted(ends, t, side="left")
-        jj = np.minimum(j, ends.size - 1)
-        ok = (j < ends.size) & (t > ends[jj] - window_s) & np.isfinite(vals[jj])
-        out = np.zeros((t.size, 3))
-        out[:, mount] = np.where(ok, vals[jj], 0.0)
-        return out
-    return f
-
-
-def single_gyro_navigation(data_path: pathlib.Path, gyro: str | None, ends: np.ndarray,
-                           predictions: dict[str, np.ndarray], window_s: float,
-                           mount: int = 1, note: str = "") -> tuple[Any, str]:
-    """The navigation section of a single-gyro study: the test run's gyro as the North axis
-    (``mount``) of an otherwise ideal IMU (:func:`rlgsim.lab.navigation_source.
-    single_gyro_source`), each compensator's window prediction [°/h] subtracted."""
-    from rlgsim.lab.navigation import navigate_source
-    from rlgsim.lab.navigation_source import single_gyro_source
-    src = single_gyro_source(data_path, gyro, mount)
-    try:
-        rest_h = (src.n - src.start) / src.rate_hz / HOUR
-        span_h = min(STUDY_SPAN_H, rest_h - 0.25)
-        models = {name: _window_predictor(ends, p, window_s, mount)
-                  for name, p in predictions.items()}
-        ds = navigate_source(src, models=models, span_s=span_h * HOUR)
-    finally:
-        src.close()
-    ds.attrs["compensation"] = "the compensators' window predictions subtracted from the gyro"
-    return ds, (f"The device has one gyro, so it navigates as the {'xyz'[mount]} "
-                         f"(North) axis of an otherwise ideal IMU: the exact increments of the "
-                         f"run's motion on every axis, plus this gyro's own error (its pulses "
-                         f"through the nominal weight minus the true increment) on the North "
-                         f"axis, where a gyro error costs the most position (North gyro error → "
-                         f"East tilt → East velocity). Ideal accelerometers, so no "
-                         f"accelerometer oracle. Not done: the three-unit IMU (units drawn from "
-                         f"the preset, compensated per axis) that would show the units' spread. "
-                         f"{span_h:g} h after the alignment. {note}".rstrip())
-
+    from rlgsim.lab.navigation_report import COLUMNS, ranking_reasons, summary_frame
+    rep.heading("Navigation: free-inertial position and heading errors", 2)
+    a = next(iter(dss.values())).attrs
+    rep.paragraph(
+        f"{intro} Each environment's IMU is aligned on its first static segment "
+        f"({a['align_start_s']:g}–{a['align_end_s']:g} s: coarse levelling and gyrocompassing, "
+        f"then a zero-velocity Kalman filter), then navigates free-inertially to "
+        f"{a['navigation_end_s']:g} s at latitude {a['latitude_deg']:g}° (docs/navigation.md); "
+        f"vertical channel {a['vertical_channel']}. Radial error rate: least-squares slope of "
+        "the horizontal error against time. Residual errors: what each variant's increments "
+        "differ from the truth's, 100-s means, RMS of the vector.")
+    frames = {env: summary_frame(ds) for env, ds in dss.items()}
+    df0 = next(iter(frames.values()))
+    keys = [(k, h) for k, h, _ in COLUMNS if k in df0]
+    rows = [[env, name, *[float(r[k]) for k, _ in keys]]
+            for env, df in frames.items() for name, r in df.iterrows()]
+    rep.table(Table("Navigation scores per environment and variant",
+                    ["environment", "variant", *[h for _, h in keys]], rows, csv_name=csv_name,
+                    note="raw: nominal pulse weights; oracle (gyros): the true gyro "
+                         "temperature law removed; truth: the exact increments (the "
+                         "mechanization's floor)."))
+    rep.bullets([f"{env}: {line}" for env, ds in dss.items() for line in ranking_reasons(ds)])
+    n = len(dss)
+    cols = min(3, n)
+    rows_n = -(-n // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(4.0 * cols, 3.2 * rows_n), sharex=True,
+                             sharey=True, squeeze=False)
+    for ax, (env, ds) in zip(axes.flat, dss.items()):
+        t_h = (ds["time"].values - ds.attrs["align_end_s"]) / 3600.0
+        for v in ds["variant"].values:
+            if str(v) != "truth":            # the floor (< 1 mm) stays in the table
+                ax.semilogy(t_h, np.maximum(ds["horizontal_error_m"].sel(variant=v).values,
+                                            1.0), label=str(v), lw=1.0)
+        ax.set_ylim(bottom=1.0)
+        ax.set_title(env, fontsize="medium")
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("horizontal error [m]")
+    for ax in axes[-1, :]:
+        ax.set_xlabel("time since alignment [h]")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize="small")
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    rep.figure(fig, "navigation", "Free-inertial horizontal position error per variant after "
+                                  "the alignment, one panel per environment (the truth floor, "
+                                  "under 1 mm, in the table only); the Schuler oscillation "
+                                  "(84.4 min) modulates the growth.")
+    plt.close(fig)

@@ -108,16 +108,13 @@ def weight_spread(scores: dict[str, float], groups: dict[str, list[str]]
     return best, where
 
 
-def first_test_navigation(config, out):
-    """The navigation of a single-gyro study's first test run (docs/navigation.md, "In the
+def first_test_navigation(study, config, out, prepare=None):
+    """The navigation of a single-gyro study's first test run by the three-gyro IMU
+    (:func:`rlgsim.lab.studies.imu_axes.imu_navigation`; docs/navigation.md, "In the
     studies"): (dataset, introduction), or None for a recording; ``out`` the recipe's outcome
-    (``runs``, ``predictions``, ``fitted``)."""
-    from rlgsim.lab.studies.navigation_section import single_gyro_navigation
-    from rlgsim.lab.studies.scoring import has_truth
-    rs = out.runs[config.test[0].key].series
-    if not has_truth(rs) or rs.path.suffix != ".h5":
-        return None
-    preds = out.predictions[config.test[0].label]
-    return single_gyro_navigation(rs.path, config.gyro, rs.time_s,
-                                  {f.spec.name: preds[f.spec.name] for f in out.fitted
-                                   if f.spec.name in preds}, config.window_s)
+    (``runs``, ``predictions``, ``fitted``, ``unit``); ``prepare(spec, X, y) -> spec`` the
+    recipe's input selection."""
+    from rlgsim.lab.studies.imu_axes import ImuRun, imu_navigation
+    test = config.test[0]
+    exp = ImuRun(out.runs, tuple(config.train), test, out.fitted, out.predictions[test.label])
+    return imu_navigation(study, config, exp, unit=out.unit, prepare=prepare)
