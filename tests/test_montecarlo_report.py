@@ -68,3 +68,18 @@ def test_navigation_metrics_get_their_spread_figures():
     md = summary_report(records, 8, title="toy", baseline="raw").markdown()
     assert "spread_nav_radial_rate_nmi_per_h.png" in md
     assert "spread_nav_heading_end_arcmin.png" in md
+
+
+def test_navigation_figures_per_environment():
+    """Paper 002's units navigate every environment (metrics ``nav_…@<environment>``): each
+    environment gets its radial-rate and heading figures."""
+    records = _records()
+    for k, r in enumerate(records):
+        r.rows += [(c, f"{m}@{env}", 0.1 * (k + 1) + (c == "raw"))
+                   for c in ("raw", "LS", "truth") for env in ("-40 °C", "5 °C/min")
+                   for m in ("nav_error_end_m", "nav_radial_rate_nmi_per_h",
+                             "nav_heading_end_arcmin")]
+    md = summary_report(records, 8, title="toy", baseline="raw").markdown()
+    for env in ("m40_c", "5_c_min"):
+        assert f"spread_nav_radial_rate_nmi_per_h_{env}.png" in md
+        assert f"spread_nav_heading_end_arcmin_{env}.png" in md

@@ -266,7 +266,8 @@ def summary_report(records, n_units: int, *, title: str, baseline: str | None):
 
     rep.heading("Spread over the units", 2)
     drawn = metrics[:MAX_FIGURES]
-    drawn += [m for m in NAV_FIGURE_METRICS if m in metrics and m not in drawn]
+    drawn += [m for m in metrics if m.split("@")[0] in NAV_FIGURE_METRICS
+              and m not in drawn]            # paper 002: one per environment (m@env)
     for metric in drawn:
         names = [c for c in comps if matrix.get((c, metric))]
         data = [np.asarray(list(matrix[(c, metric)].values()), float) for c in names]
