@@ -22,13 +22,26 @@ import sys
 import numpy as np
 
 
-def groups(columns: list[str]) -> dict[str, list[str]]:
-    """Parameter groups of a calibration table: the name without its axis suffix."""
-    out: dict[str, list[str]] = {}
-    for c in columns:
-        if c.endswith("_sigma"):
-            p = c[:-len("_sigma")]
-            out.setdefault(p.rsplit("_", 1)[0], []).append(p)
+def _column(columns: list[str], name: str, part: str, unit: str) -> str | None:
+    """The CSV column of a parameter's part ("", "_sigma", "_true"): with its unit suffix
+    (``gyro_bias_x_sigma_deg_per_h``, what 'rlgsim calibrate' writes) or bare (the dataset
+    group's names); None when absent."""
+    for c in (f"{name}{part}_{unit}", f"{name}{part}"):
+        if c in columns:
+            return c
+    return None
+
+
+def groups(columns: list[str]) -> dict[str, list[tuple[str, str, str]]]:
+    """Parameter groups of a calibration table (the name without its axis suffix): per
+    parameter its (estimate, σ, truth) columns."""
+    from rlgsim.estimators.calibration import PARAMETERS, UNIT_NAMES
+    out: dict[str, list[tuple[str, str, str]]] = {}
+    for p in PARAMETERS:
+        cols = [_column(columns, p.name, part, UNIT_NAMES[p.unit])
+                for part in ("", "_sigma", "_true")]
+        if all(cols):
+            out.setdefault(p.name.rsplit("_", 1)[0], []).append(tuple(cols))
     return out
 
 
@@ -41,13 +54,14 @@ def nees_table(path: pathlib.Path) -> list[tuple[str, int, float, float, float]]
     n = len(t)
     rows, total, k_total = [], np.zeros(n), 0
     for g, ps in groups(list(t.columns)).items():
-        z2 = np.sum([((t[p] - t[f"{p}_true"]) / t[f"{p}_sigma"]).to_numpy() ** 2 for p in ps],
-                    axis=0)
+        z2 = np.sum([((t[e] - t[tr]) / t[s]).to_numpy() ** 2 for e, s, tr in ps], axis=0)
         if not np.all(np.isfinite(z2)):
             continue
         lo, hi = stats.chi2.ppf([0.025, 0.975], len(ps) * n) / n
         rows.append((g, len(ps), float(z2.mean()), float(lo), float(hi)))
         total, k_total = total + z2, k_total + len(ps)
+    if k_total == 0:
+        raise SystemExit(f"{path}: no parameter with estimate, sigma and truth columns")
     lo, hi = stats.chi2.ppf([0.025, 0.975], k_total * n) / n
     rows.append(("overall", k_total, float(total.mean()), float(lo), float(hi)))
     return rows

@@ -80,6 +80,37 @@ def test_end_to_end_writes_the_report_and_all_scores(run):
     assert any(k.startswith("accel.bias.c1[") for k in result.params)
 
 
+def test_table3_reports_the_share_of_compensated_samples_outside_the_training_range(run):
+    """Issue 27: the compensation evaluates each model at every probe sample of the windows;
+    the share beyond the training temperatures (window means) and the largest excess in % of
+    their span, recomputed here from the calibration table and the dataset's probe log."""
+    import h5py
+    out, result, _, _, _ = run
+    rows = {r["parameter"]: r for r in _read_csv(out / "table3_ours.csv")}
+    cal = _read_csv(out / "calibration_raw.csv")
+    ok = [r for r in cal if r["status"] == "ok"]
+    with h5py.File(result.details.data_path, "r") as f:
+        g = f["probes"]
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in g["probe"][()]]
+        t, temps = g["time"][()], g["temperature"][()]
+    inside = np.zeros(t.shape, bool)
+    for r in ok:
+        inside |= (t > float(r["t0_s"])) & (t <= float(r["t1_s"]))
+    for p in PARAMS:
+        probe = f"g{p[-1]}.A" if p.startswith("gyro") else f"a{p[-1]}"
+        xs = np.array([float(r[f"temp_{probe}_c"]) for r in ok])
+        grid = temps[inside, names.index(probe)].astype(float)
+        lo, hi = xs.min(), xs.max()
+        beyond = np.maximum(np.maximum(lo - grid, grid - hi), 0.0)
+        assert float(rows[p]["outside_range_pct"]) == pytest.approx(
+            100 * np.mean(beyond > 0), abs=1e-9)
+        assert float(rows[p]["outside_excess_pct"]) == pytest.approx(
+            100 * beyond.max() / (hi - lo), rel=1e-9, abs=1e-9)
+        # the first window starts below its own mean: the ends extrapolate a little
+        assert 0 < float(rows[p]["outside_range_pct"]) < 50
+    assert "Inputs outside the training range" in (out / "report.md").read_text()
+
+
 def test_truth_scores_match_an_independent_recomputation(run):
     """RMSE/MAE/R² against the truth, recomputed with numpy from the calibration table the
     recipe wrote (estimate, truth and probe mean per window) and, for the LSM, a numpy.polyfit

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 
+import numpy as np
 import pytest
 
 from rlgsim.ground.errors import UserInputError
@@ -47,10 +48,20 @@ def test_vehicle_study_runs_and_reports(tmp_path):
     report = run_study(study, tmp_path / "out", progress=False)
     rows = list(csv.DictReader(open(tmp_path / "out" / "scores.csv")))
     variants = [r["variant"] for r in rows]
-    assert variants == ["raw", "raw", "cubic T", "cubic T", "oracle", "oracle", "truth", "truth"]
+    assert variants == ["raw", "raw", "cubic T", "cubic T", "cubic T", "cubic T", "oracle", "oracle",
+                        "truth", "truth"]
     coast = {r["variant"]: float(r["value"]) for r in rows
              if r["metric"] == "coasting_error_outage1_m"}
     assert coast["truth"] < coast["raw"]
+    # issue 27: the cold-soaked drive lies wholly below the chamber run's probe range (read
+    # here from the two probe logs), so every mission window extrapolates
+    from rlgsim.lab.studies.runs import probe_temperatures
+    _, tr = probe_temperatures(tmp_path / "out" / "data" / "train.h5", ["gx.A", "gy.A", "gz.A"])
+    _, mi = probe_temperatures(tmp_path / "out" / "data" / "mission.h5", ["gx.A", "gy.A", "gz.A"])
+    assert all(np.nanmax(mi[k]) < np.nanmin(tr[k]) for k in tr)
+    share = {r["metric"]: float(r["value"]) for r in rows if r["variant"] == "cubic T"}
+    assert share["outside_range_pct"] == 100.0 and share["outside_excess_pct"] > 0
+    assert "Inputs outside the training range" in report.read_text()
     assert list((tmp_path / "out").rglob("mission*.png")) and report.is_file()
 
 

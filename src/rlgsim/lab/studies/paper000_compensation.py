@@ -108,3 +108,28 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
     return rewrite_pulses(src, dst, make_transform,
                           title_suffix=f" — pulses compensated to {desired_c} °C",
                           attrs={"compensated_to_c": float(desired_c)}, chunk=chunk)
+
+
+def inputs_outside_range(src: pathlib.Path, xs: dict[str, np.ndarray], probes: dict[str, str],
+                         windows: list[tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Extrapolation of the compensation (issue 27): per parameter, the share of the probe
+    samples inside the calibration ``windows`` (t0, t1 [s]) at which the model is evaluated
+    outside its training temperatures [min, max] of ``xs`` [%], and the largest distance beyond,
+    in % of the training span (:func:`rlgsim.lab.studies.input_range.outside_range`).
+
+    The models are fitted to window-mean temperatures, but :func:`compensate_dataset` evaluates
+    them at every probe sample: the first and last windows' own ramps reach past the range of
+    the means (by about half a window's temperature change), so the compensation of those
+    samples extrapolates even though every fit (Table 2) is in-sample."""
+    from rlgsim.lab.studies.input_range import outside_range
+    ptime, temps = probe_temperatures(src, sorted(set(probes.values())))
+    inside = np.zeros(ptime.shape, dtype=bool)
+    for t0, t1 in windows:
+        inside |= (ptime > t0) & (ptime <= t1)
+    out = {}
+    for param, probe in probes.items():
+        grid = temps[probe][inside]
+        grid = grid[np.isfinite(grid)]
+        share, excess, _ = outside_range({"T": xs[param]}, {"T": grid}, ["T"])
+        out[param] = (share, excess)
+    return out

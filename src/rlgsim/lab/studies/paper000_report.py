@@ -149,13 +149,30 @@ def _table3_section(rep: Report, cfg: Config, o: Outcome) -> None:
     resvar, desired, units, avg = o.resvar, o.desired, o.units, o.avg
     comp_tables, resid, raw = o.comp_tables, o.resid, o.raw
     rep.heading(f"Table 3: system-level compensation to {cfg.desired_c:g} °C", 2)
+    outside = _outside_range(cfg, o)
     recs = [{"parameter": p, "unit": f"({units[p]})²",
              "raw variance": resvar[p]["raw"], "RVR residual variance": resvar[p]["hho_rvr"],
              "LSM residual variance": resvar[p]["lsm"],
              "RVR vs LSM %": improvement("rmse", resvar[p]["lsm"], resvar[p]["hho_rvr"]),
              f"RVR model at {cfg.desired_c:g} °C": desired[p]["hho_rvr"],
-             f"LSM model at {cfg.desired_c:g} °C": desired[p]["lsm"]}
+             f"LSM model at {cfg.desired_c:g} °C": desired[p]["lsm"],
+             "outside_range_pct": outside[p][0], "outside_excess_pct": outside[p][1]}
             for p in PAPER_PARAMETERS]
+    worst = max(PAPER_PARAMETERS, key=lambda p: outside[p][0])
+    rep.paragraph(
+        "Inputs outside the training range (read with the ranking below): Table 2 and the "
+        "scores against the truth are in-sample (every model is evaluated at the window-mean "
+        "temperatures it was fitted to: 0 % outside). The compensation evaluates the models at "
+        "every probe sample of the calibration windows, and the first and last windows' own "
+        "ramps reach past the range of the window means: "
+        f"up to {outside[worst][0]:.2f} % of those samples ({worst}), at most "
+        f"{max(v[1] for v in outside.values()):.2f} % of the training span beyond it "
+        "(columns outside_range_pct, outside_excess_pct; the same for both models, which share "
+        "their input). The desired temperature "
+        f"{cfg.desired_c:g} °C lies "
+        + ("inside" if all(o.xs[p].min() <= cfg.desired_c <= o.xs[p].max()
+                           for p in PAPER_PARAMETERS) else "OUTSIDE")
+        + " every model's training range.")
     rep.table(Table.from_records(
         "Table 3 (ours): variance of the re-calibrated parameters minus the model value at "
         "the desired temperature", recs, csv_name="table3_ours.csv",
@@ -238,3 +255,16 @@ def _verdict(avg, avg_truth, fit_scores, truth_scores, resvar) -> str:
                      f"% (paper 30.34 %). The residual variance is measured on the same run the "
                      f"models were fitted to, as in the paper.")
     return " ".join(parts)
+
+
+def _outside_range(cfg: Config, o: Outcome) -> dict[str, tuple[float, float]]:
+    """Per parameter: (share of the calibration windows' probe samples outside the model's
+    training temperatures [%], largest excess in % of the training span)
+    (:func:`rlgsim.lab.studies.paper000_compensation.inputs_outside_range`)."""
+    from rlgsim.estimators.calibration import PAPER_PARAMETERS
+    from rlgsim.lab.studies.paper000_compensation import inputs_outside_range
+    from rlgsim.lab.studies.paper000_config import probe_for
+    windows = list(zip(o.raw.column("t0_s")[o.ok], o.raw.column("t1_s")[o.ok]))
+    return inputs_outside_range(o.data_path, o.xs,
+                                {p: probe_for(p, cfg.temperature) for p in PAPER_PARAMETERS},
+                                windows)

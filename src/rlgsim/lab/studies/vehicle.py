@@ -108,24 +108,34 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
     mission_sc = scenario_for(study, config.mission, unit=unit).with_changes(
         config.mission_changes)
     mission = simulate(mission_sc, data / "mission.h5", progress=progress)
+    from rlgsim.lab.studies.input_range import outside_range
     w = config.window_s
-    models = {}
+    models, outside = {}, {}
     for comp in config.compensators:
-        ends, preds = [], []
+        ends, preds, ranges = [], [], []
         for axis in "xyz":
             tdf, mdf = window_table(train, w, gyro=axis), window_table(mission, w, gyro=axis)
+            x_train, x_test = _features(tdf, axis, comp.inputs), _features(mdf, axis, comp.inputs)
             model = PolynomialRegressor(degree=comp.degree).fit(
-                _features(tdf, axis, comp.inputs), tdf["bias_deg_per_h"].to_numpy())
+                x_train, tdf["bias_deg_per_h"].to_numpy())
             ends.append(mdf["time_s"].to_numpy())
-            preds.append(model.predict(_features(mdf, axis, comp.inputs)) * DEG / HOUR)
+            preds.append(model.predict(x_test) * DEG / HOUR)
+            ranges.append(outside_range(dict(zip(comp.inputs, x_train.T)),
+                                        dict(zip(comp.inputs, x_test.T)), comp.inputs))
         models[comp.name] = _window_function(ends, preds, w)
+        # the worst axis: each gyro has its own model and its own probe
+        outside[comp.name] = (max(r[0] for r in ranges), max(r[1] for r in ranges))
     scores = score_mission(mission, models=models)
     rows = []
     for name, s in scores.items():
         for i, e in enumerate(s["outage_error_m"]):
             rows.append((name, f"coasting_error_outage{i + 1}_m", float(e)))
         rows.append((name, "heading_rms_arcsec", s["heading_rms_arcsec"]))
-    return StudyResult(rows, details={"scores": scores, "mission": mission})
+        if name in outside:
+            rows.append((name, "outside_range_pct", outside[name][0]))
+            rows.append((name, "outside_excess_pct", outside[name][1]))
+    return StudyResult(rows, details={"scores": scores, "mission": mission,
+                                      "outside": outside})
 
 
 def _window_function(ends: list, preds: list, window_s: float):
@@ -152,6 +162,19 @@ def report(study: Study, config: VehicleConfig, result: StudyResult) -> Report:
                   f"(rlgsim.lab.mission; docs/trajectories.md): raw, each compensator, the "
                   f"oracle (the true temperature laws removed) and the floor (exact "
                   f"increments).")
+    outside = result.details.get("outside", {})
+    if outside:
+        worst = max(outside, key=lambda k: outside[k][0])
+        rep.paragraph(
+            "Inputs outside the training range (read with the scores below): the mission's "
+            "windows whose inputs lie outside the chamber run's [min, max] per input (the worst "
+            "gyro axis; rows outside_range_pct, outside_excess_pct): "
+            + "; ".join(f"{k} {v[0]:.1f} % (largest excess {v[1]:.1f} % of the span)"
+                        for k, v in outside.items())
+            + (f". Where a compensator extrapolates ({worst}), its coasting error partly "
+               "measures how its polynomial runs off outside the range, not how well it learnt "
+               "the law." if outside[worst][0] > 0 else
+               ". Every window lies inside: the scores compare interpolation."))
     rep.table(Table("Scores", ["variant", "metric", "value"],
                     [[a, b, f"{c:.4g}"] for a, b, c in result.rows], csv_name="scores.csv"))
     details: dict[str, Any] = result.details
