@@ -306,6 +306,26 @@ class DatasetReader:
         return {k: float(v) for k, v in t.items()
                 if isinstance(v, (int, float)) and not isinstance(v, bool)}
 
+    def unit_noise(self) -> dict[str, np.ndarray]:
+        """The drawn unit's own noise levels per axis, SI (3,) each, keyed ``gyro_arw``,
+        ``gyro_bi``, ``gyro_rrw``, ``accel_vrw``, ``accel_bi``, ``accel_rrw`` (the dataset's
+        truth coefficients ``noise.<key>[<axis>]``, rad/s^0.5 … m/s^2.5); empty for data
+        without them. The preset's ``[noise]`` table holds the nominal levels; each unit's are
+        drawn around them (``[tolerance.noise]``), and the filter is consistent only with the
+        unit's own (docs/calibration.md, "Consistency per group")."""
+        try:
+            if not self.ds.has(fmt.TRUTH, "coefficient"):
+                return {}
+            coeff = self.ds.coefficients()
+        except (KeyError, ValueError, OSError):
+            return {}
+        out = {}
+        for key in ("gyro_arw", "gyro_bi", "gyro_rrw", "accel_vrw", "accel_bi", "accel_rrw"):
+            vals = [coeff.get(f"noise.{key}[{a}]") for a in AXES]
+            if all(v is not None and math.isfinite(v) and v >= 0 for v in vals):
+                out[key] = np.array(vals, dtype=float)
+        return out
+
     def segments(self) -> list[dict]:
         """Timeline segments (dicts ``t0``, ``t1``, ``track``, ``label``, ``attrs``)."""
         if not self.ds.has(fmt.TIMELINE):
@@ -370,7 +390,9 @@ class CampaignSettings:
     left at zero), a ``nominal`` model (default: from the dataset), ``workers`` processes,
     ``chunk_windows`` windows per chunk (default: the windows cut into :data:`CHUNKS` chunks;
     the table depends on it — each chunk chains its windows' starting models — but not on
-    ``workers``)."""
+    ``workers``); ``unit_noise``: the filter takes the unit's own noise levels per axis when
+    the data records them (:meth:`DatasetReader.unit_noise`), else the preset's nominal
+    ones."""
 
     filter: FilterSettings | None = None
     nominal: SensorModel | None = None
@@ -378,35 +400,54 @@ class CampaignSettings:
     vrw_ug_per_sqrt_hz: float | None = None
     workers: int | None = None
     chunk_windows: int | None = None
+    unit_noise: bool = True
 
 
 def _filter_settings(reader: DatasetReader, cs: CampaignSettings) -> FilterSettings:
     if cs.filter is not None:
         return cs.filter
+    unit = getattr(reader, "unit_noise", None)
     return filter_settings(reader.noise(), arw_deg_per_sqrt_h=cs.arw_deg_per_sqrt_h,
-                           vrw_ug_per_sqrt_hz=cs.vrw_ug_per_sqrt_hz)
+                           vrw_ug_per_sqrt_hz=cs.vrw_ug_per_sqrt_hz,
+                           unit_levels=unit() if (cs.unit_noise and unit is not None) else None)
 
 
 def filter_settings(noise: dict | None = None, *, arw_deg_per_sqrt_h: float | None = None,
-                    vrw_ug_per_sqrt_hz: float | None = None) -> FilterSettings:
+                    vrw_ug_per_sqrt_hz: float | None = None,
+                    unit_levels: dict[str, np.ndarray] | None = None) -> FilterSettings:
     """The calibration filter's settings from a device's ``[noise]`` table (the preset keys
     ``gyro_arw_deg_per_sqrt_h``, ``accel_vrw_ug_per_sqrt_hz``, ``gyro_bias_instability_deg_per_h``,
     ``gyro_rrw_deg_per_h_per_sqrt_h``, ``accel_bias_instability_ug``, ``accel_rrw_ug_per_sqrt_s``;
     absent ones: the defaults) — the one derivation used by ``rlgsim calibrate``, the campaign
-    and the Python API, for datasets and recordings alike."""
+    and the Python API, for datasets and recordings alike.
+
+    ``unit_levels`` (:meth:`DatasetReader.unit_noise`: the unit's own levels per axis, SI)
+    replace the table's nominal ones where given — what the unit's noise characterisation
+    (an Allan-variance test, IEEE Std 952) gives before it is calibrated; explicit
+    ``arw_deg_per_sqrt_h`` / ``vrw_ug_per_sqrt_hz`` still win."""
     nz = dict(noise or {})
+    lv = dict(unit_levels or {})
     arw = arw_deg_per_sqrt_h if arw_deg_per_sqrt_h is not None else nz.get(
         "gyro_arw_deg_per_sqrt_h", DEFAULT_ARW_DEG_PER_SQRT_H)
     vrw = vrw_ug_per_sqrt_hz if vrw_ug_per_sqrt_hz is not None else nz.get(
         "accel_vrw_ug_per_sqrt_hz", DEFAULT_VRW_UG_PER_SQRT_HZ)
+    levels = dict(
+        gyro_arw=arw * math.pi / 180 / 60, accel_vrw=vrw * UG,
+        gyro_bi=nz.get("gyro_bias_instability_deg_per_h", 0.0) * DEG_PER_H,
+        gyro_rrw=nz.get("gyro_rrw_deg_per_h_per_sqrt_h", 0.0) * DEG_PER_H / 60.0,
+        accel_bi=nz.get("accel_bias_instability_ug", 0.0) * UG,
+        accel_rrw=nz.get("accel_rrw_ug_per_sqrt_s", 0.0) * UG)
+    explicit = {"gyro_arw": arw_deg_per_sqrt_h is not None,
+                "accel_vrw": vrw_ug_per_sqrt_hz is not None}
+    for key, value in lv.items():
+        if key in levels and not explicit.get(key, False):
+            levels[key] = np.asarray(value, dtype=float)
     return FilterSettings(
-        arw_rad_per_sqrt_s=arw * math.pi / 180 / 60, vrw_m_per_s_per_sqrt_s=vrw * UG,
-        gyro_bias_instability_rad_per_s=nz.get("gyro_bias_instability_deg_per_h", 0.0)
-        * DEG_PER_H,
-        gyro_rrw_rad_per_s_per_sqrt_s=nz.get("gyro_rrw_deg_per_h_per_sqrt_h", 0.0)
-        * DEG_PER_H / 60.0,
-        accel_bias_instability_m_per_s2=nz.get("accel_bias_instability_ug", 0.0) * UG,
-        accel_rrw_m_per_s2_per_sqrt_s=nz.get("accel_rrw_ug_per_sqrt_s", 0.0) * UG)
+        arw_rad_per_sqrt_s=levels["gyro_arw"], vrw_m_per_s_per_sqrt_s=levels["accel_vrw"],
+        gyro_bias_instability_rad_per_s=levels["gyro_bi"],
+        gyro_rrw_rad_per_s_per_sqrt_s=levels["gyro_rrw"],
+        accel_bias_instability_m_per_s2=levels["accel_bi"],
+        accel_rrw_m_per_s2_per_sqrt_s=levels["accel_rrw"])
 
 
 def calibrate_one(reader: DatasetReader, spec: WindowSpec, settings: FilterSettings,

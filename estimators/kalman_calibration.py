@@ -177,8 +177,9 @@ class FilterSettings:
     ``param_random_walk`` (24,) optional random walk of the parameters [unit/√s];
     ``gyro_bias_instability_rad_per_s``, ``gyro_rrw_rad_per_s_per_sqrt_s``,
     ``accel_bias_instability_m_per_s2``, ``accel_rrw_m_per_s2_per_sqrt_s``: the slow bias
-    noise (flicker, random walk); when any is > 0 the filter carries the bias wander and its
-    running mean (12 more states) and reports the window-mean biases;
+    noise (flicker, random walk), one value or one per axis (3,); when any is > 0 the filter
+    carries the bias wander and its running mean (18 more states) and reports the window-mean
+    biases;
     ``max_iterations``; convergence when every parameter correction is below
     ``tol_sigma`` × its σ or ``tol_abs`` (filter units); ``reuse_tol``: a pass reuses the gains
     of the last full pass in this process (same window shape, motions and settings) when its
@@ -198,10 +199,10 @@ class FilterSettings:
         gyro_mis_arcsec=300.0, accel_bias_ug=1000.0, accel_sf_ppm=1000.0,
         accel_mis_arcsec=300.0))
     param_random_walk: np.ndarray | None = None
-    gyro_bias_instability_rad_per_s: float = 0.0
-    gyro_rrw_rad_per_s_per_sqrt_s: float = 0.0
-    accel_bias_instability_m_per_s2: float = 0.0
-    accel_rrw_m_per_s2_per_sqrt_s: float = 0.0
+    gyro_bias_instability_rad_per_s: float | np.ndarray = 0.0
+    gyro_rrw_rad_per_s_per_sqrt_s: float | np.ndarray = 0.0
+    accel_bias_instability_m_per_s2: float | np.ndarray = 0.0
+    accel_rrw_m_per_s2_per_sqrt_s: float | np.ndarray = 0.0
     max_iterations: int = 10
     tol_sigma: float = 1e-2
     tol_abs: float = 1e-4
@@ -221,9 +222,9 @@ class FilterSettings:
     flicker_slow_tau_s: float = 2000.0
     flicker_slow_decades: float = 2.0
 
-    def slow_noise(self) -> dict[str, tuple[float, float]]:
+    def slow_noise(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Per sensor group ('gyro', 'accel'): (σ_f² of the fast process, drive PSD q_s² of
-        the slow one) in SI² and SI²/s.
+        the slow one) per axis (3,) in SI² and SI²/s (the levels may be given per axis).
 
         Flicker of bias instability B is a continuum of Gauss–Markov processes with variance
         B²·ln10/π per decade of correlation time (Keshner 1982; sim/sensors/noise.py builds it the same
@@ -239,6 +240,8 @@ class FilterSettings:
                             self.gyro_rrw_rad_per_s_per_sqrt_s),
                            ("accel", self.accel_bias_instability_m_per_s2,
                             self.accel_rrw_m_per_s2_per_sqrt_s)):
+            b = np.broadcast_to(np.asarray(b, dtype=float), (3,))
+            k = np.broadcast_to(np.asarray(k, dtype=float), (3,))
             out[name] = (self.flicker_fast_decades * c * b * b,
                          2.0 * (self.flicker_slow_decades * c * b * b) / self.flicker_slow_tau_s
                          + k * k)
@@ -451,14 +454,14 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     T = per_step * dt
     window_s = n_steps * T
     slow = settings.slow_noise()
-    wander = any(v > 0 for pair in slow.values() for v in pair)
+    wander = any(np.any(v > 0) for pair in slow.values() for v in pair)
     n_x = N_STATES_WANDER if wander else N_STATES
     scale = np.concatenate([SCALE, SCALE_WANDER]) if wander else SCALE
     inv = 1.0 / scale
     sig0 = np.concatenate([settings.prior_sigma(), np.zeros(n_x - N_STATES)])
     if wander:                              # the fast process is stationary from the start
-        sig0[FG] = math.sqrt(slow["gyro"][0]) / DEG_PER_H
-        sig0[FA] = math.sqrt(slow["accel"][0]) / UG
+        sig0[FG] = np.sqrt(slow["gyro"][0]) / DEG_PER_H
+        sig0[FA] = np.sqrt(slow["accel"][0]) / UG
     P0 = np.diag(sig0 ** 2)
     P0[PHI, PHI0] = P0[PHI0, PHI] = np.diag(sig0[PHI] ** 2)          # φ(0) = φ₀
     x_init = np.zeros(n_x)
@@ -482,8 +485,9 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
             F[fs, fs] = I3 * af
             F[ss, ss] = I3 * as_
             F[eta, fs] = F[eta, ss] = I3 * (T / window_s)
-            Q[fs, fs] = I3 * var_f * (1 - af * af) / sc ** 2
-            Q[ss, ss] = I3 * q_s * settings.flicker_slow_tau_s / 2 * (1 - as_ * as_) / sc ** 2
+            Q[fs, fs] = np.diag(var_f * (1 - af * af) / sc ** 2)
+            Q[ss, ss] = np.diag(q_s * settings.flicker_slow_tau_s / 2 * (1 - as_ * as_)
+                                / sc ** 2)
     # the rows of F that change per step (navigation errors) or are not identity rows (the
     # bias wander) come first in the internal order: F = [[F_d], [0 I]] there
     dyn = np.arange(6) if not wander else np.r_[0:6, N_STATES:N_STATES_WANDER]
