@@ -31,6 +31,11 @@ class ThermalPart:
         self.network = realised_network(scenario)
         self.integrator = ThermalIntegrator(self.network, self.step, scenario.chamber.air_tau_s,
                                             controller=scenario.chamber.controller)
+        #: the chamber loop's noise streams (docs/thermal.md §1.4): (seed, unit) of the run
+        loop = self.integrator.chamber_loop
+        self.chamber_noise = ((scenario.seed, scenario.unit)
+                              if loop is not None and getattr(loop, "noise_channels", 0)
+                              else None)
         #: a vehicle's bay (sim/thermal/vehicle_bay.py) and its route: the airflow scales the
         #: ambient conductances with the ground speed (None: still air, as in a chamber)
         self.bay = None
@@ -60,7 +65,13 @@ class ThermalPart:
         if self.bay is not None:             # φ − 1 at each step's start (held over the step)
             bay, route = self.bay
             film = bay.factor(np.linalg.norm(route.states(t[:-1]).v_n, axis=1)) - 1.0
-        states, new_state = self.integrator.propagate(state, setpoint, power, film_factor=film)
+        noise = None
+        if self.chamber_noise is not None:   # one stream per 600-s block: chunking-invariant
+            loop = self.integrator.chamber_loop
+            noise = generator(*self.chamber_noise, "chamber_loop", "", b).standard_normal(
+                (m * loop.n_sub, loop.noise_channels))
+        states, new_state = self.integrator.propagate(state, setpoint, power, film_factor=film,
+                                                      chamber_noise=noise)
         self._extra_rows = self.integrator.extra_rows()
         trace = ThermalTrace(t_s=t[1:], step_s=self.step, setpoint_c=setpoint[1:],
                              air_c=np.asarray(states[:, 0]), power=power,

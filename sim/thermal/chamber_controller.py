@@ -32,6 +32,17 @@ air is the output of a closed loop, as in a climatic chamber:
 
       τ_s dT_s/dt = T_a − T_s                                                           (C2)
 
+  The controller reads it as ``y_k = Q(T_s(t_k) + σ_y w_k)``: white read-out noise
+  ``sensor_noise_c`` (1σ per sample) and the reading's quantisation ``Q`` to multiples of
+  ``sensor_resolution_c`` (round to nearest). Both default to 0 (off).
+* **The loop's own noise**: the conditioning delivered over a sample is the commanded one plus
+  ``σ_q w'_k`` (``conditioning_noise_c_per_min``, 1σ, held over the sample) — the irregular
+  part of heater and refrigeration output (relay/valve timing, airflow), which the controller
+  must reject like any disturbance. Default 0 (off). ``w``, ``w'`` are standard normal draws
+  of the run's random tree, keyed by the 600-s block, so splitting a run never changes them.
+  With either noise on, the air at a constant setpoint hunts around the sinusoid instead of
+  repeating it.
+
 * **Digital PID** with sample period ``h_c`` (``sample_s``, rounded so that a whole number of
   periods fits in a thermal step), output held between samples (zero-order hold), derivative
   on the measurement with a first-order filter (``N = 10``) and back-calculation anti-windup
@@ -59,6 +70,10 @@ recurrence (each sample depends on the clip of the previous), run in plain Pytho
 2–3 µs per controller sample. The carried state is
 ``[T_a, T_s, I, D, y_prev, cos, sin]``; the chamber air is not heated by the device (a few W
 against the chamber's kW).
+
+Why this file is long: the controller's keys, its discretisation and its two recurrences (the
+plain one and the noisy copy kept apart so that the plain loop's speed is unchanged) are one
+model; split, each would read the other's coefficients.
 """
 
 from __future__ import annotations
@@ -77,7 +92,8 @@ DERIVATIVE_FILTER_N = 10.0
 
 KEYS = ("sensor_tau_s", "sample_s", "kp_per_s", "ti_s", "td_s", "max_heating_c_per_min",
         "max_cooling_c_per_min", "loss_tau_s", "lab_c", "ripple_amplitude_c",
-        "ripple_period_s", "min_temperature_c")
+        "ripple_period_s", "min_temperature_c", "sensor_noise_c", "sensor_resolution_c",
+        "conditioning_noise_c_per_min")
 
 #: Defaults (docs/thermal.md §1.4 says where each comes from).
 DEFAULTS = {
@@ -90,6 +106,9 @@ DEFAULTS = {
     "ripple_amplitude_c": 0.3,       # datasheet "temperature fluctuation" ±0.1…±0.5 K
     "ripple_period_s": 600.0,        # refrigeration cycling period (assumed)
     "min_temperature_c": -70.0,      # lowest temperature of a cascade refrigeration system
+    "sensor_noise_c": 0.0,           # control reading's white noise, 1σ per sample (off)
+    "sensor_resolution_c": 0.0,      # control reading's quantisation step (off)
+    "conditioning_noise_c_per_min": 0.0,   # irregular heater/refrigeration output, 1σ (off)
 }
 
 
@@ -112,6 +131,9 @@ class ChamberController:
     ripple_amplitude_c: float = DEFAULTS["ripple_amplitude_c"]
     ripple_period_s: float = DEFAULTS["ripple_period_s"]
     min_temperature_c: float = DEFAULTS["min_temperature_c"]
+    sensor_noise_c: float = DEFAULTS["sensor_noise_c"]
+    sensor_resolution_c: float = DEFAULTS["sensor_resolution_c"]
+    conditioning_noise_c_per_min: float = DEFAULTS["conditioning_noise_c_per_min"]
 
     @classmethod
     def from_config(cls, table: Mapping[str, Any], ctx: Ctx) -> "ChamberController":
@@ -143,6 +165,11 @@ class ChamberController:
         kw["min_temperature_c"] = get_float(table, "min_temperature_c", ctx,
                                             DEFAULTS["min_temperature_c"], min=-200.0,
                                             max=kw["lab_c"] - 1.0)
+        for key in ("sensor_noise_c", "sensor_resolution_c"):
+            kw[key] = get_float(table, key, ctx, DEFAULTS[key], min=0.0, max=10.0)
+        kw["conditioning_noise_c_per_min"] = get_float(
+            table, "conditioning_noise_c_per_min", ctx, DEFAULTS["conditioning_noise_c_per_min"],
+            min=0.0, max=100.0)
         c = cls(**kw)
         need = (c.lab_c - c.min_temperature_c) / (c.loss_tau_s * c.max_cooling_c_per_min / 60.0)
         if need >= 1.0:
@@ -219,6 +246,12 @@ class ChamberLoop:
         self._pal, self._psl = f(E[0, 5] * c.lab_c), f(E[1, 5] * c.lab_c)
         self._rcc, self._rcs = f(E[2, 2]), f(E[2, 3])
         self._rsc, self._rss = f(E[3, 2]), f(E[3, 3])
+        #: read-out noise [K], quantisation step [K], conditioning noise [K/s] (0: off)
+        self.sensor_noise = float(c.sensor_noise_c)
+        self.resolution = float(c.sensor_resolution_c)
+        self.conditioning_noise = float(c.conditioning_noise_c_per_min) / 60.0
+        #: standard normal draws per controller sample the loop needs (0: deterministic)
+        self.noise_channels = 2 if (self.sensor_noise > 0 or self.conditioning_noise > 0) else 0
 
     # ----------------------------------------------------------------- linear analysis
 
@@ -274,12 +307,14 @@ class ChamberLoop:
 
     # ----------------------------------------------------------------- the loop
 
-    def run(self, state: tuple[float, ...], setpoint_c: np.ndarray
-            ) -> tuple[np.ndarray, tuple[float, ...]]:
+    def run(self, state: tuple[float, ...], setpoint_c: np.ndarray,
+            noise: np.ndarray | None = None) -> tuple[np.ndarray, tuple[float, ...]]:
         """Advance ``m = len(setpoint_c) − 1`` thermal steps.
 
         ``setpoint_c`` (m+1,) rate-limited setpoint at the thermal grid points (linear in
-        between, sampled at every controller instant). Returns the chamber air (m,) at the
+        between, sampled at every controller instant). ``noise`` (m·n_sub, 2): standard normal
+        draws per controller sample for the read-out and the conditioning noise (used only when
+        :attr:`noise_channels` > 0; None: no noise). Returns the chamber air (m,) at the
         grid points ``t0 + h … t0 + m·h`` and the new state.
         """
         s = np.asarray(setpoint_c, dtype=float).reshape(-1)
@@ -294,6 +329,8 @@ class ChamberLoop:
             frac = np.arange(n) / n
             r_all = (s[:-1, None] + (s[1:, None] - s[:-1, None]) * frac[None, :]).reshape(-1)
             r_all = r_all.tolist()
+        if self.resolution > 0 or (self.noise_channels and noise is not None):
+            return self._run_noisy(state, r_all, out, noise)
         ta, ts, i, d, yp, oc, os_ = (float(v) for v in state)
         kp, i_e, i_aw, d_a, d_b = self.kp, self.i_e, self.i_aw, self.d_a, self.d_b
         qh, qc0 = self.q_heat, self.q_cool
@@ -314,6 +351,52 @@ class ChamberLoop:
             u = qh if v > qh else (qc if v < qc else v)
             ta, ts = (paa * ta + pas * ts + pau * u + pac * oc + pas_ * os_ + pal,
                       psa * ta + pss * ts + psu * u + psc * oc + pss_ * os_ + psl)
+            oc, os_ = rcc * oc + rcs * os_, rsc * oc + rss * os_
+            i = i + i_e * e + i_aw * (u - v)
+            yp = y
+            if (j + 1) % n == 0:
+                out[k] = ta
+                k += 1
+        return out, (ta, ts, i, d, yp, oc, os_)
+
+    def _run_noisy(self, state: tuple[float, ...], r_all: list, out: np.ndarray,
+                   noise: np.ndarray | None) -> tuple[np.ndarray, tuple[float, ...]]:
+        """:meth:`run` with the read-out noise and quantisation and the conditioning noise
+        (module docstring); the same recurrence, kept apart so that the plain loop stays as
+        fast as before."""
+        n = self.n_sub
+        if noise is None:
+            w_y = w_q = [0.0] * len(r_all)
+        else:
+            w = np.asarray(noise, dtype=float)
+            if w.shape != (len(r_all), 2):
+                raise ValueError(f"noise needs shape ({len(r_all)}, 2), got {w.shape}")
+            w_y = (w[:, 0] * self.sensor_noise).tolist()
+            w_q = (w[:, 1] * self.conditioning_noise).tolist()
+        lsb = self.resolution
+        ta, ts, i, d, yp, oc, os_ = (float(v) for v in state)
+        kp, i_e, i_aw, d_a, d_b = self.kp, self.i_e, self.i_aw, self.d_a, self.d_b
+        qh, qc0 = self.q_heat, self.q_cool
+        tmin = self.t_zero_c
+        span = self.controller.lab_c - tmin
+        paa, pas, psa, pss = self._paa, self._pas, self._psa, self._pss
+        pac, pas_, psc, pss_ = self._pac, self._pas_, self._psc, self._pss_
+        pau, psu, pal, psl = self._pau, self._psu, self._pal, self._psl
+        rcc, rcs, rsc, rss = self._rcc, self._rcs, self._rsc, self._rss
+        k = 0
+        for j, r in enumerate(r_all):
+            y = ts + w_y[j]
+            if lsb > 0:
+                y = round(y / lsb) * lsb
+            d = d_a * d - d_b * (y - yp)
+            e = r - y
+            v = kp * e + i + d
+            f = (ta - tmin) / span                  # refrigeration capacity left at T_a
+            qc = -qc0 * (1.0 if f >= 1.0 else (f if f > 0.0 else 0.0))
+            u = qh if v > qh else (qc if v < qc else v)
+            ua = u + w_q[j]                         # what the conditioning really delivers
+            ta, ts = (paa * ta + pas * ts + pau * ua + pac * oc + pas_ * os_ + pal,
+                      psa * ta + pss * ts + psu * ua + psc * oc + pss_ * os_ + psl)
             oc, os_ = rcc * oc + rcs * os_, rsc * oc + rss * os_
             i = i + i_e * e + i_aw * (u - v)
             yp = y

@@ -379,7 +379,8 @@ class ThermalIntegrator:
     # ----------------------------------------------------------------- propagation
 
     def propagate(self, state: Any, setpoint_c: Any, power_on: Any, t0_s: float | None = None,
-                  film_factor: Any = None) -> tuple[np.ndarray, ThermalState]:
+                  film_factor: Any = None, chamber_noise: Any = None
+                  ) -> tuple[np.ndarray, ThermalState]:
         """Advance ``m`` steps exactly.
 
         ``state``: ``[T_air, T_nodes]`` at ``t0`` (from :meth:`initial_state` or a previous
@@ -390,6 +391,8 @@ class ThermalIntegrator:
         needed only by further boundaries with a periodic temperature (default: the time the
         state carries, 0 for a plain array). ``film_factor`` (m,): φ − 1 per step, the airflow's
         scaling of every ambient conductance held over the step (a vehicle's bay; None: none).
+        ``chamber_noise`` (m·n_sub, 2): the chamber loop's standard normal draws per controller
+        sample (:meth:`~rlgsim.sim.thermal.chamber_controller.ChamberLoop.run`; None: none).
         """
         s = np.asarray(setpoint_c, dtype=float).reshape(-1)
         u = np.asarray(power_on, dtype=float).reshape(-1)
@@ -441,7 +444,12 @@ class ThermalIntegrator:
             sk = s[k0:k1 + 1]
             if self.chamber_loop is not None:
                 # the closed air loop gives the air on the grid; it drives the nodes (FOH)
-                air_next, chamber = self.chamber_loop.run(chamber, sk)
+                if chamber_noise is None:
+                    air_next, chamber = self.chamber_loop.run(chamber, sk)
+                else:
+                    per = self.chamber_loop.n_sub
+                    air_next, chamber = self.chamber_loop.run(
+                        chamber, sk, chamber_noise[k0 * per:k1 * per])
                 sk = np.concatenate(([air], air_next))
             bk = None
             if self.boundaries:
