@@ -424,7 +424,9 @@ def filter_settings(noise: dict | None = None, *, arw_deg_per_sqrt_h: float | No
     ``unit_levels`` (:meth:`DatasetReader.unit_noise`: the unit's own levels per axis, SI)
     replace the table's nominal ones where given — what the unit's noise characterisation
     (an Allan-variance test, IEEE Std 952) gives before it is calibrated; explicit
-    ``arw_deg_per_sqrt_h`` / ``vrw_ug_per_sqrt_hz`` still win."""
+    ``arw_deg_per_sqrt_h`` / ``vrw_ug_per_sqrt_hz`` still win. The accelerometer parameters'
+    linear drift within a window is estimated (``FilterSettings.accel_drift``), so that the
+    reported values are window means during a temperature ramp."""
     nz = dict(noise or {})
     lv = dict(unit_levels or {})
     arw = arw_deg_per_sqrt_h if arw_deg_per_sqrt_h is not None else nz.get(
@@ -447,7 +449,7 @@ def filter_settings(noise: dict | None = None, *, arw_deg_per_sqrt_h: float | No
         gyro_bias_instability_rad_per_s=levels["gyro_bi"],
         gyro_rrw_rad_per_s_per_sqrt_s=levels["gyro_rrw"],
         accel_bias_instability_m_per_s2=levels["accel_bi"],
-        accel_rrw_m_per_s2_per_sqrt_s=levels["accel_rrw"])
+        accel_rrw_m_per_s2_per_sqrt_s=levels["accel_rrw"], accel_drift=True)
 
 
 def calibrate_one(reader: DatasetReader, spec: WindowSpec, settings: FilterSettings,

@@ -78,6 +78,11 @@ carry the bias wander per axis — a fast and a slow Gauss–Markov process stan
 decades (Keshner 1982) plus the random walk, and their running mean over the window — and the
 reported biases are window means (docs/calibration.md, "Slow bias noise").
 
+Thermal drift in a window (``FilterSettings.accel_drift``; docs/calibration.md): 9 more
+constant states δ, the change over the window of b_a, s_a⁺, s_a⁻, enter F through their
+parameters' columns of Φ_ξp times (t_k/T_w − 1/2) at the step middle; not fed back, so the
+reported p̄ is the mid-window value, the window mean of a linear drift during a ramp.
+
 Measurement: z = v̂(t_k) at KF step ends that lie inside a static dwell (minus a margin after
 and before the table moves), H = [0 I 0], R = σ_v² I.
 
@@ -128,6 +133,9 @@ PARAMS = slice(6, 30)
 FG, FA, SLG, SLA, ETA_G, ETA_A = (slice(33, 36), slice(36, 39), slice(39, 42), slice(42, 45),
                                   slice(45, 48), slice(48, 51))
 N_STATES_WANDER = 51
+#: Optional drift states: the change over the window δ of b_a, s_a⁺, s_a⁻ (µg, ppm).
+DRIFT_OF = np.r_[18:27]
+N_DRIFT = 9
 SCALE_WANDER = np.array(([DEG_PER_H] * 3 + [UG] * 3) * 3)
 #: Gyro misalignment states (row, column) of E_g, and accelerometer ones of E_a.
 GYRO_MIS = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
@@ -179,7 +187,10 @@ class FilterSettings:
     ``accel_bias_instability_m_per_s2``, ``accel_rrw_m_per_s2_per_sqrt_s``: the slow bias
     noise (flicker, random walk), one value or one per axis (3,); when any is > 0 the filter
     carries the bias wander and its running mean (18 more states) and reports the window-mean
-    biases;
+    biases; ``accel_drift``: 9 more states, the change δ over the window of each
+    accelerometer bias and ± scale factor (linear drift, p(t) = p̄ + δ (t/T_w − 1/2)), so that
+    p̄ — the reported value — is the window mean during a temperature ramp, with prior 1σ
+    ``accel_drift_prior`` (µg, ppm; as wide as the parameters' own priors);
     ``max_iterations``; convergence when every parameter correction is below
     ``tol_sigma`` × its σ or ``tol_abs`` (filter units); ``reuse_tol``: a pass reuses the gains
     of the last full pass in this process (same window shape, motions and settings) when its
@@ -203,6 +214,8 @@ class FilterSettings:
     gyro_rrw_rad_per_s_per_sqrt_s: float | np.ndarray = 0.0
     accel_bias_instability_m_per_s2: float | np.ndarray = 0.0
     accel_rrw_m_per_s2_per_sqrt_s: float | np.ndarray = 0.0
+    accel_drift: bool = False
+    accel_drift_prior: tuple[float, float] = (1000.0, 1000.0)
     max_iterations: int = 10
     tol_sigma: float = 1e-2
     tol_abs: float = 1e-4
@@ -427,6 +440,28 @@ def _filter_setup(rate_hz, settings):
     return dt, per_step, per_step // subs
 
 
+def _prior(settings: FilterSettings, slow: dict, wander: bool
+           ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The filter's state scale (SI per filter unit), prior covariance P0 (filter units) and
+    the index where the drift states start (= the state count without them): the 33 states,
+    the 18 bias-wander states when ``wander`` (the fast processes stationary from the start,
+    the slow ones and the running means at 0), the 9 drift states with
+    ``settings.accel_drift``."""
+    n_x = N_STATES_WANDER if wander else N_STATES
+    scale = np.concatenate([SCALE, SCALE_WANDER]) if wander else SCALE
+    sig0 = np.concatenate([settings.prior_sigma(), np.zeros(n_x - N_STATES)])
+    if wander:
+        sig0[FG] = np.sqrt(slow["gyro"][0]) / DEG_PER_H
+        sig0[FA] = np.sqrt(slow["accel"][0]) / UG
+    if settings.accel_drift:                # linear drift of b_a, s_a⁺, s_a⁻ over the window
+        scale = np.concatenate([scale, SCALE[DRIFT_OF]])
+        b, s_ = settings.accel_drift_prior
+        sig0 = np.concatenate([sig0, [b] * 3 + [s_] * 6])
+    P0 = np.diag(sig0 ** 2)
+    P0[PHI, PHI0] = P0[PHI0, PHI] = np.diag(sig0[PHI] ** 2)          # φ(0) = φ₀
+    return scale, P0, n_x
+
+
 def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: float,
                motions: Sequence[CommandedMotion], g: float, w_ie: np.ndarray,
                settings: FilterSettings, velocity_sigma: float,
@@ -455,15 +490,9 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     window_s = n_steps * T
     slow = settings.slow_noise()
     wander = any(np.any(v > 0) for pair in slow.values() for v in pair)
-    n_x = N_STATES_WANDER if wander else N_STATES
-    scale = np.concatenate([SCALE, SCALE_WANDER]) if wander else SCALE
+    scale, P0, n_base = _prior(settings, slow, wander)
+    n_x = scale.size
     inv = 1.0 / scale
-    sig0 = np.concatenate([settings.prior_sigma(), np.zeros(n_x - N_STATES)])
-    if wander:                              # the fast process is stationary from the start
-        sig0[FG] = np.sqrt(slow["gyro"][0]) / DEG_PER_H
-        sig0[FA] = np.sqrt(slow["accel"][0]) / UG
-    P0 = np.diag(sig0 ** 2)
-    P0[PHI, PHI0] = P0[PHI0, PHI] = np.diag(sig0[PHI] ** 2)          # φ(0) = φ₀
     x_init = np.zeros(n_x)
     if x0 is not None:
         x_init[:N_STATES] = x0
@@ -500,6 +529,10 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     if wander:                              # the wander enters like the bias it adds to
         for w_cols, b_cols in ((FG, BG), (SLG, BG), (FA, BA), (SLA, BA)):
             f_dyn[:, 0:6, pos[w_cols]] = f_dyn[:, 0:6, pos[b_cols]]
+    if settings.accel_drift:                # p(t) = p̄ + δ (t/T_w − 1/2), step middles
+        tau = (np.arange(n_steps) + 0.5) * T / window_s - 0.5
+        f_dyn[:, 0:6, pos[n_base:]] = (f_dyn[:, 0:6, pos[DRIFT_OF]]
+                                       * tau[:, None, None])
     qs = q * (inv[0:6, None] * inv[None, 0:6])
     Q = Q[np.ix_(order, order)]
     full_q = settings.param_random_walk is not None
@@ -651,7 +684,7 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         if np.all(np.abs(corr) <= np.maximum(settings.tol_sigma * sig, settings.tol_abs)):
             converged = True
             break
-    if x.size > N_STATES:
+    if x.size - (N_DRIFT if settings.accel_drift else 0) > N_STATES:
         # report the window-mean biases b + η(T_w) and their covariance
         M = np.eye(x.size)
         M[BG, ETA_G] = np.eye(3)
@@ -659,6 +692,7 @@ def _calibrate_window(gyro_pulses, accel_pulses, rate_hz, motions, nominal, lati
         P = (M @ P @ M.T)[:N_STATES, :N_STATES]
         model = model.with_(d_g=model.d_g + x[ETA_G] * DEG_PER_H,
                             d_a=model.d_a + x[ETA_A] * UG)
+    P = P[:N_STATES, :N_STATES]             # the drift states are not reported
     return WindowResult(model=model, sigma=np.sqrt(np.diag(P)), covariance=P, c0=c0,
                         iterations=it, converged=converged, corrections=corrections,
                         residual_rms_m_per_s=diag["residual_rms"],
