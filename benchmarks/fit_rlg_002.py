@@ -29,7 +29,11 @@ shifts ≈ 0 and s ≈ 1.
 σ(k·law + r + s·(y − b)) of each run matches the "before" row (what rlg_002 carried before the
 reading; it makes every environment noise-dominated, docs/studies.md).
 
-Usage: ``python benchmarks/fit_rlg_002.py [--reading mean|sigma] [--rate-hz 100] [--workdir DIR]``.
+``--seeds N`` prints instead how one run's mean, σ and mean/σ scatter over N noise seeds of the
+study's unit (constant 20 °C and 5 °C/min).
+
+Usage: ``python benchmarks/fit_rlg_002.py [--reading mean|sigma] [--seeds N] [--rate-hz 100]
+[--workdir DIR]``.
 """
 
 from __future__ import annotations
@@ -195,17 +199,50 @@ def fit_sigma_reading(runs: list[dict]) -> None:
         print(f"{lab:<18} {target[i]:9.5f} {before[i]:9.5f} {after[i]:9.5f}")
 
 
+def seed_spread(n_seeds: int, rate_hz: int, work: pathlib.Path) -> None:
+    """The study's unit (its device_seed) in its constant 20 °C and 5 °C/min scenarios with
+    ``n_seeds`` other noise seeds (2301 …): mean bias, σ about constant + T + dT/dt and their
+    ratio — how far one run's figures scatter around the fitted ones."""
+    study = load_study("paper002")
+    envs = {e["train"][0]["scenario"]: e for e in study.tables["environment"]}
+    for name in ("paper002_const_20", "paper002_cycle_5cpm"):
+        pub = envs[name]["published"]
+        before = pub["stability_before_deg_per_h"]
+        after = pub["stability_after_deg_per_h"]["MLR (BIC)"]
+        m, s = [], []
+        for seed in range(2301, 2301 + n_seeds):
+            sc = scenario_for(study, name)
+            sc = dataclasses.replace(sc, seed=seed, device_seed=study.device_seed,
+                                     acquisition=dataclasses.replace(
+                                         sc.acquisition, sample_rate_hz=float(rate_hz)))
+            w = windows(pathlib.Path(simulate(sc, work / f"{name}-{seed}.h5", progress=False)),
+                        3600.0)
+            m.append(float(w["y"].mean()))
+            s.append(float(np.std(model_resid(w, w["y"]), ddof=1)))
+        f = np.abs(m) / np.asarray(s)
+        print(f"{name}, {n_seeds} noise seeds: mean {np.mean(m):.5f} ± {np.std(m, ddof=1):.5f} "
+              f"(paper {before:.5f}); σ about constant + T + dT/dt {np.mean(s):.5f} ± "
+              f"{np.std(s, ddof=1):.5f} (paper MLR {after:.5f}); mean/σ {f.mean():.2f} ± "
+              f"{f.std(ddof=1):.2f}, {f.min():.2f} … {f.max():.2f} (paper {before / after:.2f})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reading", choices=("mean", "sigma"), default="mean")
     ap.add_argument("--rate-hz", type=int, default=100)
     ap.add_argument("--workdir", default=None)
+    ap.add_argument("--seeds", type=int, default=0,
+                    help="instead of fitting: the shipped unit's scatter over this many noise "
+                         "seeds (constant 20 °C and 5 °C/min)")
     args = ap.parse_args()
     work = pathlib.Path(args.workdir or tempfile.mkdtemp(prefix="fit002-"))
     work.mkdir(parents=True, exist_ok=True)
     print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f}")
-    runs = simulate_runs(args.rate_hz, work)
-    (fit_mean_reading if args.reading == "mean" else fit_sigma_reading)(runs)
+    if args.seeds > 0:
+        seed_spread(args.seeds, args.rate_hz, work)
+    else:
+        runs = simulate_runs(args.rate_hz, work)
+        (fit_mean_reading if args.reading == "mean" else fit_sigma_reading)(runs)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
