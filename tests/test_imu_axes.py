@@ -264,3 +264,42 @@ def test_missing_models_folder_is_one_line_exit_2(imu_dataset, tmp_path, capsys)
         assert main(["navigate", str(imu_dataset), "--models", str(arg)]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and str(arg) in err
+
+
+def test_retune_false_refits_at_the_tuned_point(tmp_path):
+    """``retune = false``: a drawn unit's PSO-SVR is scikit-learn's SVR at the study unit's
+    tuned (C, gamma) fitted on the drawn unit's windows (the reference built here from
+    sklearn alone), and the study unit's own model is left as it was."""
+    import dataclasses
+
+    from sklearn.compose import TransformedTargetRegressor
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVR
+
+    from rlgsim.estimators.columns import Columns
+    from rlgsim.lab.studies.bias_compensation import check
+    from rlgsim.lab.studies.fitting import fit
+    from rlgsim.lab.studies.imu_axes import axis_predictions
+    from rlgsim.lab.studies.runs import RunSeries
+    spec = dataclasses.replace(check(_study(tmp_path)).compensators[0], kind="pso_svr",
+                               params={"n_agents": 4, "max_iter": 2})
+    rng = np.random.default_rng(5)
+
+    def series(shift: float) -> RunSeries:
+        t = np.linspace(-20.0, 60.0, 120)
+        y = 0.01 * np.tanh((t - shift) / 15.0) + 1e-4 * rng.standard_normal(t.size)
+        return RunSeries("r", pathlib.Path("r.h5"), 1, 1, np.arange(1, 121) * 100.0, y, y, 0 * y,
+                         Columns({"T": t, "dT/dt": 0 * t, "U": 0 * t}), 0.0, {})
+    own, drawn = series(10.0), series(25.0)
+    f0 = fit(spec, own.X, own.y, 7)
+    before = f0.model.predict(np.asarray(own.X.select(["T"])))
+    pred = axis_predictions([spec], {spec.name: f0}, [drawn], drawn, 7, retune=False)
+    C, gamma = f0.model.best_params_["C"], f0.model.best_params_["gamma"]
+    ref = TransformedTargetRegressor(
+        regressor=make_pipeline(StandardScaler(), SVR(kernel="rbf", C=C, gamma=gamma,
+                                                      epsilon=0.1)),
+        transformer=StandardScaler()).fit(drawn.X["T"][:, None], drawn.y)
+    np.testing.assert_allclose(pred[spec.name], ref.predict(drawn.X["T"][:, None]),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(f0.model.predict(np.asarray(own.X.select(["T"]))), before)
