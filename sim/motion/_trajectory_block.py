@@ -100,7 +100,7 @@ def _piece_hermite(coef, dcoef, d2coef, legs_i, j, ta, d, sub, pos, quads, earth
     res[0], res[1], res[2], res[3], res[4], res[5] = sw0, sw1, sw2, sf0, sf1, sf2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _piece_level(coef, dcoef, legs_i, legs_f, dense, j, ta, d, sub, c, quads, level, earth,
                  res):  # pragma: no cover - compiled
     """∫ω_ib^b, ∫f^b over leg time [ta, ta + d) of leg ``j`` of constant attitude C_b^n =
@@ -144,7 +144,7 @@ def _piece_level(coef, dcoef, legs_i, legs_f, dense, j, ta, d, sub, c, quads, le
     res[5] = c[2] * sf0 + c[5] * sf1 + c[8] * sf2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, j, ta, d, sub, frac, quads, earth, w,
            c, pos, res):  # pragma: no cover - compiled
     """∫ω_ib^b, ∫f^b over leg time [ta, ta + d) of leg ``j`` → res[0:6] by the leg's

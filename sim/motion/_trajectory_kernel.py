@@ -15,7 +15,9 @@ resolution of the inputs. The position enters only through those slowly varying 
 **Layout** (few arrays per call: numba counts the references of every array handed to a
 function that it does not inline, ~10 ns each): a leg's integers ``legs_i`` (m, 6) = (position
 kind, first dense step, number of steps, quadrature level, standing still, geodetic), its floats
-``legs_f`` (m, 5) = (start [s], duration [s], start L, λ [rad], h [m]); the dense steps
+``legs_f`` (m, 5) = (start [s], duration [s], start L, λ [rad], h [m]); the small helpers are
+inlined where they are called (``inline="always"``: no such bookkeeping; the larger ones not, to
+keep the first compilation short); the dense steps
 ``dense`` (S, 26) = (t_old, h, the seven rows F_0 … F_6 of three components, y_old); one work
 array ``w`` (32,) = the state (0..19), the channels (20..25) and their rates (26..31).
 
@@ -130,7 +132,7 @@ def _state_geodetic(coef, dcoef, d2coef, j, tau, w, e2, a_axis):  # pragma: no c
     w[19] = h
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _position_rate(p0, p2, ve, vn, vu, e2, a_axis):  # pragma: no cover - compiled
     """(L̇, λ̇, ḣ) at latitude ``p0`` [rad], height ``p2`` [m] and ENU velocity."""
     s = math.sin(p0)
@@ -140,13 +142,13 @@ def _position_rate(p0, p2, ve, vn, vu, e2, a_axis):  # pragma: no cover - compil
     return vn / (rm + p2), ve / ((rn + p2) * math.cos(p0)), vu
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):  # pragma: no cover - compiled
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
             a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _position(legs_i, legs_f, dense, j, tau):  # pragma: no cover - compiled
     """(L, λ, h) [rad, rad, m] of leg ``j`` (dense or fixed) at leg time ``tau``.
 
@@ -188,7 +190,7 @@ def _position(legs_i, legs_f, dense, j, tau):  # pragma: no cover - compiled
     return y0 + dense[s, 23], y1 + dense[s, 24], y2 + dense[s, 25]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _earth_terms(lat, hgt, ve, vn, vu, earth):  # pragma: no cover - compiled
     """ω_ie^n + ω_en^n, (2ω_ie^n + ω_en^n) × v^n and γ (ENU) at latitude ``lat`` [rad],
     height ``hgt`` [m] and ground velocity (ve, vn, vu) [m/s] (the formulas of
