@@ -8,6 +8,8 @@ of three such gyros:
   drawn from the same preset: the same runs with the Monte Carlo unit index
   ``unit + j·AXIS_UNIT_STRIDE`` (j = 1, 2), i.e. the existing unit mechanism of the seed tree
   (``rlgsim.sim.rng``): another drawn device (the preset's spreads), its own run-to-run draws
+  (``sim/run/run_to_run.py`` keys them by unit: turn-on bias, and also the laboratory and
+  chamber air offsets, which in one real chamber the three would share — a simplification)
   and noise. They start from the study unit's loaded scenario, so a Monte Carlo campaign's
   chamber variation (``sim/run/unit_variations.py``) is the study unit's for all three: the three
   gyros of one IMU share one chamber programme. The drawn units are simulated into the study's
@@ -45,7 +47,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import pathlib
 import time
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -225,10 +226,10 @@ def intro(plan: NavPlan, unit: int, test_label: str, span_h: float, note: str = 
              "point and inputs (no second search).")
     return (f"The device has one gyro, so it navigates an IMU of three such gyros: this study's "
             f"unit on body y (North), and two more units drawn from the same preset (Monte Carlo "
-            f"units {u1} and {u2}: another drawn device, run-to-run draws and noise, the same "
-            f"chamber programme) on x (East) and z (up). Each unit's gyro error (its pulses "
-            f"through the nominal weight minus the true increment along its input axis) rides on "
-            f"the exact increments of the run's motion on its axis. Compensated variants "
+            f"units {u1} and {u2}: another drawn device, its own run-to-run draws and noise, "
+            f"the same chamber programme) on x (East) and z (up). Each unit's gyro error (its "
+            f"pulses through the nominal weight minus the true increment along its input axis) "
+            f"rides on the exact increments of the run's motion on its axis. Compensated variants "
             f"({names}): the same method trained per axis, each unit's model fitted on that "
             f"unit's own train runs and subtracted from its own test run {test_label}.{tuned} "
             f"Ideal accelerometers: the compensators model the gyro bias only, and an "
