@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 #: ``legs_i`` columns
@@ -213,3 +214,13 @@ def _earth_terms(lat, hgt, ve, vn, vu, earth):  # pragma: no cover - compiled
     c2 = 2.0 * wie2 + wen2
     return (wen0, wie1 + wen1, wie2 + wen2, c1 * vu - c2 * vn, c2 * ve - wen0 * vu,
             wen0 * vn - c1 * ve, gam)
+
+
+@njit(cache=True, nogil=True)
+def position_rate_at(coef, dcoef, j, tau, lat, hgt, e2, a_axis):  # pragma: no cover - compiled
+    """(L̇, λ̇, ḣ) [rad/s, rad/s, m/s] of leg ``j`` (body-velocity channels) at leg time
+    ``tau``, latitude ``lat`` [rad] and height ``hgt`` [m]: the right-hand side of the
+    position's DOP853 integration (Titterton & Weston eqs. 3.85–3.87, ENU)."""
+    w = np.empty(32)
+    _state(coef, dcoef, j, tau, w)
+    return _position_rate(lat, hgt, w[12], w[13], w[14], e2, a_axis)

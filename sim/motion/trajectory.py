@@ -20,7 +20,9 @@ ENU):
     L̇ = v_N/(R_M + h),   λ̇ = v_E/((R_N + h) cos L),   ḣ = v_U
 
 integrated leg by leg with scipy's DOP853 (8th order, rtol 1e-13, atol 1e-15 rad / 1e-9 m, dense
-output of order 7): a few nanometres over hours, the only numerical integration here.
+output of order 7): a few nanometres over hours, the only numerical integration here. Its
+right-hand side is the compiled ``_trajectory_kernel.position_rate_at`` (the same formulas as
+:meth:`Trajectory._velocity`; a Python call of the NumPy form cost ~1 ms per evaluation).
 
 **Sensor inputs** (Groves 2013 eqs. 5.44, 5.54; Titterton & Weston 2004 eq. 3.71, written for ENU):
 
@@ -58,7 +60,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from rlgsim.ground.earth import (WGS84_A, WGS84_E2, WGS84_F, WGS84_GAMMA_E, WGS84_K,
-                                 WGS84_M, earth_rate_enu_rad, normal_gravity_rad, radii_of_curvature_rad,
+                                 WGS84_M, earth_rate_enu_rad, normal_gravity_rad,
                                  transport_rate_enu_rad)
 from rlgsim.ground.frames import cross_rows, quat_from_rotvec, quat_mul
 from rlgsim.ground.units import EARTH_RATE
@@ -279,13 +281,13 @@ class Trajectory:
     def _integrate_positions(self) -> list:
         """Leg by leg: the dense solution of (L, λ, h) on leg time, from the previous leg's
         end (DOP853; see the module docstring)."""
+        from rlgsim.sim.motion._trajectory_kernel import position_rate_at
         y = np.array([self.initial.lat_rad, self.initial.lon_rad, self.initial.height_m])
         out = []
         for j, leg in enumerate(self.legs):
-            def rhs(tau: float, p: np.ndarray, j: int = j) -> np.ndarray:
-                v = self._velocity(j, np.array([tau]))[2][0]
-                rm, rn = radii_of_curvature_rad(p[0])
-                return np.array([v[1] / (rm + p[2]), v[0] / ((rn + p[2]) * np.cos(p[0])), v[2]])
+            def rhs(tau: float, p: np.ndarray, j: int = j) -> tuple[float, float, float]:
+                return position_rate_at(self._coef, self._dcoef, j, tau, p[0], p[2], WGS84_E2,
+                                        WGS84_A)
             if leg.duration_s <= 0.0:
                 out.append((y.copy(), None))
                 continue
