@@ -65,45 +65,19 @@ def compensate_dataset(src: pathlib.Path, dst: pathlib.Path, models: dict[str, A
         """Eqs. (26)/(29) on one sensor's pulses, cumulatively rounded (module docstring)."""
         # per axis: parameter on the probe grid (sf ppm, bias °/h or µg) and at T_d
         if sensor == "gyro":
-            sf = [on_grid(f"gyro_sf_{a}") for a in AXES]
-            sf_d = [at_desired(f"gyro_sf_{a}") for a in AXES]
+            sf = [[on_grid(f"gyro_sf_{a}")] for a in AXES]
+            sf_d = [[at_desired(f"gyro_sf_{a}")] for a in AXES]
             b = [on_grid(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
             b_d = [at_desired(f"gyro_bias_{a}") * DEG_PER_H for a in AXES]
             k_nom = nominal.k_g
         else:
-            sfp = [on_grid(f"accel_sf_pos_{a}") for a in AXES]
-            sfn = [on_grid(f"accel_sf_neg_{a}") for a in AXES]
-            sfp_d = [at_desired(f"accel_sf_pos_{a}") for a in AXES]
-            sfn_d = [at_desired(f"accel_sf_neg_{a}") for a in AXES]
+            sf = [[on_grid(f"accel_sf_pos_{a}"), on_grid(f"accel_sf_neg_{a}")] for a in AXES]
+            sf_d = [[at_desired(f"accel_sf_pos_{a}"), at_desired(f"accel_sf_neg_{a}")]
+                    for a in AXES]
             b = [on_grid(f"accel_bias_{a}") * UG for a in AXES]
             b_d = [at_desired(f"accel_bias_{a}") * UG for a in AXES]
             k_nom = nominal.k_a_pos
-        carried = {"cum": np.zeros(3), "last": np.zeros(3)}
-
-        def transform(k0: int, pulses: np.ndarray) -> np.ndarray:
-            N = pulses.astype(float)
-            t = (np.arange(k0, k0 + N.shape[0]) + 0.5) * dt
-            comp = np.empty_like(N)
-            for i in range(3):
-                bi = np.interp(t, ptime, b[i])
-                if sensor == "gyro":
-                    ratio = (1 + 1e-6 * sf_d[i]) / (1 + 1e-6 * np.interp(t, ptime, sf[i]))
-                    kd = k_nom[i] * (1 + 1e-6 * sf_d[i])
-                else:
-                    pos = N[:, i] >= 0
-                    s_now = np.where(pos, np.interp(t, ptime, sfp[i]),
-                                     np.interp(t, ptime, sfn[i]))
-                    s_d = np.where(pos, sfp_d[i], sfn_d[i])
-                    ratio = (1 + 1e-6 * s_d) / (1 + 1e-6 * s_now)
-                    kd = k_nom[i] * (1 + 1e-6 * s_d)
-                comp[:, i] = ratio * N[:, i] + kd * (b_d[i] - bi) * dt
-            c = carried["cum"] + np.cumsum(comp, axis=0)
-            r = np.rint(c)
-            out = np.diff(np.vstack([carried["last"], r]), axis=0).astype(np.int32)
-            carried["cum"], carried["last"] = c[-1], r[-1]
-            return out
-
-        return transform
+        return _Transform(ptime, dt, sf, sf_d, b, b_d, k_nom)
 
     return rewrite_pulses(src, dst, make_transform,
                           title_suffix=f" — pulses compensated to {desired_c} °C",
@@ -133,3 +107,61 @@ def inputs_outside_range(src: pathlib.Path, xs: dict[str, np.ndarray], probes: d
         share, excess, _ = outside_range({"T": xs[param]}, {"T": grid}, ["T"])
         out[param] = (share, excess)
     return out
+
+
+class _Transform:
+    """Eqs. (26)/(29) on one sensor's pulse blocks, in sample order, cumulatively rounded.
+
+    ``sf[i]``/``sf_d[i]``: axis i's scale-factor error [ppm] on the probe grid ``ptime`` and
+    at T_d — one entry (gyro), or two (accelerometer: K+ for N ≥ 0, K− for N < 0); ``b[i]``,
+    ``b_d[i]``: its bias (pulse units per second / K) likewise. Each axis is one contiguous
+    row and every intermediate is written in place, so a block costs a few passes over its
+    samples; the arithmetic is the equations' in their order (the same numbers as a
+    column-by-column evaluation: products and sums are taken term by term, and the running
+    sum is a sequential ``cumsum`` in either layout)."""
+
+    def __init__(self, ptime, dt, sf, sf_d, b, b_d, k_nom) -> None:
+        self.ptime, self.dt, self.sf, self.sf_d, self.b, self.b_d = ptime, dt, sf, sf_d, b, b_d
+        self.k_nom = k_nom
+        self.cum = np.zeros(3)
+        self.last = np.zeros(3)
+
+    def _ratio_and_weight(self, i: int, t: np.ndarray, n_i: np.ndarray):
+        """K(T_d)/K(T) per sample and K(T_d) (a scalar, or per sample by the pulse's sign)."""
+        sf, sf_d, k = self.sf[i], self.sf_d[i], self.k_nom[i]
+        den = np.interp(t, self.ptime, sf[0])
+        if len(sf) == 1:
+            num = 1 + 1e-6 * sf_d[0]
+            kd = k * num
+        else:
+            pos = n_i >= 0
+            np.copyto(den, np.interp(t, self.ptime, sf[1]), where=~pos)
+            num_p, num_n = 1 + 1e-6 * sf_d[0], 1 + 1e-6 * sf_d[1]
+            num = np.where(pos, num_p, num_n)
+            kd = np.where(pos, k * num_p, k * num_n)
+        np.multiply(den, 1e-6, out=den)
+        np.add(den, 1, out=den)
+        np.divide(num, den, out=den)
+        return den, kd
+
+    def __call__(self, k0: int, pulses: np.ndarray) -> np.ndarray:
+        n = pulses.shape[0]
+        N = pulses.T.astype(float, order="C")              # (axes, samples)
+        t = (np.arange(k0, k0 + n) + 0.5) * self.dt
+        comp = np.empty_like(N)
+        for i in range(3):
+            ratio, kd = self._ratio_and_weight(i, t, N[i])
+            np.multiply(ratio, N[i], out=comp[i])
+            drift = np.interp(t, self.ptime, self.b[i])
+            np.subtract(self.b_d[i], drift, out=drift)
+            np.multiply(kd, drift, out=drift)
+            np.multiply(drift, self.dt, out=drift)
+            np.add(comp[i], drift, out=comp[i])
+        c = np.cumsum(comp, axis=1, out=comp)
+        np.add(c, self.cum[:, None], out=c)
+        r = np.rint(c, out=N)
+        out = np.empty((n, 3), dtype=np.int32)
+        out[0] = r[:, 0] - self.last
+        out[1:] = (r[:, 1:] - r[:, :-1]).T
+        self.cum, self.last = c[:, -1].copy(), r[:, -1].copy()
+        return out
