@@ -40,7 +40,7 @@ def _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt):  # pragma: no cover - compi
         x[r] = xt[r]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T):  # pragma: no cover - compiled
     """P ← F_k P F_kᵀ in place (no Q yet): T = F_d P over the moving rows' non-zero columns
     (``T`` (nd, n_x) is scratch), the (d, d) block T F_dᵀ computed once per symmetric pair, the
@@ -69,7 +69,7 @@ def _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T):  # pragma: no cover - c
             P[m, i] = T[i, m]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _add_process_noise(qs, k, q_dd, Q, full_q, P):  # pragma: no cover - compiled
     """P += Q_k: the step's (6, 6) navigation noise ``qs[k]`` placed into ``q_dd`` (nd, nd)
     and added over the moving block, or with ``full_q`` into ``Q`` (n_x, n_x), added whole."""
@@ -89,7 +89,7 @@ def _add_process_noise(qs, k, q_dd, Q, full_q, P):  # pragma: no cover - compile
                 P[i, m] += q_dd[i, m]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _innovation_inverse(P, r2, si):  # pragma: no cover - compiled
     """S⁻¹ into ``si`` (3, 3) for S = H P Hᵀ + r2 I = P[3:6, 3:6] + r2 I (the adjugate over
     the determinant, expanded along the first column)."""
@@ -113,7 +113,7 @@ def _innovation_inverse(P, r2, si):  # pragma: no cover - compiled
     si[2, 2] = (s00 * s11 - s01 * s10) / det
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _joseph_update(P, K, r2, prow, B):  # pragma: no cover - compiled
     """P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ in place, R = r2 I and H = [0 I 0] (rows 3:6), as
     A = P − K H P, B = r2 K − A Hᵀ, P = A + B Kᵀ (``prow`` (3, n_x), ``B`` (n_x, 3) scratch);
