@@ -569,6 +569,7 @@ def hop_lines(folder: pathlib.Path, r, law_o, raw_o, law_rms: float, ratio: floa
     the template's ``[anomalies]`` kept) beside those with it."""
     import rlgsim
     from rlgsim.lab.identify import hop_fit as H
+    from rlgsim.lab.identify import hop_mapping as HM
     from rlgsim.lab.identify import identify
     from rlgsim.sim.run.scenario import load_scenario
     from rlgsim.sim.run.simulate import simulate
@@ -595,14 +596,14 @@ def hop_lines(folder: pathlib.Path, r, law_o, raw_o, law_rms: float, ratio: floa
           f"({', '.join(f'{s:+.0f}' for _, _, s in true_spikes)} pulses), {len(sp.sizes)} found "
           f"({', '.join(f'{s:+d}' for s in sp.sizes)}); twin rate {sp.rate_per_h:.3g}/h "
           f"[{sp.rate_ci95_per_h[0]:.3g}, {sp.rate_ci95_per_h[1]:.3g}]")
-    saved = H.find_hops, H.describe_hops, H.anomalies_table
+    saved = H.find_hops, HM.describe_hops, HM.anomalies_table
     H.find_hops = lambda y, cands, cov, sel, *a, **k: (sel, None, (), 0, None)
-    H.describe_hops = lambda *a, **k: (None, ())
-    H.anomalies_table = lambda template, hops, spikes: (template, {})
+    HM.describe_hops = lambda *a, **k: (None, ())
+    HM.anomalies_table = lambda template, hops, spikes: (template, {})
     try:
         identify(folder / "orig_ident.h5", folder / "twin_before", name="before")
     finally:
-        H.find_hops, H.describe_hops, H.anomalies_table = saved
+        H.find_hops, HM.describe_hops, HM.anomalies_table = saved
     text = (folder / "twin_valid.toml").read_text().replace("twin/device.toml",
                                                              "twin_before/device.toml")
     (folder / "before_valid.toml").write_text(text)

@@ -145,11 +145,9 @@ def _m2cgen_core(svr, name: str) -> str:
     return code.strip() + "\n"
 
 
-def generate_c(model: ExportedCompensator, function_name: str | None = None) -> CSource:
-    """C source and header of an exported compensator (module docstring for the interface)."""
-    fn = c_identifier(function_name or model.name_)
-    up = fn.upper()
-    n = len(model.input_names_)
+def _banner(model: ExportedCompensator, fn: str) -> str:
+    """The comment block that opens both files: the compensator, its inputs with units and
+    training ranges, its equation in input units (polynomial form) and the flags' meaning."""
     doc = model.document_
     unit = f" [{_ascii(model.target_unit_)}]" if model.target_unit_ else ""
     lines = [f" * {fn}: compensator {_ascii(model.name_)!r} (kind {model.kind_}, form "
@@ -165,18 +163,30 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
                   *(" *   " + line for line in _wrap(model.raw_equation(ascii=True)))]
     lines += [" * range_flags (may be NULL): bit i set when x[i] is outside its training range",
               " * or NaN; the value is then an extrapolation. 0: every input inside."]
-    banner = "/*\n" + "\n".join(lines) + "\n */\n"
-    guard = f"{up}_H"
-    h = (f"{banner}#ifndef {guard}\n#define {guard}\n\n"
-         f"#define {up}_N_INPUTS {n}\n\n"
-         f"/* input names and units, in the order of x */\n"
-         f"extern const char *const {up}_INPUT_NAMES[{up}_N_INPUTS];\n"
-         f"extern const char *const {up}_INPUT_UNITS[{up}_N_INPUTS];\n"
-         f"extern const double {up}_TRAIN_MIN[{up}_N_INPUTS];\n"
-         f"extern const double {up}_TRAIN_MAX[{up}_N_INPUTS];\n\n"
-         f"double {fn}(const double x[{up}_N_INPUTS], unsigned long long *range_flags);\n\n"
-         f"#endif /* {guard} */\n")
+    return "/*\n" + "\n".join(lines) + "\n */\n"
 
+
+def _header(banner: str, fn: str, n: int) -> str:
+    """The ``.h`` file: include guard, input count, the tables' and the function's
+    declarations."""
+    up = fn.upper()
+    guard = f"{up}_H"
+    return (f"{banner}#ifndef {guard}\n#define {guard}\n\n"
+            f"#define {up}_N_INPUTS {n}\n\n"
+            f"/* input names and units, in the order of x */\n"
+            f"extern const char *const {up}_INPUT_NAMES[{up}_N_INPUTS];\n"
+            f"extern const char *const {up}_INPUT_UNITS[{up}_N_INPUTS];\n"
+            f"extern const double {up}_TRAIN_MIN[{up}_N_INPUTS];\n"
+            f"extern const double {up}_TRAIN_MAX[{up}_N_INPUTS];\n\n"
+            f"double {fn}(const double x[{up}_N_INPUTS], unsigned long long *range_flags);\n\n"
+            f"#endif /* {guard} */\n")
+
+
+def _tables(model: ExportedCompensator, banner: str, fn: str, use_m2cgen: bool) -> list[str]:
+    """The ``.c`` file's blocks before the function: includes, the input tables, the
+    standardisation and the form's constants (polynomial coefficients, the m2cgen kernel sum,
+    or the Gaussian kernel's centres and output scaling)."""
+    up = fn.upper()
     body = [f"{banner}#include <math.h>\n#include <stddef.h>\n\n#include \"{fn}.h\"\n",
             f"const char *const {up}_INPUT_NAMES[{up}_N_INPUTS] = "
             f"{{{_string_table(model.input_names_)}}};",
@@ -187,7 +197,6 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
             "/* standardised inputs z[i] = (x[i] - CENTER[i]) / SCALE[i] */\n"
             f"static const double {up}_CENTER[{up}_N_INPUTS] = {{\n    {_table(model.center_)}}};",
             f"static const double {up}_SCALE[{up}_N_INPUTS] = {{\n    {_table(model.scale_)}}};"]
-    use_m2cgen = model._svr is not None
     if model.form_ == "polynomial":
         k = len(model.powers_)
         coef = (f"\nstatic const double {up}_COEF[{k}] = {{\n    {_table(model.coef_)}}};"
@@ -214,6 +223,12 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
     if model.form_ == "gaussian_kernel":
         body.append(f"static const double {up}_OUTPUT_OFFSET = {_num(model.output_offset_)};\n"
                     f"static const double {up}_OUTPUT_SCALE = {_num(model.output_scale_)};")
+    return body
+
+
+def _function(model: ExportedCompensator, fn: str, use_m2cgen: bool) -> list[str]:
+    """The lines of the C function: range flags and standardisation, then the form's sum."""
+    up = fn.upper()
     fbody = [f"double {fn}(const double x[{up}_N_INPUTS], unsigned long long *range_flags)", "{",
              f"    double z[{up}_N_INPUTS];", "    double y;", "    unsigned long long flags = 0u;",
              "    int i;"]
@@ -250,9 +265,17 @@ def generate_c(model: ExportedCompensator, function_name: str | None = None) -> 
                   f"        y += {up}_COEF[j] * exp(d2 * -{up}_KERNEL_FACTOR);", "    }",
                   f"    y += {up}_INTERCEPT;",
                   f"    y = y * {up}_OUTPUT_SCALE + {up}_OUTPUT_OFFSET;"]
-    fbody += ["    return y;", "}"]
-    c = "\n\n".join(body) + "\n\n" + "\n".join(fbody) + "\n"
-    return CSource(fn, c, h)
+    return fbody + ["    return y;", "}"]
+
+
+def generate_c(model: ExportedCompensator, function_name: str | None = None) -> CSource:
+    """C source and header of an exported compensator (module docstring for the interface)."""
+    fn = c_identifier(function_name or model.name_)
+    banner = _banner(model, fn)
+    use_m2cgen = model._svr is not None
+    body = _tables(model, banner, fn, use_m2cgen)
+    c = "\n\n".join(body) + "\n\n" + "\n".join(_function(model, fn, use_m2cgen)) + "\n"
+    return CSource(fn, c, _header(banner, fn, len(model.input_names_)))
 
 
 def write_c(model: ExportedCompensator, directory: str | pathlib.Path,

@@ -14,6 +14,9 @@ import the estimators, while everything here works on plain arrays and callables
 - :mod:`.term_selection` — forward selection of the terms of a law by the Bayesian information
   criterion (statsmodels OLS for the linear stage), then a joint refinement of the selected
   linear and nonlinear parameters (knee/step centres and widths) with their uncertainties;
+- :mod:`.term_averaging` — the selection's uncertainty: model averaging over the linear subsets,
+  the groups of terms a recording cannot separate, their combined effects and stand-ins;
+- :mod:`.whitening` — the Cholesky whitening of the generalised least-squares fits;
 - :mod:`.allan_noise` — angle random walk, bias instability, rate random walk and quantisation
   from the Allan deviation (allantools) of a rate residual, with confidence intervals.
 """

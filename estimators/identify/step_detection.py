@@ -44,7 +44,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import norm
 
-from rlgsim.estimators.identify.term_selection import jittered_cholesky
+from rlgsim.estimators.identify.whitening import jittered_cholesky
 
 __all__ = ["StepFit", "detect_steps", "bonferroni_threshold", "step_columns"]
 

@@ -43,7 +43,7 @@ def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
 
 
 def _anomaly_section(rep: Report, laws) -> None:
-    """Mode hops (src/rlgsim/lab/identify/hop_fit.py) and read-out spikes (src/rlgsim/lab/identify/spike_fit.py)."""
+    """Mode hops (lab/identify/hop_fit.py, hop_mapping.py) and read-out spikes (spike_fit.py)."""
     hf, sp = laws.hops, laws.spikes
     rep.heading("Mode hops and read-out spikes")
     if hf is not None:
@@ -105,13 +105,9 @@ def _anomaly_section(rep: Report, laws) -> None:
               f"outliers (innovation beyond 5.5σ).")
 
 
-def build_report(result, device_name: str, thermal_name: str) -> Report:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    d, th, laws = result.data, result.thermal, result.laws
-    rep = Report(f"Digital twin of {d.source}")
+def _intro(rep: Report, result, device_name: str, thermal_name: str) -> None:
+    """What was identified from what, the probe glitches left out, the scale factor's line."""
+    d = result.data
     rep.paragraph(
         f"Identified from `{d.source}` ({d.duration_s / 3600:.2f} h, probes every {d.step_s:g} s, "
         f"gyro `{d.gyro_axis}` at {d.sample_rate_hz:g} Hz, {len(d.windows)} windows of "
@@ -128,7 +124,10 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     else:
         rep.paragraph(result.scale_factor.lines[0][0].upper() + result.scale_factor.lines[0][1:]
                       + " (section Scale factor).")
-    rep.heading("Thermal network")
+
+
+def _thermal_tables(rep: Report, th) -> None:
+    """The thermal multipliers with their status, and the strongest correlations of the fit."""
     rows = []
     for p in th.params:
         if p.name in th.multipliers:
@@ -159,6 +158,13 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                       f"resolution and noise, the quantisation grid at a random offset) carried "
                       f"through the Jacobian; {th.fit.nfev} evaluations of the network over the "
                       f"whole recording in the last fit.")
+
+
+def _thermal_section(rep: Report, result, plt) -> None:
+    """Multipliers, correlations, probe lines, residual RMS and the probes' figure."""
+    d, th = result.data, result.thermal
+    rep.heading("Thermal network")
+    _thermal_tables(rep, th)
     for line in result.probe_lines:
         rep.paragraph(line[0].upper() + line[1:] + ".")
     rep.table(Table.from_records("Probe residual RMS [°C]", [
@@ -177,6 +183,10 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     ax[1].set_ylabel("recorded − twin [°C]")
     ax[1].set_xlabel("time [h]")
     rep.figure(fig, "probes", "Probes: recorded and twin; residuals")
+
+
+def _bias_section(rep: Report, d, laws, plt) -> None:
+    """The bias law: its terms, residual, outliers, tables and the window figure."""
     rep.heading("Bias law")
     rep.paragraph(
         f"Law node `{laws.bias_node}`, t_ref {laws.t_ref_c:g} °C. Chosen terms: "
@@ -198,6 +208,39 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     ax.set_ylabel("bias [°/h]")
     ax.legend(fontsize=8)
     rep.figure(fig, "bias_law", "Window bias and the fitted law")
+
+
+def _noise_section(rep: Report, laws, plt) -> None:
+    """The Allan fit of the law residual: its table and figure (or why there is none)."""
+    rep.heading("Noise")
+    if laws.noise is None:
+        rep.paragraph("The record is too short for an Allan fit; the template's noise is kept.")
+        return
+    rep.table(Table.from_records("Noise from the Allan deviation of the law residual",
+                                 laws.noise.rows(),
+                                 note="95 % intervals; a lower end of 0 means the term is "
+                                      "not resolved"))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.loglog(laws.noise.taus_s, laws.noise.adev_deg_per_h, "o", ms=3, label="residual")
+    ax.loglog(laws.noise.taus_s, laws.noise.model_deg_per_h, label="fitted model")
+    ax.set_xlabel("τ [s]")
+    ax.set_ylabel("Allan deviation [°/h]")
+    ax.legend(fontsize=8)
+    rep.figure(fig, "allan", "Allan deviation of the law residual and the fitted noise")
+
+
+def build_report(result, device_name: str, thermal_name: str) -> Report:
+    """The twin's report: the thermal fit, the bias law, anomalies, the UHFO law, the noise
+    and the scale factor, with their figures."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d, laws = result.data, result.laws
+    rep = Report(f"Digital twin of {d.source}")
+    _intro(rep, result, device_name, thermal_name)
+    _thermal_section(rep, result, plt)
+    _bias_section(rep, d, laws, plt)
     _anomaly_section(rep, laws)
     if laws.uhfo is not None:
         rep.heading("UHFO law")
@@ -205,21 +248,7 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                       f"read-out noise from the residual: " + ", ".join(
                           f"{k} {v:.4g} ± {s:.2g}" for k, (v, s) in laws.uhfo_noise.items()))
         _law_tables(rep, laws.uhfo, "UHFO law", "V")
-    rep.heading("Noise")
-    if laws.noise is None:
-        rep.paragraph("The record is too short for an Allan fit; the template's noise is kept.")
-    else:
-        rep.table(Table.from_records("Noise from the Allan deviation of the law residual",
-                                     laws.noise.rows(),
-                                     note="95 % intervals; a lower end of 0 means the term is "
-                                          "not resolved"))
-        fig, ax = plt.subplots(figsize=(6, 4))
-        ax.loglog(laws.noise.taus_s, laws.noise.adev_deg_per_h, "o", ms=3, label="residual")
-        ax.loglog(laws.noise.taus_s, laws.noise.model_deg_per_h, label="fitted model")
-        ax.set_xlabel("τ [s]")
-        ax.set_ylabel("Allan deviation [°/h]")
-        ax.legend(fontsize=8)
-        rep.figure(fig, "allan", "Allan deviation of the law residual and the fitted noise")
+    _noise_section(rep, laws, plt)
     if result.scale_factor is not None:
         from rlgsim.lab.identify.scale_factor_report import scale_factor_section
         scale_factor_section(rep, result.scale_factor, result.device)

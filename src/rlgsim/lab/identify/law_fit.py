@@ -46,6 +46,7 @@ for on the innovations and carried as fixed piecewise offsets while the terms ar
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -166,6 +167,96 @@ def _per_step(T, t_ref, step_s, extra):
     return f
 
 
+def _uhfo_law(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+              block: str, device: dict, t_ref: float, win: Callable):
+    """The UHFO law on its node's temperature (linear terms) and its noise (window wander from
+    the lag-1 autocorrelation, sample noise from first differences less the LSB's share):
+    (law or None without a UHFO record, u0 [V], node, T_ref [°C], {key: (value, se)})."""
+    utab = dict(device.get("uhfo", {}))
+    u_t_ref = float(utab.get("t_ref_c", t_ref))
+    if rec.uhfo_v is None:
+        return None, 0.0, None, u_t_ref, {}
+    step = rec.step_s
+    uhfo_node = str(utab.get("node", "discharge"))
+    Tu = nodes_c[:, node_column(block, uhfo_node, node_names)]
+    uw = win(rec.uhfo_v)
+    ucands = _candidates(Tu, u_t_ref, step, win, {}, {}, nonlinear=False)
+    uhfo_sel = select_terms(uw, ucands)
+    u0 = uhfo_sel.value("intercept")
+    upred = law_prediction(uhfo_sel, _per_step(Tu, u_t_ref, step, {}))
+    res_step = rec.uhfo_v - upred
+    powered = rec.power > 0.5
+    r_w = uw - win(upred)
+    r_w = r_w - r_w.mean()
+    rho = float(np.dot(r_w[1:], r_w[:-1]) / max(np.dot(r_w, r_w), 1e-300))
+    lsb = float(utab.get("lsb_v", 0.0))
+    d = np.diff(res_step[powered])
+    noise_v = float(np.sqrt(max(np.var(d) / 2.0 - lsb ** 2 / 12.0, 0.0)))
+    wander = float(np.std(r_w))
+    tau = float(-rec.window_s / np.log(rho)) if 0 < rho < 1 else float("inf")
+    n_eff = max(rec.duration_s / (2.0 * tau), 1.0) if np.isfinite(tau) else 1.0
+    uhfo_noise = {"wander_v": (wander, wander / np.sqrt(2.0 * n_eff)),
+                  "wander_tau_s": (tau, tau * np.sqrt(2.0 / n_eff)),
+                  "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
+    return uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise
+
+
+def _spikes(rec: RecordingData, device: dict):
+    """Read-out spikes in the powered rate samples, found first so that the noise fit takes the
+    rate with them taken out; returns (SpikeFit, one pulse's angle [arcsec])."""
+    from rlgsim.lab.identify.spike_fit import find_spikes
+    pulses_per_arcsec = template_pulses_per_arcsec(device)
+    per = int(round(rec.sample_rate_hz * rec.step_s))
+    n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
+    rate_s = rec.rate_deg_per_h[:n_s]
+    if rec.motion is not None:          # turntable: less the table's input, which the median
+        rate_s = rate_s - rec.motion.input_deg_per_h[:n_s]   # of 31 samples would not follow
+    spikes = find_spikes(rate_s, rec.sample_rate_hz, pulses_per_arcsec,
+                         np.repeat(rec.power > 0.5, per)[:n_s])
+    return spikes, 1.0 / pulses_per_arcsec
+
+
+def _gls_bias(rec: RecordingData, y: np.ndarray, cands: list[Term], noise: NoiseFit,
+              device: dict, nodes_c: np.ndarray, node_names: tuple[str, ...], block: str,
+              bias_node: str, per_step_terms: dict):
+    """The bias law by generalised least squares with the window-mean covariance of ``noise``
+    (flicker memory included): windows the noise model cannot explain left out one at a time,
+    then the mode hops found and carried (module docstring). Returns (law, outlier window
+    times [s], HopFit, per-step terms with the hops' regressors added)."""
+    band = _flicker_band(device)
+    starts = np.asarray(rec.windows["time_s"], dtype=float) - rec.window_s
+    cov = covariance_from_fit(noise, starts, rec.window_s, tau_min_s=band[0],
+                              tau_max_s=band[1], per_decade=band[2])
+    bias_sel = select_terms(y, cands, noise_cov=cov)
+    # windows the noise model cannot explain (a read-out spike, a step): left out one at a
+    # time, the largest first, the law refitted in between — the whitening spreads a large
+    # residual into the innovations of the windows after it (with the white part no longer
+    # inflated by the counter's quantisation, a 40-pulse spike flagged its two successors)
+    keep = np.arange(y.size)
+    for _ in range(MAX_OUTLIERS):
+        z = np.abs(bias_sel.fit.residual)
+        if z.size == 0 or z.max() <= OUTLIER_Z:
+            break
+        keep = np.delete(keep, int(np.argmax(z)))
+        bias_sel = select_terms(y[keep], _subset(cands, keep),
+                                noise_cov=cov[np.ix_(keep, keep)])
+    outliers: tuple[float, ...] = ()
+    bad = np.setdiff1d(np.arange(y.size), keep)
+    if bad.size:
+        outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
+    # mode hops: steps the law cannot explain, then the law on the hop-free bias
+    from rlgsim.lab.identify import hop_fit as H
+    from rlgsim.lab.identify import hop_mapping as HM
+    te = np.asarray(rec.windows["time_s"], dtype=float)[keep]
+    bias_sel, scan, idx, rounds, pattern = H.find_hops(
+        y[keep], _subset(cands, keep), cov[np.ix_(keep, keep)], bias_sel, te, rec.window_s,
+        rec.t_s, nodes_c, node_names, block, bias_node, device)
+    hops, hop_times = HM.describe_hops(bias_sel, scan, idx, rounds, pattern, te, rec.window_s,
+                                       rec.t_s, nodes_c, node_names, block, bias_node, device)
+    per_step_terms.update(H.hop_per_step(rec.t_s, hop_times))
+    return bias_sel, outliers, hops, per_step_terms
+
+
 def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
              device: dict) -> LawFit:
     """Fit the bias law, the UHFO law and the noise (module docstring). ``device`` is the
@@ -184,53 +275,14 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
         return np.asarray(window_average(np.asarray(v, dtype=float), f_slow,
                                          rec.window_s))[rows]
 
-    # ------------------------------------------------------------------ UHFO law
-    uhfo_sel = None
-    u0 = 0.0
-    uhfo_node = None
-    utab = dict(device.get("uhfo", {}))
-    uhfo_noise: dict[str, tuple[float, float]] = {}
-    u_t_ref = float(utab.get("t_ref_c", t_ref))
-    if rec.uhfo_v is not None:
-        uhfo_node = str(utab.get("node", "discharge"))
-        Tu = nodes_c[:, node_column(block, uhfo_node, node_names)]
-        uw = win(rec.uhfo_v)
-        ucands = _candidates(Tu, u_t_ref, step, win, {}, {}, nonlinear=False)
-        uhfo_sel = select_terms(uw, ucands)
-        u0 = uhfo_sel.value("intercept")
-        upred = law_prediction(uhfo_sel, _per_step(Tu, u_t_ref, step, {}))
-        res_step = rec.uhfo_v - upred
-        powered = rec.power > 0.5
-        r_w = uw - win(upred)
-        r_w = r_w - r_w.mean()
-        rho = float(np.dot(r_w[1:], r_w[:-1]) / max(np.dot(r_w, r_w), 1e-300))
-        lsb = float(utab.get("lsb_v", 0.0))
-        d = np.diff(res_step[powered])
-        noise_v = float(np.sqrt(max(np.var(d) / 2.0 - lsb ** 2 / 12.0, 0.0)))
-        wander = float(np.std(r_w))
-        tau = float(-rec.window_s / np.log(rho)) if 0 < rho < 1 else float("inf")
-        n_eff = max(rec.duration_s / (2.0 * tau), 1.0) if np.isfinite(tau) else 1.0
-        uhfo_noise = {"wander_v": (wander, wander / np.sqrt(2.0 * n_eff)),
-                      "wander_tau_s": (tau, tau * np.sqrt(2.0 / n_eff)),
-                      "noise_v": (noise_v, noise_v / np.sqrt(2.0 * max(d.size, 1)))}
-    # read-out spikes first: the noise fit takes the rate with them taken out
-    from rlgsim.lab.identify.spike_fit import find_spikes
-    pulses_per_arcsec = template_pulses_per_arcsec(device)
-    per = int(round(rec.sample_rate_hz * rec.step_s))
-    n_s = min(rec.power.size * per, rec.rate_deg_per_h.size)
-    rate_s = rec.rate_deg_per_h[:n_s]
-    if rec.motion is not None:          # turntable: less the table's input, which the median
-        rate_s = rate_s - rec.motion.input_deg_per_h[:n_s]   # of 31 samples would not follow
-    spikes = find_spikes(rate_s, rec.sample_rate_hz, pulses_per_arcsec,
-                         np.repeat(rec.power > 0.5, per)[:n_s])
-    quantum = 1.0 / pulses_per_arcsec
-    # ------------------------------------------------------------------ bias law
-    T = nodes_c[:, node_column(block, bias_node, node_names)]
+    uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise = _uhfo_law(rec, nodes_c, node_names, block,
+                                                             device, t_ref, win)
+    spikes, quantum = _spikes(rec, device)
+    T = nodes_c[:, node_column(block, bias_node, node_names)]             # the bias law
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)
     outliers: tuple[float, ...] = ()
-    hops = None
-    cands = _candidates(T, t_ref, step, win, law, extra)
+    hops, cands = None, _candidates(T, t_ref, step, win, law, extra)
     per_step_terms = _per_step(T, t_ref, step, extra)
     # first pass: ordinary least squares, whose residual gives the noise model ...
     bias_sel = select_terms(y, cands)
@@ -239,37 +291,8 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     # ... then generalised least squares with the window-mean covariance of that noise
     # (flicker memory included), and the noise again from what the final law leaves
     if noise is not None:
-        band = _flicker_band(device)
-        starts = np.asarray(rec.windows["time_s"], dtype=float) - rec.window_s
-        cov = covariance_from_fit(noise, starts, rec.window_s, tau_min_s=band[0],
-                                  tau_max_s=band[1], per_decade=band[2])
-        bias_sel = select_terms(y, cands, noise_cov=cov)
-        # windows the noise model cannot explain (a read-out spike, a step): left out one at a
-        # time, the largest first, the law refitted in between — the whitening spreads a large
-        # residual into the innovations of the windows after it (with the white part no longer
-        # inflated by the counter's quantisation, a 40-pulse spike flagged its two successors)
-        keep = np.arange(y.size)
-        for _ in range(MAX_OUTLIERS):
-            z = np.abs(bias_sel.fit.residual)
-            if z.size == 0 or z.max() <= OUTLIER_Z:
-                break
-            keep = np.delete(keep, int(np.argmax(z)))
-            bias_sel = select_terms(y[keep], _subset(cands, keep),
-                                    noise_cov=cov[np.ix_(keep, keep)])
-        bad = np.setdiff1d(np.arange(y.size), keep)
-        if bad.size:
-            outliers = tuple(float(t) for t in np.asarray(rec.windows["time_s"])[bad])
-        # mode hops: steps the law cannot explain, then the law on the hop-free bias
-        from rlgsim.lab.identify import hop_fit as H
-        te = np.asarray(rec.windows["time_s"], dtype=float)[keep]
-        bias_sel, scan, idx, rounds, pattern = H.find_hops(
-            y[keep], _subset(cands, keep), cov[np.ix_(keep, keep)], bias_sel, te, rec.window_s,
-            rec.t_s, nodes_c, node_names, block, bias_node, device)
-        hops, hop_times = H.describe_hops(bias_sel, scan, idx, rounds, pattern, te,
-                                          rec.window_s,
-                                          rec.t_s, nodes_c, node_names, block, bias_node,
-                                          device)
-        per_step_terms.update(H.hop_per_step(rec.t_s, hop_times))
+        bias_sel, outliers, hops, per_step_terms = _gls_bias(
+            rec, y, cands, noise, device, nodes_c, node_names, block, bias_node, per_step_terms)
         per_step = law_prediction(bias_sel, per_step_terms)
         noise = _noise(rec, per_step, spikes, quantum) or noise
     rms = float(np.sqrt(np.mean(bias_sel.residual ** 2)))
@@ -277,8 +300,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
                   uhfo_node=uhfo_node, uhfo_t_ref_c=u_t_ref, u0_v=u0, uhfo_noise=uhfo_noise,
                   noise=noise, bias_rms_deg_per_h=rms, raw_std_deg_per_h=float(np.std(y, ddof=1)),
                   per_step_bias_deg_per_h=per_step, gradient_pairs=pairs,
-                  outlier_windows_s=outliers, hops=hops,
-                  spikes=spikes)
+                  outlier_windows_s=outliers, hops=hops, spikes=spikes)
 
 
 def _flicker_band(device: dict) -> tuple[float, float, int]:

@@ -45,7 +45,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from rlgsim.estimators.identify.term_selection import jittered_cholesky
+from rlgsim.estimators.identify.whitening import jittered_cholesky
 from rlgsim.estimators.identify.window_noise import covariance_from_fit
 from rlgsim.lab.identify.recording_data import RecordingData
 

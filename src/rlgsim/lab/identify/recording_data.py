@@ -123,91 +123,94 @@ def _refuse(source: str, what: str) -> UserInputError:
     return UserInputError(f"{source}: {what}; {NEEDS}")
 
 
-def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
-                   window_s: float = 100.0) -> RecordingData:
-    """Read and check a recording (table + sidecar) or an rlgsim dataset."""
-    from rlgsim.ground.datatree import open_tree
-    from rlgsim.lab.windows import window_table
+def _gyro_of(source: str, axes: list[str], gyro: str | None) -> str:
+    """The gyro to identify: ``gyro`` if it is one of ``axes``, the only axis without it."""
+    if gyro is None:
+        if len(axes) != 1:
+            raise UserInputError(f"{source}: several gyros ({', '.join(axes)}); say which "
+                                 f"one to identify (gyro=)")
+        return axes[0]
+    if gyro not in axes:
+        raise UserInputError(f"{source}: gyro {gyro!r} not allowed; the gyro axes are "
+                             f"{', '.join(axes)}")
+    return gyro
+
+
+def _uhfo_of(imu, gyro: str) -> np.ndarray | None:
+    """The gyro's UHFO series [V], or None without one (or one logged for other gyros only)."""
+    if "uhfo" not in imu:
+        return None
+    u = imu["uhfo"]
+    uhfo = np.asarray(u.sel(gyro=gyro).values if "gyro" in u.dims else u.values, dtype=float)
+    return uhfo if np.isfinite(uhfo).any() else None
+
+
+def _table_turns(tree) -> bool:
+    """Whether the dataset's turntable angles move at all."""
+    motion = False
+    if "turntable" in tree.children:
+        tt = tree["turntable"]
+        for key in ("outer_angle", "inner_angle"):
+            if key in tt:
+                a = np.asarray(tt[key].values, dtype=float)
+                motion |= bool(np.nanmax(a) - np.nanmin(a) > 1e-9) if a.size else False
+    return motion
+
+
+def _from_tree(source: str, tree, gyro: str | None) -> dict:
+    """The recording's arrays from its opened tree: probes, chamber air, power, the gyro's
+    rate [°/h] (from a recording's rate, or a dataset's pulses through its device's scale
+    factor), UHFO, and the turntable's motion as a recording gives it."""
     from rlgsim.ground.recording import is_recording, load_recording
-    source = os.fspath(path)
-    p = pathlib.Path(source)
-    if not p.exists():
-        raise UserInputError(f"{source}: no such file")
-    tree = open_tree(source, load=True)
-    try:
-        if "probes" not in tree.children or tree["probes"].sizes.get("probe", 0) == 0:
-            raise _refuse(source, "no probe temperatures (probe_<name>_c columns)")
-        if "thermal" not in tree.children or "chamber_air" not in tree["thermal"]:
-            raise _refuse(source, "no chamber air temperature (chamber_air_c)")
-        pr = tree["probes"]
-        names = tuple(str(n) for n in pr["probe"].values)
-        temps = np.asarray(pr["temperature"].transpose("time", "probe").values, dtype=float)
-        t = np.asarray(pr["time"].values, dtype=float)
-        th = tree["thermal"]
-        air = np.asarray(th["chamber_air"].values, dtype=float)
-        power = (np.asarray(th["power_on"].values, dtype=float) if "power_on" in th
-                 else np.ones_like(air))
-        imu = tree["imu"] if "imu" in tree.children else None
-        if imu is None or "gyro" not in imu.coords or imu.sizes.get("gyro", 0) == 0:
-            raise _refuse(source, "no gyro output (gyro_<axis>_pulses or a rate column)")
-        axes = [str(a) for a in imu["gyro"].values]
-        if gyro is None:
-            if len(axes) != 1:
-                raise UserInputError(f"{source}: several gyros ({', '.join(axes)}); say which "
-                                     f"one to identify (gyro=)")
-            gyro = axes[0]
-        elif gyro not in axes:
-            raise UserInputError(f"{source}: gyro {gyro!r} not allowed; the gyro axes are "
-                                 f"{', '.join(axes)}")
-        gi = axes.index(gyro)
-        f = float(imu.attrs.get("sample_rate_hz", tree.attrs.get("sample_rate_hz")))
-        uhfo = None
-        if "uhfo" in imu:
-            u = imu["uhfo"]
-            uhfo = np.asarray(u.sel(gyro=gyro).values if "gyro" in u.dims else u.values,
-                              dtype=float)
-            if not np.isfinite(uhfo).any():     # a UHFO logged for other gyros only
-                uhfo = None
-        motion = False
-        table = None
-        motion_note = ""
-        if "turntable" in tree.children:
-            tt = tree["turntable"]
-            for key in ("outer_angle", "inner_angle"):
-                if key in tt:
-                    a = np.asarray(tt[key].values, dtype=float)
-                    motion |= bool(np.nanmax(a) - np.nanmin(a) > 1e-9) if a.size else False
-        if is_recording(source):
-            rec = load_recording(source)
-            rate = np.asarray(rec.gyro_rate_deg_per_h()[:, rec.gyro_axes.index(gyro)],
-                              dtype=float)
-            table, motion_note = motion_from_recording(rec, gyro)
-        else:
-            pulses = np.asarray(imu["gyro_pulses"][:, gi].values, dtype=np.float64)
-            import tomllib
-            dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
-            k = pulses_per_arcsec(dev)
-            rate = pulses * f / k                   # arcsec/s, which is °/h
-    finally:
-        tree.close()
-    if motion and table is None and not is_recording(source):
-        from rlgsim.ground.dataset_format import open_dataset
-        with open_dataset(source) as ds:        # the dataset's motion arrays, once it is closed
-            table = motion_from_dataset(ds, gyro, rate.size, f)
-    # a table at rest away from zero: no motion, but its attitude still sets the Earth rate
-    at_rest = table if table is not None and not table.moving.any() else None
-    if at_rest is not None:
-        table = None
-    motion = motion or table is not None
+    if "probes" not in tree.children or tree["probes"].sizes.get("probe", 0) == 0:
+        raise _refuse(source, "no probe temperatures (probe_<name>_c columns)")
+    if "thermal" not in tree.children or "chamber_air" not in tree["thermal"]:
+        raise _refuse(source, "no chamber air temperature (chamber_air_c)")
+    pr = tree["probes"]
+    th = tree["thermal"]
+    air = np.asarray(th["chamber_air"].values, dtype=float)
+    out = dict(names=tuple(str(n) for n in pr["probe"].values),
+               temps=np.asarray(pr["temperature"].transpose("time", "probe").values,
+                                dtype=float),
+               t=np.asarray(pr["time"].values, dtype=float), air=air,
+               power=(np.asarray(th["power_on"].values, dtype=float) if "power_on" in th
+                      else np.ones_like(air)))
+    imu = tree["imu"] if "imu" in tree.children else None
+    if imu is None or "gyro" not in imu.coords or imu.sizes.get("gyro", 0) == 0:
+        raise _refuse(source, "no gyro output (gyro_<axis>_pulses or a rate column)")
+    axes = [str(a) for a in imu["gyro"].values]
+    gyro = _gyro_of(source, axes, gyro)
+    f = float(imu.attrs.get("sample_rate_hz", tree.attrs.get("sample_rate_hz")))
+    out.update(gyro=gyro, f=f, uhfo=_uhfo_of(imu, gyro), motion=_table_turns(tree),
+               table=None, motion_note="")
+    if is_recording(source):
+        rec = load_recording(source)
+        out["rate"] = np.asarray(rec.gyro_rate_deg_per_h()[:, rec.gyro_axes.index(gyro)],
+                                 dtype=float)
+        out["table"], out["motion_note"] = motion_from_recording(rec, gyro)
+    else:
+        pulses = np.asarray(imu["gyro_pulses"][:, axes.index(gyro)].values, dtype=np.float64)
+        import tomllib
+        dev = tomllib.loads(str(tree.attrs.get("device_text", "")) or "")
+        k = pulses_per_arcsec(dev)
+        out["rate"] = pulses * f / k                   # arcsec/s, which is °/h
+    return out
+
+
+def _regular_step(source: str, t: np.ndarray) -> float:
+    """The temperature step [s], after checking that the samples are regular from the start."""
     if t.size < 2:
         raise _refuse(source, f"only {t.size} temperature sample(s)")
     step = float(np.median(np.diff(t)))
     if not np.allclose(np.diff(t), step, rtol=1e-6, atol=1e-9) or abs(t[0] - step) > 1e-6 * step:
         raise UserInputError(f"{source}: the temperature samples must be regular from the "
                              f"start (one every {step:g} s, the first at {step:g} s); {NEEDS}")
-    air = _bridge(air, step, source, "the chamber air")
-    if uhfo is not None:
-        uhfo = _bridge(uhfo, step, source, "the UHFO")
+    return step
+
+
+def _check_excitation(source: str, t: np.ndarray, air: np.ndarray, power: np.ndarray,
+                      step: float) -> None:
+    """Refuse a recording powered too briefly or whose (bridged) chamber air does not move."""
     powered = power > 0.5
     if t[-1] < MIN_DURATION_S or powered.sum() * step < MIN_DURATION_S:
         raise _refuse(source, f"too short: {powered.sum() * step / 3600:.2f} h powered of "
@@ -216,10 +219,13 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
     if span < MIN_SPAN_K:
         raise _refuse(source, f"no temperature excitation: the chamber air spans only "
                               f"{span:.2f} K")
-    temps, glitches = screen_probe_glitches(temps)
-    good = np.isfinite(temps).mean(axis=0)
-    if np.all(good < 0.5):
-        raise _refuse(source, "the probes hold no usable readings")
+
+
+def _bias_windows(source: str, window_s: float, gyro: str, table, at_rest, rate: np.ndarray,
+                  f: float):
+    """The bias window table (the turntable's turning windows left out, the Earth rate through
+    its attitude taken off) and how many windows were left out; at least 20 are needed."""
+    from rlgsim.lab.windows import window_table
     try:
         windows = window_table(source, window_s, gyro=gyro)
     except ValueError as exc:            # e.g. missing probe readings inside a window
@@ -235,11 +241,51 @@ def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                               f"of the gyro" + (f" with the turntable at rest ({moving_windows} "
                                                 f"left out because the table turns in them)"
                                                 if moving_windows else ""))
-    return RecordingData(source=source, step_s=step, t_s=t, probe_names=names, probes_c=temps,
-                         air_c=air, power=powered.astype(float), uhfo_v=uhfo, gyro_axis=gyro,
-                         sample_rate_hz=f, rate_deg_per_h=rate, windows=windows,
-                         window_s=window_s, has_motion=motion, probe_glitches=glitches,
-                         motion=table, motion_note=motion_note, moving_windows=moving_windows)
+    return windows, moving_windows
+
+
+def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
+                   window_s: float = 100.0) -> RecordingData:
+    """Read and check a recording (table + sidecar) or an rlgsim dataset."""
+    from rlgsim.ground.datatree import open_tree
+    from rlgsim.ground.recording import is_recording
+    source = os.fspath(path)
+    p = pathlib.Path(source)
+    if not p.exists():
+        raise UserInputError(f"{source}: no such file")
+    tree = open_tree(source, load=True)
+    try:
+        r = _from_tree(source, tree, gyro)
+    finally:
+        tree.close()
+    gyro, f, rate, table, motion = r["gyro"], r["f"], r["rate"], r["table"], r["motion"]
+    if motion and table is None and not is_recording(source):
+        from rlgsim.ground.dataset_format import open_dataset
+        with open_dataset(source) as ds:        # the dataset's motion arrays, once it is closed
+            table = motion_from_dataset(ds, gyro, rate.size, f)
+    # a table at rest away from zero: no motion, but its attitude still sets the Earth rate
+    at_rest = table if table is not None and not table.moving.any() else None
+    if at_rest is not None:
+        table = None
+    motion = motion or table is not None
+    t, power = r["t"], r["power"]
+    step = _regular_step(source, t)
+    air = _bridge(r["air"], step, source, "the chamber air")
+    uhfo = r["uhfo"]
+    if uhfo is not None:
+        uhfo = _bridge(uhfo, step, source, "the UHFO")
+    _check_excitation(source, t, air, power, step)
+    temps, glitches = screen_probe_glitches(r["temps"])
+    good = np.isfinite(temps).mean(axis=0)
+    if np.all(good < 0.5):
+        raise _refuse(source, "the probes hold no usable readings")
+    windows, moving_windows = _bias_windows(source, window_s, gyro, table, at_rest, rate, f)
+    return RecordingData(source=source, step_s=step, t_s=t, probe_names=r["names"],
+                         probes_c=temps, air_c=air, power=(power > 0.5).astype(float),
+                         uhfo_v=uhfo, gyro_axis=gyro, sample_rate_hz=f, rate_deg_per_h=rate,
+                         windows=windows, window_s=window_s, has_motion=motion,
+                         probe_glitches=glitches, motion=table, motion_note=r["motion_note"],
+                         moving_windows=moving_windows)
 
 
 def _stationary_windows(windows, table, rate: np.ndarray, f: float, window_s: float):

@@ -120,24 +120,13 @@ def _features(T: np.ndarray, t_ref: float, law: dict) -> dict[str, np.ndarray]:
     return out
 
 
-def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
-                     device: dict, laws: LawFit) -> ScaleFactorFit | None:
-    """Identify the scale-factor law from the rate segments of ``rec`` (module docstring);
-    None when the recording has no usable turntable motion."""
-    table = rec.motion
-    if table is None:
-        return None
-    law, node, t_ref = _template_law(device)
-    gyro = device.get("gyro", {})
-    block = (gyro.get("blocks") or [""])[0]
-    T_step = nodes_c[:, node_column(block, node, node_names)]
-    f = rec.sample_rate_hz
-    per = max(1, int(round(f * rec.step_s)))              # gyro samples per thermal step
-    m = T_step.size
-    feats = _features(T_step, t_ref, law)
-    family = ["c1", "c2"] + [t for t in ("c3", "knee") if float(law.get(SF_KEYS[t], 0.0))]
-    # the bias law's linear part per step (its error enters the segment covariance)
+def _bias_design(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+                 block: str, gyro: dict, laws: LawFit) -> tuple[np.ndarray, np.ndarray]:
+    """The bias law's linear part per step, (m, p) columns of the intercept and its chosen
+    terms at their fitted parameters, and the covariance of those coefficients (its error
+    enters the segment covariance)."""
     bsel = laws.bias
+    m = nodes_c.shape[0]
     bT = nodes_c[:, node_column(block, laws.bias_node, node_names)]
     blaw = dict(gyro.get("bias", {}))
     extra, _ = _bias_extra(rec, nodes_c, node_names, block, blaw, laws.bias_node, laws.u0_v)
@@ -149,6 +138,17 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     bX = np.column_stack(bcols)                                       # (m, p)
     bidx = [bsel.fit.names.index(n) for n in ["intercept", *bsel.terms]]
     bcov = (bsel.fit.corr * np.outer(bsel.fit.se, bsel.fit.se))[np.ix_(bidx, bidx)]
+    return bX, bcov
+
+
+def _segment_rows(rec: RecordingData, laws: LawFit, T_step: np.ndarray, feats: dict,
+                  bX: np.ndarray) -> list[dict]:
+    """One row per powered constant-rate segment with finite rates: its scale-factor error
+    k [ppm] (rate sum less the input and the bias law, over the input), its ω-weighted
+    temperature and features, and the bias design's weighted rows ``bx``."""
+    table = rec.motion
+    per = max(1, int(round(rec.sample_rate_hz * rec.step_s)))   # gyro samples per thermal step
+    m = T_step.size
     rows = []
     for (i0, i1), rate_s in zip(table.segments, table.segment_rate_deg_s):
         k = np.arange(i0, i1) // per
@@ -169,26 +169,18 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
         for name, v in feats.items():
             row[name] = float(wk @ v[ks]) / sw
         rows.append(row)
-    lines: list[str] = []
-    kept: dict[str, str] = {}
-    tol = device.get("tolerance", {}).get("gyro", {}).get("scale_factor", {}) or {}
-    target = 0.5 * float(tol.get("value_ppm", 2.0))
-    empty = ScaleFactorFit(law=None, node=node, t_ref_c=t_ref, values={}, kept=kept,
-                           lines=lines, candidates=tuple(family))
-    if len(rows) < MIN_SEGMENTS:
-        why = (f"the recording has turntable motion but only {len(rows)} powered constant-rate "
-               f"segment(s) with a rate on the gyro axis; identifying it needs at least "
-               f"{MIN_SEGMENTS} (rotations at + and − rate, at several temperatures)")
-        kept["value"] = why
-        lines.append(f"scale factor: kept from the template — {why}")
-        return empty
+    return rows
+
+
+def _segment_covariance(rows: list[dict], laws: LawFit, device: dict, f: float,
+                        bcov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Segment starts and lengths [s], the covariance [ppm²] of their k (the noise model's,
+    or the pulse quantisation alone without one, plus the bias law's error) and the
+    resolution [ppm] of their common value."""
     n_s = len(rows)
     starts = np.array([r["i0"] for r in rows]) / f
     lengths = np.array([r["i1"] - r["i0"] for r in rows]) / f
     wbar = np.array([r["w_mean"] for r in rows])
-    y = np.array([r["k"] for r in rows])
-    temps = np.array([r["T"] for r in rows])
-    angle = float(np.sum(np.abs(np.array([r["rate"] for r in rows])) * lengths))
     scale = 1e6 / wbar
     cov = np.zeros((n_s, n_s))
     if laws.noise is not None:
@@ -209,25 +201,14 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
         resolution = float(1.0 / np.sqrt(ones @ ci))
     except np.linalg.LinAlgError:
         resolution = float("nan")
-    levels = _levels(temps)
+    return starts, lengths, cov, resolution
+
+
+def _supported_terms(family: list[str], levels: list[float], law: dict,
+                     kept: dict[str, str]) -> list[str]:
+    """The temperature terms the segments' levels support (enough levels, span, both sides of
+    the knee); the others get their reason in ``kept``."""
     span = (max(levels) - min(levels)) if levels else 0.0
-    seg_tab = {"t0_s": starts, "t1_s": starts + lengths,
-               "rate_deg_s": np.array([r["rate"] for r in rows]), "temp_c": temps, "k_ppm": y,
-               "se_ppm": np.sqrt(np.diag(cov))}
-    base = ScaleFactorFit(law=None, node=node, t_ref_c=t_ref, values={}, kept=kept,
-                          lines=lines, segments=seg_tab, levels_c=tuple(levels),
-                          resolution_ppm=resolution, total_angle_deg=angle,
-                          candidates=tuple(family))
-    if not resolution <= target:
-        need = angle * (resolution / target) ** 2
-        why = (f"the {n_s} rate segments (total turned angle {angle:.4g}°) resolve K − K₀ only "
-               f"to ± {resolution:.3g} ppm, no better than half the template's unit-to-unit "
-               f"spread ({2 * target:.3g} ppm); identifying it needs more or faster rate "
-               f"segments, a total turned angle of about {need:.3g}° or more")
-        kept["value"] = why
-        lines.append(f"scale factor: kept from the template — {why}")
-        return base
-    # which temperature terms the levels support
     free = []
     for t in family:
         ok = len(levels) >= _LEVELS[t] and span >= MIN_SPAN_K
@@ -244,7 +225,15 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
                                             if t == "knee" else ""))
             kept[t] = (f"the rate segments lie at {len(levels)} temperature level(s) "
                        f"({', '.join(f'{v:.1f}' for v in levels)} °C); {t} needs {need}")
-    # the refused terms keep the template's values: their contribution comes off first
+    return free
+
+
+def _identify(base: ScaleFactorFit, rows: list[dict], y: np.ndarray, cov: np.ndarray,
+              family: list[str], free: list[str], law: dict, levels: list[float],
+              angle: float) -> ScaleFactorFit:
+    """The law fitted on the segments (the refused terms at the template's values taken off
+    first; the free ones chosen by BIC under the segment covariance), with its report
+    lines."""
     y_fit = y.copy()
     for t in family:
         if t not in free:
@@ -254,7 +243,7 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     values = {"value_ppm": (sel.value("intercept"), sel.se("intercept"))}
     for t in sel.terms:
         values[SF_KEYS[t]] = (sel.value(t), sel.se(t))
-    seg_tab["residual_ppm"] = np.asarray(sel.residual, dtype=float)
+    base.segments["residual_ppm"] = np.asarray(sel.residual, dtype=float)
     rates = sorted({round(abs(r["rate"]), 6) for r in rows})
     rate_txt = ", ".join(f"±{v:g}" for v in rates[:4]) + (" …" if len(rates) > 4 else "")
     where = (f"one temperature level ({levels[0]:.1f} °C)" if len(levels) == 1 else
@@ -262,15 +251,67 @@ def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[
     terms = (f"temperature terms chosen by BIC from {', '.join(free)}: "
              f"{', '.join(sel.terms) or 'none (a constant)'}" if free else
              "no temperature term identifiable (below)")
-    lines.append(
-        f"scale factor: identified from {n_s} turntable rate segments ({rate_txt} °/s on the "
-        f"gyro axis, total {angle:.4g}°) at {where}: value {values['value_ppm'][0]:.4g} ± "
+    base.lines.append(
+        f"scale factor: identified from {len(rows)} turntable rate segments ({rate_txt} °/s on "
+        f"the gyro axis, total {angle:.4g}°) at {where}: value {values['value_ppm'][0]:.4g} ± "
         f"{values['value_ppm'][1]:.2g} ppm; {terms}")
-    for t, why in kept.items():
-        lines.append(f"scale factor {t}: kept from the template — {why}")
+    for t, why in base.kept.items():
+        base.lines.append(f"scale factor {t}: kept from the template — {why}")
     base.law = sel
     base.values = values
     return base
+
+
+def fit_scale_factor(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
+                     device: dict, laws: LawFit) -> ScaleFactorFit | None:
+    """Identify the scale-factor law from the rate segments of ``rec`` (module docstring);
+    None when the recording has no usable turntable motion."""
+    if rec.motion is None:
+        return None
+    law, node, t_ref = _template_law(device)
+    gyro = device.get("gyro", {})
+    block = (gyro.get("blocks") or [""])[0]
+    T_step = nodes_c[:, node_column(block, node, node_names)]
+    feats = _features(T_step, t_ref, law)
+    family = ["c1", "c2"] + [t for t in ("c3", "knee") if float(law.get(SF_KEYS[t], 0.0))]
+    bX, bcov = _bias_design(rec, nodes_c, node_names, block, gyro, laws)
+    rows = _segment_rows(rec, laws, T_step, feats, bX)
+    lines: list[str] = []
+    kept: dict[str, str] = {}
+    tol = device.get("tolerance", {}).get("gyro", {}).get("scale_factor", {}) or {}
+    target = 0.5 * float(tol.get("value_ppm", 2.0))
+    if len(rows) < MIN_SEGMENTS:
+        why = (f"the recording has turntable motion but only {len(rows)} powered constant-rate "
+               f"segment(s) with a rate on the gyro axis; identifying it needs at least "
+               f"{MIN_SEGMENTS} (rotations at + and − rate, at several temperatures)")
+        kept["value"] = why
+        lines.append(f"scale factor: kept from the template — {why}")
+        return ScaleFactorFit(law=None, node=node, t_ref_c=t_ref, values={}, kept=kept,
+                              lines=lines, candidates=tuple(family))
+    starts, lengths, cov, resolution = _segment_covariance(rows, laws, device,
+                                                           rec.sample_rate_hz, bcov)
+    y = np.array([r["k"] for r in rows])
+    temps = np.array([r["T"] for r in rows])
+    angle = float(np.sum(np.abs(np.array([r["rate"] for r in rows])) * lengths))
+    levels = _levels(temps)
+    seg_tab = {"t0_s": starts, "t1_s": starts + lengths,
+               "rate_deg_s": np.array([r["rate"] for r in rows]), "temp_c": temps, "k_ppm": y,
+               "se_ppm": np.sqrt(np.diag(cov))}
+    base = ScaleFactorFit(law=None, node=node, t_ref_c=t_ref, values={}, kept=kept,
+                          lines=lines, segments=seg_tab, levels_c=tuple(levels),
+                          resolution_ppm=resolution, total_angle_deg=angle,
+                          candidates=tuple(family))
+    if not resolution <= target:
+        need = angle * (resolution / target) ** 2
+        why = (f"the {len(rows)} rate segments (total turned angle {angle:.4g}°) resolve K − K₀ "
+               f"only to ± {resolution:.3g} ppm, no better than half the template's "
+               f"unit-to-unit spread ({2 * target:.3g} ppm); identifying it needs more or "
+               f"faster rate segments, a total turned angle of about {need:.3g}° or more")
+        kept["value"] = why
+        lines.append(f"scale factor: kept from the template — {why}")
+        return base
+    free = _supported_terms(family, levels, law, kept)
+    return _identify(base, rows, y, cov, family, free, law, levels, angle)
 
 
 def scale_factor_table(template: dict, fit: ScaleFactorFit) -> tuple[dict, dict[str, str]]:

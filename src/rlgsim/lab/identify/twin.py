@@ -255,7 +255,7 @@ def _device_dict(template: dict, laws: LawFit, name: str, source: str
                                          f"[{lo:.3g}, {hi:.3g}]"
                                          + ("; not resolved by this recording" if lo == 0 else ""))
     # mode hops and read-out spikes as found in the recording (hop_fit, spike_fit)
-    from rlgsim.lab.identify.hop_fit import anomalies_table
+    from rlgsim.lab.identify.hop_mapping import anomalies_table
     anomalies, acomments = anomalies_table(dev.pop("anomalies", None), laws.hops, laws.spikes)
     if anomalies is not None:
         dev["anomalies"] = anomalies
