@@ -133,6 +133,9 @@ class ImuSimulator:
         self._pool = None
         #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
         self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
+        #: a vehicle's increments of the queued blocks, by (first step, samples): computed by
+        #: the worker too (the trajectory's compiled kernels release the GIL)
+        self._motion_ahead: dict[tuple[int, int], Any] = {}
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
         # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
         acc_axes = a.axes if a is not None else ()
@@ -180,7 +183,9 @@ class ImuSimulator:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
         the steps at rest of each, their sums per thermal step and the table at each step's
         end."""
-        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
+        ahead = self._motion_ahead.pop((k0, n), None)
+        mb = (ahead.result() if ahead is not None
+              else self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False))
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
@@ -255,7 +260,8 @@ class ImuSimulator:
     def _queue_after(self, b: int, k0: int, m: int) -> None:
         """Queue the normals of the blocks after block ``b`` (first step ``k0``, blocks of ``m``
         steps assumed, up to the run's end; a block of another length is drawn when asked for)
-        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block."""
+        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block (three
+        on a vehicle: its increments too — the same numbers, whichever thread computes them)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
         if self._ahead:
@@ -269,12 +275,18 @@ class ImuSimulator:
             self._ahead.append(((b, k0, nm, n),
                                 [self._pool.submit(self._gyro_normals, b, n),
                                  self._pool.submit(self._accel_normals, b, n)]))
+            if getattr(self.motion, "kind", "") == "trajectory":     # a vehicle's kinematics
+                self._motion_ahead[(k0, n)] = self._pool.submit(
+                    self.motion.increments, k0 * self.step_s, n, self.rate_hz, angles=False)
 
     def _cancel_ahead(self) -> None:
         for _, parts in self._ahead:
             for part in parts:
                 part.cancel()
         self._ahead.clear()
+        for part in self._motion_ahead.values():
+            part.cancel()
+        self._motion_ahead.clear()
 
     def close(self) -> None:
         """Stop the prefetch thread (blocks queued and not taken are dropped)."""
