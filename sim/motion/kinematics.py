@@ -90,7 +90,8 @@ class MotionBlock:
     sample interval ends; ``first_sample`` k0 and ``rate_hz`` f place sample j on the run's
     grid, [(k0 + j)/f, (k0 + j + 1)/f); ``constant`` the runs ``(lo, hi)`` of whole samples at
     rest inside one static motion: samples lo..hi−1 hold one increment, bit for bit (other
-    samples may share theirs too)."""
+    samples may share theirs too); ``states`` a vehicle's truth at the sample ends when it was
+    computed with the block (:meth:`rlgsim.sim.motion.trajectory.Trajectory.truth`), else None."""
 
     dtheta_rad: np.ndarray
     dv_m_per_s: np.ndarray
@@ -100,6 +101,7 @@ class MotionBlock:
     first_sample: int = 0
     rate_hz: float = 1.0
     constant: tuple[tuple[int, int], ...] = ()
+    states: dict[str, np.ndarray] | None = None
 
     @cached_property
     def t_s(self) -> np.ndarray:

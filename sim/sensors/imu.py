@@ -184,8 +184,7 @@ class ImuSimulator:
         the steps at rest of each, their sums per thermal step and the table at each step's
         end."""
         ahead = self._motion_ahead.pop((k0, n), None)
-        mb = (ahead.result() if ahead is not None
-              else self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False))
+        mb = ahead.result() if ahead is not None else self._vehicle_block(k0, n)
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
@@ -201,6 +200,14 @@ class ImuSimulator:
                 mb.end_times(_last_sample_of_step(idx, m, n)))
             out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
+
+    def _vehicle_block(self, k0: int, n: int) -> Any:
+        """The motion's block of ``n`` samples from thermal step ``k0``; a vehicle's with its
+        truth states (``states``) too."""
+        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
+        if getattr(self.motion, "kind", "") == "trajectory":
+            mb.states = self.motion.truth(mb.t_s)
+        return mb
 
     def _drives(self, b: int, m: int, slow_state: Any) -> dict[str, Any]:
         """The block's slow noise ``slow_block`` = (slow noise (m, C), state after) from the
@@ -261,7 +268,8 @@ class ImuSimulator:
         """Queue the normals of the blocks after block ``b`` (first step ``k0``, blocks of ``m``
         steps assumed, up to the run's end; a block of another length is drawn when asked for)
         until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block (three
-        on a vehicle: its increments too — the same numbers, whichever thread computes them)."""
+        on a vehicle: its increments and truth states too — the same numbers, whichever thread
+        computes them)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
         if self._ahead:
@@ -276,8 +284,7 @@ class ImuSimulator:
                                 [self._pool.submit(self._gyro_normals, b, n),
                                  self._pool.submit(self._accel_normals, b, n)]))
             if getattr(self.motion, "kind", "") == "trajectory":     # a vehicle's kinematics
-                self._motion_ahead[(k0, n)] = self._pool.submit(
-                    self.motion.increments, k0 * self.step_s, n, self.rate_hz, angles=False)
+                self._motion_ahead[(k0, n)] = self._pool.submit(self._vehicle_block, k0, n)
 
     def _cancel_ahead(self) -> None:
         for _, parts in self._ahead:

@@ -98,6 +98,6 @@ class ImuStage(Stage):
                                else Motion(self.turntable_segments, self.scenario.site))
         rows, state = self.sim.block(state, b, trace)
         if getattr(self.sim.motion, "kind", "turntable") == "trajectory":   # a vehicle's states
-            rows[TRAJECTORY] = {"sample": trajectory_rows(self.sim.motion,
-                                                          self.sim.last_motion_block.t_s)}
+            mb = self.sim.last_motion_block
+            rows[TRAJECTORY] = {"sample": trajectory_rows(self.sim.motion, mb.t_s, mb.states)}
         return rows, state

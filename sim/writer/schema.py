@@ -467,9 +467,11 @@ def declare_trajectory(g: GroupWriter, trajectory) -> None:
                description="1 where a GNSS receiver sees the sky during the leg")
 
 
-def trajectory_rows(trajectory, t_s: np.ndarray) -> dict[str, np.ndarray]:
-    """The ``trajectory`` group's rows along ``sample`` at sample end times ``t_s``."""
-    st = trajectory.truth(t_s)
+def trajectory_rows(trajectory, t_s: np.ndarray, states: dict[str, np.ndarray] | None = None
+                    ) -> dict[str, np.ndarray]:
+    """The ``trajectory`` group's rows along ``sample`` at sample end times ``t_s`` (from
+    ``states`` = ``trajectory.truth(t_s)`` when already computed)."""
+    st = states if states is not None else trajectory.truth(t_s)
     heading, pitch, roll = st["euler"].T
     return {"latitude": np.degrees(st["lat"]), "longitude": np.degrees(st["lon"]),
             "height": st["height"], "velocity": st["v_n"], "attitude": st["q_bn"],
