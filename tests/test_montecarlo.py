@@ -103,7 +103,7 @@ def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_pat
 
 def test_killed_campaign_resumes_without_recomputing(tmp_path):
     study = _tiny_study(tmp_path / "study")
-    n = 6
+    n = 4                           # killed after two units, so two are left to resume
     ref = _cli(str(study), "--units", str(n), "--workers", "2", "-o", "ref", "--quiet",
                cwd=tmp_path)
     assert ref.returncode == 0, ref.stderr
