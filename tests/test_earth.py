@@ -56,3 +56,37 @@ def test_earth_rate_points_along_the_spin_axis(lat):
     assert np.linalg.norm(w) == pytest.approx(EARTH_RATE, rel=1e-15)
     # elevation of the spin axis above the northern horizon is the latitude
     assert math.degrees(math.atan2(w[2], w[1])) == pytest.approx(lat, abs=1e-12)
+
+
+def test_radii_and_transport_rate_one_form_with_the_ellipse_geometry():
+    """The degree forms are the array forms at one point (one implementation), and R_M, R_N
+    agree with the ellipse itself: the meridian's curvature radius |dP/dL| from its parametric
+    form x = a cos β, z = b sin β with tan β = (b/a) tan L (complex-step derivative, exact to
+    rounding), and the prime vertical's R_N = x / cos L. Tolerance 1e-12: tan L at 89° carries
+    its rounding ×57 into β, far below it elsewhere."""
+    from rlgsim.ground.earth import (WGS84_A, WGS84_E2, radii_of_curvature,
+                                     radii_of_curvature_rad, transport_rate_enu,
+                                     transport_rate_enu_rad)
+    from rlgsim.ground.units import DEG
+    lats = np.array([-80.0, -33.3, 0.0, 12.5, 34.0, 51.5, 89.0])
+    rm_a, rn_a = radii_of_curvature_rad(lats * DEG)
+    v = np.array([12.0, -7.0, 0.3])
+    for i, lat in enumerate(lats):
+        # the same arithmetic: one point is the array form at one point (numpy's vectorised
+        # power may round the last bit otherwise than the scalar one: 1e-15 against arrays)
+        assert radii_of_curvature(lat) == tuple(float(r) for r in
+                                                radii_of_curvature_rad(np.float64(lat * DEG)))
+        assert radii_of_curvature(lat) == pytest.approx((rm_a[i], rn_a[i]), rel=1e-15)
+        np.testing.assert_array_equal(transport_rate_enu(lat, 250.0, v),
+                                      transport_rate_enu_rad(np.float64(lat * DEG), 250.0, v))
+    b = WGS84_A * math.sqrt(1.0 - WGS84_E2)
+    for i, lat in enumerate(lats):
+        h = 1e-20
+        phi = lat * DEG + 1j * h
+        beta = np.arctan(b / WGS84_A * np.tan(phi))
+        dx = (WGS84_A * np.cos(beta)).imag / h
+        dz = (b * np.sin(beta)).imag / h
+        assert math.hypot(dx, dz) == pytest.approx(rm_a[i], rel=1e-12)
+        x = WGS84_A * math.cos(beta.real)
+        if abs(lat) < 89.5:
+            assert x / math.cos(lat * DEG) == pytest.approx(rn_a[i], rel=1e-12)

@@ -82,27 +82,26 @@ def earth_rate_enu(latitude_deg: float) -> np.ndarray:
 
 def radii_of_curvature(latitude_deg: float) -> tuple[float, float]:
     """Meridian and transverse radii of curvature (R_M, R_E) [m] of the WGS-84 ellipsoid at
-    geodetic latitude ``latitude_deg`` [°] (Groves 2013 eqs. 2.105–2.106)."""
-    s2 = math.sin(latitude_deg * DEG) ** 2
-    d = 1.0 - WGS84_E2 * s2
-    return WGS84_A * (1.0 - WGS84_E2) / d ** 1.5, WGS84_A / math.sqrt(d)
+    geodetic latitude ``latitude_deg`` [°]: :func:`radii_of_curvature_rad` (Groves 2013
+    eqs. 2.105–2.106) at one latitude given in degrees."""
+    r_m, r_e = radii_of_curvature_rad(np.float64(latitude_deg * DEG))
+    return float(r_m), float(r_e)
 
 
 def transport_rate_enu(latitude_deg: float, height_m: float, v_enu: np.ndarray) -> np.ndarray:
     """Transport rate ω_en^n [rad/s] (3,) of the ENU frame for the ENU velocity ``v_enu`` [m/s]
-    at ``latitude_deg`` [°] and ``height_m`` [m] (Titterton & Weston eq. 3.87, ENU)."""
-    r_m, r_e = radii_of_curvature(latitude_deg)
-    ve, vn = float(v_enu[0]), float(v_enu[1])
-    return np.array([-vn / (r_m + height_m), ve / (r_e + height_m),
-                     ve * math.tan(latitude_deg * DEG) / (r_e + height_m)])
+    at ``latitude_deg`` [°] and ``height_m`` [m]: :func:`transport_rate_enu_rad` (Titterton &
+    Weston eq. 3.87, ENU) at one point given in degrees."""
+    return transport_rate_enu_rad(np.float64(latitude_deg * DEG), float(height_m),
+                                  np.asarray(v_enu, dtype=float))
 
 
 # ------------------------------------------------------------------ a vehicle on the ellipsoid
 #
 # The simulator's vehicle (rlgsim.sim.motion.trajectory) needs the same Earth model along its
-# path at many points at once: the ``_rad`` functions below are the formulas above on numpy
-# arrays of radians (and the ECEF position and C_n^e its tests use; Groves 2013 eqs. 2.112,
-# 2.150).
+# path at many points at once: the ``_rad`` functions below take numpy arrays of radians (and
+# the ECEF position and C_n^e its tests use; Groves 2013 eqs. 2.112, 2.150). The radii and the
+# transport rate are written once, here; the degree forms above call them at one point.
 
 
 def radii_of_curvature_rad(lat_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -112,9 +111,8 @@ def radii_of_curvature_rad(lat_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]
         R_N = a / sqrt(1 − e² sin²L),   R_M = a (1 − e²) / (1 − e² sin²L)^(3/2)
     """
     s2 = np.sin(lat_rad) ** 2
-    w = 1.0 - WGS84_E2 * s2
-    rn = WGS84_A / np.sqrt(w)
-    return rn * (1.0 - WGS84_E2) / w, rn
+    d = 1.0 - WGS84_E2 * s2
+    return WGS84_A * (1.0 - WGS84_E2) / d ** 1.5, WGS84_A / np.sqrt(d)
 
 
 def earth_rate_enu_rad(lat_rad: np.ndarray) -> np.ndarray:
