@@ -23,8 +23,6 @@ def run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSeries
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rlgsim.estimators import metrics as M
-
     tag = f"_{slug(label)}" if multi else ""
     where = f"Test run {label}. " if multi else ""
     best = _best_per_kind(fitted, sc)
@@ -65,26 +63,15 @@ def run_figures(rep: Report, config: Config, fitted: list[Fitted], rs: RunSeries
         rep.figure(fig, f"bias_vs_temperature{tag}", f"{where}Bias against the probe "
                                                      "temperature, with the truth.")
 
-    from rlgsim.lab.studies.sample_rate import sample_rate_series
+    from rlgsim.lab.studies.sample_rate import allan_curves
     fig, ax = plt.subplots(figsize=(7, 5))
-    fast = sample_rate_series(rs, config.gyro, config.window_s)
-    rate = 1.0 / config.window_s if fast is None else fast[0]
+    fast = allan_curves(ax, rs, config.gyro, config.window_s,
+                        [("raw", np.zeros(rs.y.size), dict(color="0.5"))]
+                        + [(n, preds[n], {}) for n in best]
+                        + ([(ORACLE, preds[ORACLE], dict(color="k", ls="--"))]
+                           if has_truth(rs) else []), ms=3)
+    rate = 1.0 / config.window_s if fast is None else fast
     resolution = "window" if fast is None else "sample"
-
-    def series(pred):           # y − ŷ at the window or the sample rate (ŷ held per window)
-        if fast is None:
-            return rs.y - pred
-        return fast[1] - np.repeat(pred, fast[2])
-
-    for name, pred, style in ([("raw", np.zeros(rs.y.size), dict(color="0.5"))]
-                              + [(n, preds[n], {}) for n in best]
-                              + ([(ORACLE, preds[ORACLE], dict(color="k", ls="--"))]
-                                 if has_truth(rs) else [])):
-        x = series(pred)
-        if x.size < 8:
-            continue
-        ad = M.allan_deviation(x, rate, "octave")
-        ax.loglog(ad.tau_s, ad.adev, marker="o", ms=3, label=name, **style)
     ax.set_xlabel("τ [s]")
     ax.set_ylabel("Allan deviation [°/h]")
     ax.grid(True, which="both", alpha=0.3)

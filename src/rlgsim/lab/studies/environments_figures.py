@@ -96,24 +96,16 @@ def _temperature_figure(rep: Report, results: list[EnvResult], config: Config,
 def _allan_figure(rep: Report, results: list[EnvResult], config: Config, names: list[str],
                   colour: dict[str, str], plt) -> None:
     """Overlapping Allan deviation before and after compensation (allantools)."""
-    from rlgsim.estimators import metrics as M
-    from rlgsim.lab.studies.sample_rate import sample_rate_series
+    from rlgsim.lab.studies.sample_rate import allan_curves
     fig, axes = grid(len(results), plt)
     rates = set()
     for ax, r in zip(axes, results):
         rs, p = r.tests[0], r.predictions[r.tests[0].label]
-        fast = sample_rate_series(rs, config.gyro, config.window_s)
-        rate = 1.0 / config.window_s if fast is None else fast[0]
-        rates.add(None if fast is None else rate)
-        series = ([("raw", np.zeros(rs.y.size), {"color": "0.5"})]
-                  + [(n, p[n], {"color": colour[n]}) for n in names]
-                  + [(ORACLE, p[ORACLE], {"color": "k", "ls": "--"})])
-        for label, pred, style in series:
-            # y − ŷ at the window rate, or at the sample rate with ŷ held per window
-            x = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
-            if x.size >= 8 and np.all(np.isfinite(x)):      # no oracle on a recording
-                ad = M.allan_deviation(x, rate, "octave")
-                ax.loglog(ad.tau_s, ad.adev, marker="o", ms=2, lw=0.8, label=label, **style)
+        rates.add(allan_curves(ax, rs, config.gyro, config.window_s,
+                               [("raw", np.zeros(rs.y.size), {"color": "0.5"})]
+                               + [(n, p[n], {"color": colour[n]}) for n in names]
+                               + [(ORACLE, p[ORACLE], {"color": "k", "ls": "--"})],
+                               ms=2, lw=0.8))
         ax.set_title(r.env.name, fontsize=9)
         ax.tick_params(labelsize=7)
         ax.set_xlabel("τ [s]", fontsize=8)

@@ -21,8 +21,6 @@ def figures(rep: Report, config: Config, runs, per_test, predictions, fitted, co
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rlgsim.estimators import metrics as M
-
     if corr is not None:
         pts = [short(p) for p in config.points]
         panels = [("ours (train)", np.abs(corr))]
@@ -68,19 +66,13 @@ def figures(rep: Report, config: Config, runs, per_test, predictions, fitted, co
                    f"Test run {spec.label}: measured and true bias with each model's "
                    "prediction (top); compensated error curves (bottom; paper 003 Figs. 6-8).")
 
-        from rlgsim.lab.studies.sample_rate import sample_rate_series
+        from rlgsim.lab.studies.sample_rate import allan_curves
         fig, ax = plt.subplots(figsize=(7, 5))
-        fast = sample_rate_series(rs, config.gyro, config.window_s)
-        rate = 1.0 / config.window_s if fast is None else fast[0]
-        for n, pred, style in ([(RAW, np.zeros(rs.y.size), dict(color="0.5"))]
-                               + [(n, preds[n], {}) for n in names]
-                               + [(ORACLE, preds[ORACLE], dict(color="k", ls="--"))]):
-            # y − ŷ at the window rate, or at the sample rate with ŷ held per window
-            series = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
-            if series.size < 8 or not np.all(np.isfinite(series)):
-                continue
-            ad = M.allan_deviation(series, rate, "octave")
-            ax.loglog(ad.tau_s, ad.adev, marker="o", ms=3, label=n, **style)
+        rate = allan_curves(ax, rs, config.gyro, config.window_s,
+                            [(RAW, np.zeros(rs.y.size), dict(color="0.5"))]
+                            + [(n, preds[n], {}) for n in names]
+                            + [(ORACLE, preds[ORACLE], dict(color="k", ls="--"))], ms=3)
+        fast = rate is not None
         ax.set_xlabel("τ [s]")
         ax.set_ylabel("Allan deviation [°/h]")
         ax.grid(True, which="both", alpha=0.3)
@@ -88,7 +80,7 @@ def figures(rep: Report, config: Config, runs, per_test, predictions, fitted, co
         ax.set_title(f"Test run {spec.label}")
         rep.figure(fig, f"allan_deviation_{slug(spec.label)}",
                    "Overlapping Allan deviation before and after compensation (allantools), "
-                   + (f"from the {config.window_s:g} s means." if fast is None else
+                   + (f"from the {config.window_s:g} s means." if not fast else
                       f"from the sample rate ({rate:g} Hz; ŷ held over each "
                       f"{config.window_s:g} s window)."))
 

@@ -1,6 +1,8 @@
-"""A test run's measured gyro rate at the IMU sample rate, for the Allan-deviation figures: at
-the window length (100 s) the angle random walk is already averaged away; from the sample rate
-on, the curve shows pulse quantisation (slope −1) and angle random walk (slope −½) first."""
+"""The Allan-deviation figures of the study reports: a test run's measured gyro rate at the IMU
+sample rate (at the window length, 100 s, the angle random walk is already averaged away; from
+the sample rate on, the curve shows pulse quantisation (slope −1) and angle random walk
+(slope −½) first), and the curves of a run's residual before and after each compensation
+(:func:`allan_curves`, shared by the recipes' figures)."""
 
 from __future__ import annotations
 
@@ -41,3 +43,21 @@ def sample_rate_series(rs, gyro: str | None, window_s: float
             return rate, y, m
     except Exception:           # noqa: BLE001 — a recording or another layout: window series
         return None
+
+
+def allan_curves(ax, rs, gyro: str | None, window_s: float, curves, **line) -> float | None:
+    """Plot on ``ax`` the overlapping Allan deviation (allantools, octave τ; °/h against s) of
+    the residual y − ŷ of run ``rs`` for each ``(label, ŷ per window, style)`` in ``curves``:
+    at the sample rate (:func:`sample_rate_series`, ŷ held over each window) when the run's
+    dataset gives it, else of the window series. A residual shorter than 8 values or with a
+    non-finite one (no oracle on a recording) is left out. ``line``: more plot keywords for
+    every curve. Returns the sample rate [Hz] used, or None for the window series."""
+    from rlgsim.estimators import metrics as M
+    fast = sample_rate_series(rs, gyro, window_s)
+    rate = 1.0 / window_s if fast is None else fast[0]
+    for label, pred, style in curves:
+        x = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
+        if x.size >= 8 and np.all(np.isfinite(x)):
+            ad = M.allan_deviation(x, rate, "octave")
+            ax.loglog(ad.tau_s, ad.adev, marker="o", label=label, **line, **style)
+    return None if fast is None else rate
