@@ -71,7 +71,7 @@ recurrence (each sample depends on the clip of the previous), run in plain Pytho
 ``[T_a, T_s, I, D, y_prev, cos, sin]``; the chamber air is not heated by the device (a few W
 against the chamber's kW).
 
-Why this file is long: the controller's keys, its discretisation and its two recurrences (the
+Why this file is over 400 lines: the controller's keys, its discretisation and its two recurrences (the
 plain one and the noisy copy kept apart so that the plain loop's speed is unchanged) are one
 model; split, each would read the other's coefficients.
 """
