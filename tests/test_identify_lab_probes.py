@@ -48,11 +48,25 @@ def lab_csv(tmp_path_factory):
     lab.to_csv(path, index=False)
     side = tomllib.loads(out.sidecar.read_text())
     path.with_suffix(".toml").write_text(
-        '[recording]\nsample_rate_hz = 1.0\ntemperature_rate_hz = 1.0\n'
-        'ignore_columns = ["timestamp"]\n'
-        f'[gyro]\naxes = ["x", "y", "z"]\nscale_factor_pulses_per_arcsec = '
-        f'{side["gyro"]["scale_factor_pulses_per_arcsec"]}\n'
-        '[probes]\nblock_top = "g.A"\n', encoding="utf-8")
+        _SIDECAR.format(sf=side["gyro"]["scale_factor_pulses_per_arcsec"],
+                        lat=side["site"]["latitude_deg"]) + _IDENTIFY, encoding="utf-8")
+    return path
+
+
+#: the lab's sidecar: what the table cannot say, and what identification needs (no flag)
+_SIDECAR = ('[recording]\nsample_rate_hz = 1.0\ntemperature_rate_hz = 1.0\n'
+            'ignore_columns = ["timestamp"]\n[site]\nlatitude_deg = {lat}\n'
+            '[gyro]\naxes = ["x", "y", "z"]\nscale_factor_pulses_per_arcsec = {sf}\n'
+            '[probes]\nblock_top = "g.A"\n')
+_IDENTIFY = ('[identify]\ndevice_template = "trplg_001"\nthermal_template = "rlg_single"\n'
+             'gyro = "z"\n')
+
+
+def _variant(lab_csv, folder: pathlib.Path, sidecar: str) -> pathlib.Path:
+    """The lab's table beside another sidecar."""
+    path = folder / "lab.csv"
+    path.write_bytes(lab_csv.read_bytes())
+    path.with_suffix(".toml").write_text(sidecar, encoding="utf-8")
     return path
 
 
@@ -107,10 +121,12 @@ def test_lab_csv_goes_through_info_open_tree_and_identify(lab_csv, tmp_path, cap
         assert list(tree["imu"]["gyro"].values) == ["x", "y", "z"]
         assert sorted(map(str, tree["probes"]["probe"].values)) == sorted(LAB)
     capsys.readouterr()
-    code = main(["identify", str(lab_csv), "--device-template", "trplg_001",
-                 "--thermal-template", "rlg_single", "--gyro", "z", "-o", str(tmp_path / "twin")])
+    # the sidecar alone: its [identify] table names the templates and the gyro
+    code = main(["identify", str(lab_csv), "-o", str(tmp_path / "twin")])
     out = capsys.readouterr().out
     assert code == 0, out
+    assert "gyro `z`" in (tmp_path / "twin" / "report.md").read_text()
+    assert "site:" not in out                        # the sidecar gives the latitude
     line = next(x for x in out.splitlines() if x.startswith("probes mapped"))
     assert line.startswith("probes mapped by the sidecar's [probes]: block_top → g.A; the "
                            "others mapped by fit") and "case → housing" in line
@@ -119,3 +135,50 @@ def test_lab_csv_goes_through_info_open_tree_and_identify(lab_csv, tmp_path, cap
     th = tomllib.loads((tmp_path / "twin" / "thermal.toml").read_text())
     assert "probes" in th
     assert "Probes mapped by the sidecar" in (tmp_path / "twin" / "report.md").read_text()
+
+
+def _sidecar_text(lab_csv, identify: str, site: bool = True) -> str:
+    text = lab_csv.with_suffix(".toml").read_text().split("[identify]")[0]
+    if not site:
+        text = "\n".join(x for x in text.splitlines()
+                          if x != "[site]" and not x.startswith("latitude_deg")) + "\n"
+    return text + identify
+
+
+@pytest.mark.parametrize("identify, words", [
+    ("", "a recording needs a device template"),
+    ('[identify]\ndevice_template = "trplg_001"\nthermal_template = "rlg_single"\n',
+     "several gyros (x, y, z); say which one to identify (--gyro AXIS, or in the sidecar "
+     "[identify] gyro)"),
+    ('[identify]\ndevice_template = "trplg_001"\ngyro = "q"\n',
+     "identify.gyro: value 'q' not allowed; must be one of the [gyro] axes (x, y, z)"),
+    ('[identify]\ndevice = "trplg_001"\n', "identify.device: unknown key; allowed: "
+                                          "device_template, gyro, thermal_template"),
+])
+def test_what_the_sidecar_lacks_is_one_line_before_any_fit(lab_csv, tmp_path, capsys, identify,
+                                                           words):
+    path = _variant(lab_csv, tmp_path, _sidecar_text(lab_csv, identify))
+    assert main(["identify", str(path), "-o", str(tmp_path / "twin")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and "\n" not in err and "Traceback" not in err
+    assert not (tmp_path / "twin" / "device.toml").exists()
+    if identify == "":                    # both ways of giving it are named
+        assert "--device-template PRESET" in err and '[identify] device_template' in err
+
+
+def test_sidecar_choices_flags_win_paths_beside_the_sidecar_and_the_site_note(lab_csv,
+                                                                               tmp_path):
+    from rlgsim.lab.identify.sidecar_choices import sidecar_choices
+    (tmp_path / "presets").mkdir()
+    (tmp_path / "presets" / "gyro12.toml").write_text("", encoding="utf-8")
+    ident = '[identify]\ndevice_template = "presets/gyro12.toml"\ngyro = "y"\n'
+    path = _variant(lab_csv, tmp_path, _sidecar_text(lab_csv, ident, site=False))
+    c = sidecar_choices(str(path), None, None, None)
+    assert c.device_template == str(tmp_path / "presets" / "gyro12.toml")
+    assert c.thermal_template is None and c.gyro == "y"
+    assert len(c.notes) == 1 and c.notes[0].startswith(
+        "site: [site] latitude_deg not in the sidecar lab.toml; the Earth rate on the gyro axis "
+        "is taken at latitude 34°")
+    c = sidecar_choices(str(path), "trplg_001", "rlg_single", "z")   # the flags win
+    assert (c.device_template, c.thermal_template, c.gyro) == ("trplg_001", "rlg_single", "z")
+    assert sidecar_choices(str(lab_csv), None, None, None).notes == ()

@@ -45,6 +45,7 @@ _SIDECAR_TABLES = {
     "noise": None,                  # the device presets' [noise] keys, numbers
     "columns": None,                # file's column name -> standard name
     "probes": None,                 # recorded probe name -> the thermal template's probe
+    "identify": {"device_template", "thermal_template", "gyro"},   # rlgsim identify's choices
 }
 
 
@@ -114,6 +115,9 @@ class Sidecar:
     columns: dict[str, str] = field(default_factory=dict)
     #: recorded probe name (``probe_<name>_c``) -> probe of the thermal template (identify)
     probes: dict[str, str] = field(default_factory=dict)
+    #: ``[identify]``: device_template / thermal_template (preset name or path, relative to the
+    #: sidecar's folder when it names a file there) and gyro (the axis to identify)
+    identify: dict[str, str] = field(default_factory=dict)
 
 
 def read_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -205,10 +209,24 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             raise _fail(f"{p}: columns.{src}", f"value {dst!r} not allowed; must be a standard "
                                                f"column name ({ALLOWED_NAMES})")
         sc.columns[src] = dst
+    _identify_tables(data, p, sc)
+    return sc
+
+
+def _identify_tables(data: Mapping, p: pathlib.Path, sc: Sidecar) -> None:
+    """``[probes]`` and ``[identify]``: what rlgsim identify reads from the sidecar."""
     for src, dst in data.get("probes", {}).items():
         if not isinstance(dst, str) or not dst:
             raise _fail(f"{p}: probes.{src}", f"value {dst!r} not allowed; must be the name of "
                                               f"a probe of the thermal template (a string)")
         sc.probes[src] = dst
-    return sc
-
+    for key, v in data.get("identify", {}).items():
+        if not isinstance(v, str) or not v:
+            raise _fail(f"{p}: identify.{key}", f"value {v!r} not allowed; must be a non-empty "
+                                                f"string (a preset name or path; for gyro, one "
+                                                f"of the [gyro] axes)")
+        sc.identify[key] = v
+    g = sc.identify.get("gyro")
+    if g is not None and sc.gyro_axes is not None and g not in sc.gyro_axes:
+        raise _fail(f"{p}: identify.gyro", f"value {g!r} not allowed; must be one of the [gyro] "
+                                           f"axes ({', '.join(sc.gyro_axes)})")

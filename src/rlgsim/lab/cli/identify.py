@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         th = r.thermal
         print(f"identified {r.name} from {args.recording} in {r.seconds:.1f} s")
-        for line in r.probe_lines:
+        for line in (*r.notes, *r.probe_lines):
             print(line)
         print("thermal: " + ", ".join(f"{k} ×{v:.4g}" for k, v in th.multipliers.items()))
         for k, why in th.refused.items():

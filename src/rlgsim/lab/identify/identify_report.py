@@ -115,6 +115,8 @@ def _intro(rep: Report, result, device_name: str, thermal_name: str) -> None:
         f"`{thermal_name}` in {result.seconds:.1f} s. Files: `thermal.toml`, `device.toml`, "
         f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
         f"`rlgsim run {result.scenario_path.name}`).")
+    for note in result.notes:
+        rep.paragraph(note[0].upper() + note[1:] + ".")
     if d.probe_glitches:
         rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
                       f"their ±5 neighbours were taken as glitches and left out.")

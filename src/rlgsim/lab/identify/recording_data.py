@@ -128,7 +128,7 @@ def _gyro_of(source: str, axes: list[str], gyro: str | None) -> str:
     if gyro is None:
         if len(axes) != 1:
             raise UserInputError(f"{source}: several gyros ({', '.join(axes)}); say which "
-                                 f"one to identify (gyro=)")
+                                 f"one to identify (--gyro AXIS, or in the sidecar [identify] gyro)")
         return axes[0]
     if gyro not in axes:
         raise UserInputError(f"{source}: gyro {gyro!r} not allowed; the gyro axes are "

@@ -65,6 +65,8 @@ class Identification:
     scale_factor: ScaleFactorFit | None = None
     #: how the recorded probes were placed on the template's (empty: named as the template)
     probe_lines: tuple[str, ...] = ()
+    #: defaults taken for what the recording's sidecar does not say (sidecar_choices)
+    notes: tuple[str, ...] = ()
     #: the next experiment (``suggest_programme``; None: not asked, or nothing to separate)
     suggestion: object = None
     next_path: pathlib.Path | None = None
@@ -96,16 +98,18 @@ def load_templates(source: str, device_template: str | None, thermal_template: s
                 return dev_name, dev, f"{tname} (as embedded in the dataset)", \
                     tomllib.loads(ttext)
     if dev is None:
-        raise UserInputError(f"{source}: a recording needs --device-template PRESET (the device "
-                             f"preset whose law family and noise keys the twin takes; e.g. "
-                             f"trplg_001)")
+        raise UserInputError(f"{source}: a recording needs a device template (the device preset "
+                             f"whose law family and noise keys the twin takes; e.g. trplg_001): "
+                             f"give --device-template PRESET or, in its sidecar, [identify] "
+                             f"device_template = \"PRESET\"")
     dev = _one_day(dev)
     _one_gyro(dev_name, dev)
     _check_device_tables(dev_src if device_template is not None else f"{source}: device_text",
                          dev)
     tref = thermal_template or dev.get("device", {}).get("thermal_preset")
     if not tref:
-        raise UserInputError(f"{dev_name}: no thermal preset; give --thermal-template PRESET")
+        raise UserInputError(f"{dev_name}: no thermal preset; give --thermal-template PRESET "
+                             f"or, in the recording's sidecar, [identify] thermal_template")
     t = presets.load_thermal_file(tref, base_dir=base)
     return dev_name, dev, t.name, t.data
 
@@ -308,16 +312,19 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     source = os.fspath(input_file(recording, "a recording or an rlgsim dataset"))
     if name is not None:
         check_name(name)
+    from rlgsim.lab.identify.sidecar_choices import sidecar_choices
+    chosen = sidecar_choices(source, device_template, thermal_template, gyro)
+    device_template, thermal_template = chosen.device_template, chosen.thermal_template
     inputs = _inputs(source, device_template, thermal_template)
     dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
     name = name or f"{dev_name}_twin"
     planned_outputs(out_dir, name, inputs, overwrite=overwrite, next_file=suggest_programme)
-    data = read_recording(source, gyro=gyro)
+    data = read_recording(source, gyro=chosen.gyro)
     from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
-    data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
     # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
     # slows down on a shared machine (same reason as the thermal integrator)
     with threadpool_limits(limits=1, user_api="blas"):
+        data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
         thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
                               data.probes_c, source=source)
         laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
@@ -340,11 +347,12 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
         if "scale_factor" in tol:
             tol["scale_factor"] = {k: v for k, v in tol["scale_factor"].items()
                                    if k in table or (k.startswith("knee_") and "knee_ppm" in table)}
+    header = [*chosen.notes, *probe_lines, *sf_lines]
     dtext = dumps(dev, comments, f"Device preset identified by rlgsim identify from {source}\n"
                                  f"template: {dev_name}; bias and UHFO terms chosen by BIC, "
                                  f"noise from the Allan deviation of the law residual"
                                  + ("\n" + _law_header(laws.bias) if laws.bias.unseparable
-                                    else "") + "\n" + "\n".join([*probe_lines, *sf_lines]))
+                                    else "") + "\n" + "\n".join(header))
     stext = _scenario_text(data, name)
     suggestion, ntext = None, None
     if suggest_programme:
@@ -367,7 +375,7 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     result = Identification(out_dir=out, device_path=dp, thermal_path=tp, scenario_path=sp,
                             report_path=out / "report.md", data=data, thermal=thermal, laws=laws,
                             device=dev, thermal_preset=fitted_thermal, seconds=seconds, name=name,
-                            scale_factor=sf, probe_lines=tuple(probe_lines),
+                            scale_factor=sf, probe_lines=tuple(probe_lines), notes=chosen.notes,
                             suggestion=suggestion, next_path=next_path)
     from rlgsim.lab.identify.identify_report import build_report
     build_report(result, dev_name, th_name).write(out)
