@@ -182,3 +182,31 @@ def test_sidecar_choices_flags_win_paths_beside_the_sidecar_and_the_site_note(la
     c = sidecar_choices(str(path), "trplg_001", "rlg_single", "z")   # the flags win
     assert (c.device_template, c.thermal_template, c.gyro) == ("trplg_001", "rlg_single", "z")
     assert sidecar_choices(str(lab_csv), None, None, None).notes == ()
+
+
+def test_the_fits_run_with_one_blas_thread(lab_csv, tmp_path, monkeypatch):
+    """identify limits BLAS to one thread around its fits (src/rlgsim/lab/identify/twin.py),
+    whatever the caller's pool: seen from inside the thermal fit with the caller at two."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+    import rlgsim.lab.identify.twin as twin
+
+    def blas_threads() -> list[int]:
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    class Stop(Exception):
+        pass
+
+    seen: list[int] = []
+
+    def spy(*args, **kwargs):
+        seen.extend(blas_threads())
+        raise Stop
+
+    monkeypatch.setattr(twin, "fit_thermal", spy)
+    with threadpool_limits(limits=2, user_api="blas"):
+        if not blas_threads() or max(blas_threads()) < 2:
+            pytest.skip("no BLAS here that runs two threads")
+        with pytest.raises(Stop):
+            twin.identify(str(lab_csv), tmp_path / "twin")
+        assert max(blas_threads()) == 2                  # the caller's pool is given back
+    assert seen and max(seen) == 1

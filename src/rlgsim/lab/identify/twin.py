@@ -305,7 +305,22 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     (:mod:`rlgsim.lab.identify.outputs`: never an input, a link or a special file; an existing
     file an earlier identification did not write only with ``overwrite``).
     ``suggest_programme``: also write ``<name>_next.toml``, a chamber programme that would
-    separate the terms this recording could not (:mod:`.next_experiment`)."""
+    separate the terms this recording could not (:mod:`.next_experiment`).
+
+    It all runs with one BLAS thread (threadpoolctl): the fits factorise tall, thin Jacobians
+    and integrate small networks, which a BLAS thread pool only slows down on a shared machine
+    (the thermal integrator's and the Monte Carlo workers' reason;
+    tests/test_identify_lab_probes.py checks the limit is in force inside the fits)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(recording, out_dir, device_template=device_template,
+                         thermal_template=thermal_template, name=name, gyro=gyro,
+                         suggest_programme=suggest_programme, overwrite=overwrite)
+
+
+def _identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
+              device_template: str | None, thermal_template: str | None, name: str | None,
+              gyro: str | None, suggest_programme: bool, overwrite: bool) -> Identification:
+    """:func:`identify` under its thread limit."""
     from rlgsim.ground.paths import input_file
     from rlgsim.lab.identify.outputs import check_name, planned_outputs
     t0 = time.perf_counter()
@@ -321,14 +336,11 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     planned_outputs(out_dir, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     data = read_recording(source, gyro=chosen.gyro)
     from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
-    # one BLAS thread: the fits factorise tall, thin Jacobians, which a thread pool only
-    # slows down on a shared machine (same reason as the thermal integrator)
-    with threadpool_limits(limits=1, user_api="blas"):
-        data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
-        thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
-                              data.probes_c, source=source)
-        laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
-        sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
+    data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
+    thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
+                          data.probes_c, source=source)
+    laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
+    sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
     out = pathlib.Path(out_dir).expanduser()
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -357,8 +369,7 @@ def identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     suggestion, ntext = None, None
     if suggest_programme:
         from rlgsim.lab.identify.next_experiment import scenario_text, suggest_programme as suggest
-        with threadpool_limits(limits=1, user_api="blas"):
-            suggestion = suggest(data, thermal, laws, dev_t)
+        suggestion = suggest(data, thermal, laws, dev_t)
         if suggestion is not None:
             ntext = scenario_text(suggestion, data, name)
     for text in (ttext, dtext, stext, ntext or ""):
