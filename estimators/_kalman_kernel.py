@@ -41,7 +41,8 @@ def _predict_state(f_dyn, k, nz_idx, nz_cnt, x, xt):  # pragma: no cover - compi
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T):  # pragma: no cover - compiled
+def _predict_covariance(f_dyn: np.ndarray, k: int, nz_idx: np.ndarray, nz_cnt: np.ndarray,
+                        P: np.ndarray, T: np.ndarray) -> None:  # pragma: no cover - compiled
     """P ← F_k P F_kᵀ in place (no Q yet): T = F_d P over the moving rows' non-zero columns
     (``T`` (nd, n_x) is scratch), the (d, d) block T F_dᵀ computed once per symmetric pair, the
     (d, rest) blocks copied from T; the identity rows' (rest, rest) block is unchanged."""
@@ -70,7 +71,8 @@ def _predict_covariance(f_dyn, k, nz_idx, nz_cnt, P, T):  # pragma: no cover - c
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _add_process_noise(qs, k, q_dd, Q, full_q, P):  # pragma: no cover - compiled
+def _add_process_noise(qs: np.ndarray, k: int, q_dd: np.ndarray, Q: np.ndarray, full_q: bool,
+                       P: np.ndarray) -> None:  # pragma: no cover - compiled
     """P += Q_k: the step's (6, 6) navigation noise ``qs[k]`` placed into ``q_dd`` (nd, nd)
     and added over the moving block, or with ``full_q`` into ``Q`` (n_x, n_x), added whole."""
     for a in range(6):
@@ -90,7 +92,8 @@ def _add_process_noise(qs, k, q_dd, Q, full_q, P):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _innovation_inverse(P, r2, si):  # pragma: no cover - compiled
+def _innovation_inverse(P: np.ndarray, r2: float,
+                        si: np.ndarray) -> None:  # pragma: no cover - compiled
     """S⁻¹ into ``si`` (3, 3) for S = H P Hᵀ + r2 I = P[3:6, 3:6] + r2 I (the adjugate over
     the determinant, expanded along the first column)."""
     s00 = P[3, 3] + r2
@@ -114,7 +117,8 @@ def _innovation_inverse(P, r2, si):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _joseph_update(P, K, r2, prow, B):  # pragma: no cover - compiled
+def _joseph_update(P: np.ndarray, K: np.ndarray, r2: float, prow: np.ndarray,
+                   B: np.ndarray) -> None:  # pragma: no cover - compiled
     """P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ in place, R = r2 I and H = [0 I 0] (rows 3:6), as
     A = P − K H P, B = r2 K − A Hᵀ, P = A + B Kᵀ (``prow`` (3, n_x), ``B`` (n_x, 3) scratch);
     then P symmetrised (the average with its transpose drops the Joseph form's rounding skew)."""

@@ -27,7 +27,8 @@ from rlgsim.estimators._rotation_kernel import coning_vector, cross, quat_mul, q
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _velocity_increment(tx, ty, tz, ux, uy, uz):  # pragma: no cover - compiled
+def _velocity_increment(tx: float, ty: float, tz: float, ux: float, uy: float,
+                        uz: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """ΔV = Δv + ½Δθ×Δv + (1/12)Δθ×(Δθ×Δv) [m/s] in the body frame: the exact constant-rate
     rotation correction (``navigate``'s docstring) of one sample's increments."""
     cx, cy, cz = cross(tx, ty, tz, ux, uy, uz)
@@ -36,7 +37,8 @@ def _velocity_increment(tx, ty, tz, ux, uy, uz):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _to_enu(ix, iy, iz, kx, ky, kz, ang):  # pragma: no cover - compiled
+def _to_enu(ix: float, iy: float, iz: float, kx: float, ky: float, kz: float,
+            ang: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """Rotate the i0 vector (ix, iy, iz) about the unit axis k by ``ang`` [rad] (Rodrigues)."""
     ca, sa = math.cos(ang), math.sin(ang)
     kv = ix * kx + iy * ky + iz * kz

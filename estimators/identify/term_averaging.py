@@ -142,7 +142,9 @@ def conditioned(R: dict, combo: Sequence[str]) -> bool:
     return bool(np.all(np.isfinite(vif)) and np.all(vif <= MAX_VIF))
 
 
-def _subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear):
+def _subset_weights(y: np.ndarray, base: np.ndarray, lin_names: Sequence[str], lcols: dict,
+                    R: dict, c_hat: float, max_linear: int
+                    ) -> tuple[list[tuple[str, ...]], np.ndarray]:
     """Every well-conditioned linear subset (up to ``max_linear`` of ``lin_names``) on top of
     ``base``, with its QAIC weight ``w ∝ exp(−QAIC/2)``; the subsets carrying all but 1e-4 of
     the weight (at most 1000, at least one), most weighty first: (subsets, renormalised
@@ -167,7 +169,7 @@ def _subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear):
     return [fits[i][1] for i in keep], wk
 
 
-def _average_coefficients(names, models) -> dict:
+def _average_coefficients(names: Sequence[str], models: list) -> dict:
     """{name: (model-averaged coefficient Σ w_S β_S, its standard error
     √Σ w_S (se_S² + (β_S − β̄)²), inclusion probability Σ_{S∋t} w_S)} over ``models``
     (base names, subset, coefficients, covariance, weight); 0 where a model leaves it out."""
@@ -191,7 +193,8 @@ def _average_coefficients(names, models) -> dict:
     return averaged
 
 
-def _repeat_edges(undecided, lin_names, base, lcols, chosen_lin) -> dict:
+def _repeat_edges(undecided: list[str], lin_names: Sequence[str], base: np.ndarray, lcols: dict,
+                  chosen_lin: Sequence[str]) -> dict:
     """{term: [(other, r), ...]}: the pairs of an undecided term and a chosen or undecided one
     whose window features correlate by |r| ≥ 0.9 once the chosen law's other terms and the
     base are removed (both directions listed)."""
@@ -212,7 +215,7 @@ def _repeat_edges(undecided, lin_names, base, lcols, chosen_lin) -> dict:
     return edges
 
 
-def _connected(c, edges, lin_names) -> tuple[list[str], dict]:
+def _connected(c: str, edges: dict, lin_names: Sequence[str]) -> tuple[list[str], dict]:
     """The group of terms connected to ``c`` through ``edges`` (in candidate order) and the
     correlation of each connected pair."""
     group, todo, pairs = [], [c], {}
@@ -227,7 +230,8 @@ def _connected(c, edges, lin_names) -> tuple[list[str], dict]:
     return [g for g in lin_names if g in group], pairs
 
 
-def _group_reason(group, pairs, averaged, lead, value, se, slopes) -> str:
+def _group_reason(group: list[str], pairs: dict, averaged: dict, lead: str, value: float,
+                  se: float, slopes: dict) -> str:
     """The one-line reason of an unseparable group (its inclusion probabilities, correlations,
     combined effect and the programme feature that would separate it)."""
     corr = ", ".join(f"{a}/{b} {rr:+.3f}" for (a, b), rr in pairs.items())
@@ -243,8 +247,9 @@ def _group_reason(group, pairs, averaged, lead, value, se, slopes) -> str:
             f"{_separating_feature(group)} would separate them")
 
 
-def averaging(y, base, base_names, lin_names, lcols, chosen_lin, max_linear, batches,
-              gls=False):
+def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
+              lin_names: Sequence[str], lcols: dict, chosen_lin: Sequence[str], max_linear: int,
+              batches: int, gls: bool = False) -> tuple:
     """Selection uncertainty of the linear subset (module docstring): (averaged, unseparable
     groups with their reasons, ĉ, averaged models, combined effects, stand-ins)."""
     R = corr_matrix(lcols, lin_names, base[:, 0])

@@ -217,7 +217,7 @@ def _best_subset(y: np.ndarray, base: np.ndarray, names: list[str], lcols: dict,
 
 
 def _best_nonlinear(y: np.ndarray, base: np.ndarray, nonlin: list[Term], nl_chosen: list[str],
-                    k_now: int):
+                    k_now: int) -> tuple[float, Term, np.ndarray] | None:
     """The nonlinear candidate (not yet chosen) and grid start of lowest BIC added to
     ``base``: (BIC, term, theta), or None when no grid point gives a usable column."""
     best = None
@@ -235,7 +235,8 @@ def _best_nonlinear(y: np.ndarray, base: np.ndarray, nonlin: list[Term], nl_chos
 
 
 def _start_and_bounds(y: np.ndarray, X0: np.ndarray, chosen: list[str], by_name: dict,
-                      theta: dict, names: list[str]):
+                      theta: dict, names: list[str]
+                      ) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
     """Starting point of the joint refinement (the linear least-squares coefficients, then the
     chosen thetas), its parameter names (``names`` extended by ``<term>.<theta>``) and bounds;
     the start nudged 1e-9 (relative) inside finite bounds."""
@@ -275,7 +276,9 @@ def _raw_residual(res: LsqFit, y_raw: np.ndarray, fixed: Sequence[Term], chosen:
     return raw_pred - y_raw
 
 
-def _choose(y, ones, fcols, lin, lcols, nonlin, by_name, max_linear, steps):
+def _choose(y: np.ndarray, ones: np.ndarray, fcols: list[np.ndarray], lin: list[Term],
+            lcols: dict, nonlin: list[Term], by_name: dict, max_linear: int,
+            steps: list[tuple[str, float]]) -> tuple[float, list[str], list[str], dict, dict]:
     """The selection: the best linear subset, then nonlinear terms added one at a time (best
     grid start, polished by variable projection) while the BIC falls, the linear subset
     re-chosen after each. Returns (BIC, chosen linear names, chosen nonlinear names, their

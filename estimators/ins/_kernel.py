@@ -69,7 +69,8 @@ def _half_exp(a2):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _frame_rates(me, mn, sl, cl, rm_i, re_i, tl_re):  # pragma: no cover - compiled
+def _frame_rates(me: float, mn: float, sl: float, cl: float, rm_i: float, re_i: float,
+                 tl_re: float) -> tuple[float, float, float, float, float]:  # pragma: no cover
     """Earth rate ω_ie^n (North, Up) and transport rate ω_en^n (E, N, U) [rad/s] in ENU at the
     velocity (me, mn) [m/s] (Groves eqs. 2.123, 5.44; T&W eq. 3.87)."""
     wie_n, wie_u = EARTH_RATE * cl, EARTH_RATE * sl
@@ -77,8 +78,11 @@ def _frame_rates(me, mn, sl, cl, rm_i, re_i, tl_re):  # pragma: no cover - compi
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _specific_force_increment(tx, ty, tz, ux, uy, uz, ptx, pty, ptz, pvx, pvy, pvz,
-                              qw, qx, qy, qz, zx, zy, zz):  # pragma: no cover - compiled
+def _specific_force_increment(tx: float, ty: float, tz: float, ux: float, uy: float, uz: float,
+                              ptx: float, pty: float, ptz: float, pvx: float, pvy: float,
+                              pvz: float, qw: float, qx: float, qy: float, qz: float, zx: float,
+                              zy: float, zz: float
+                              ) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """The sample's specific-force velocity increment [m/s] in the navigation frame at the
     middle of the frame's turn: Δv + ½Δθ×Δv + two-sample sculling (Savage 2007 §7.2.2.2) in
     the body frame, rotated by q (the attitude at the sample start), then by (I − ½[ζ×])."""
@@ -97,8 +101,9 @@ def _specific_force_increment(tx, ty, tz, ux, uy, uz, ptx, pty, ptz, pvx, pvy, p
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _attitude_step(qw, qx, qy, qz, tx, ty, tz, ptx, pty, ptz, zx, zy,
-                   zz):  # pragma: no cover - compiled
+def _attitude_step(qw: float, qx: float, qy: float, qz: float, tx: float, ty: float, tz: float,
+                   ptx: float, pty: float, ptz: float, zx: float, zy: float, zz: float
+                   ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
     """q ← exp(−ζ/2) ⊗ q ⊗ exp(φ/2), φ with two-sample coning (Savage 2007 §7.1.1.1), then
     renormalised: 1/√s ≈ (3 − s)/2 near s = 1, error O((s − 1)²) ~ 1e-30."""
     px, py, pz = coning_vector(ptx, pty, ptz, tx, ty, tz)
@@ -111,7 +116,9 @@ def _attitude_step(qw, qx, qy, qz, tx, ty, tz, ptx, pty, ptz, zx, zy,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _position_step(lat, lon, oe, on, ve, vn, sl, cl, rm_i, re_i, dt):  # pragma: no cover
+def _position_step(lat: float, lon: float, oe: float, on: float, ve: float, vn: float, sl: float,
+                   cl: float, rm_i: float, re_i: float,
+                   dt: float) -> tuple[float, float]:  # pragma: no cover - compiled
     """Latitude and longitude [rad] after one sample: trapezoidal velocity (previous o, new v
     [m/s]), radii at the sample start, 1/cos of the mid latitude as 1/cos L (1 + tan L · ΔL/2),
     exact to O(ΔL²)."""

@@ -65,7 +65,7 @@ def _hysteresis_pairs(hops: tuple[Hop, ...]) -> tuple[tuple[int, int, float, flo
     return tuple(pairs)
 
 
-def _no_hop(out: HopFit, template: dict, pattern, pred: tuple) -> None:
+def _no_hop(out: HopFit, template: dict, pattern: tuple | None, pred: tuple) -> None:
     """No hop found with a template mode-hop model: contradicted (dropped) when the template's
     hops ``pred`` on the twin's T_c would have been resolved, else kept from the template, with
     the note and the comments that say which (module docstring, *Without a hop*)."""
@@ -181,7 +181,8 @@ def _step_per_mode(out: HopFit) -> tuple[float, float]:
     return db, db_se
 
 
-def _hop_temperature_fit(hops: tuple[Hop, ...], template: dict | None, kappa_t: float):
+def _hop_temperature_fit(hops: tuple[Hop, ...], template: dict | None, kappa_t: float
+                         ) -> tuple[dict[str, float], dict[str, float], float, dict[str, float]]:
     """Weighted least squares of the hop temperatures ``T = b + m·a ± c`` (module docstring):
     the columns the hops determine are fitted, the others fixed (``a`` = 1/κ of the template
     or the glass; ``c`` from the template's range or 1.5 modes). Returns (values {b, a, c},

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from rlgsim.lab.report import Report, Table
@@ -105,7 +107,7 @@ def _anomaly_section(rep: Report, laws) -> None:
               f"outliers (innovation beyond 5.5σ).")
 
 
-def _intro(rep: Report, result, device_name: str, thermal_name: str) -> None:
+def _intro(rep: Report, result: Any, device_name: str, thermal_name: str) -> None:
     """What was identified from what, the probe glitches left out, the scale factor's line."""
     d = result.data
     rep.paragraph(
@@ -128,7 +130,7 @@ def _intro(rep: Report, result, device_name: str, thermal_name: str) -> None:
                       + " (section Scale factor).")
 
 
-def _thermal_tables(rep: Report, th) -> None:
+def _thermal_tables(rep: Report, th: Any) -> None:
     """The thermal multipliers with their status, and the strongest correlations of the fit."""
     rows = []
     for p in th.params:
@@ -162,7 +164,7 @@ def _thermal_tables(rep: Report, th) -> None:
                       f"whole recording in the last fit.")
 
 
-def _thermal_section(rep: Report, result, plt) -> None:
+def _thermal_section(rep: Report, result: Any, plt: Any) -> None:
     """Multipliers, correlations, probe lines, residual RMS and the probes' figure."""
     d, th = result.data, result.thermal
     rep.heading("Thermal network")
@@ -187,7 +189,7 @@ def _thermal_section(rep: Report, result, plt) -> None:
     rep.figure(fig, "probes", "Probes: recorded and twin; residuals")
 
 
-def _bias_section(rep: Report, d, laws, plt) -> None:
+def _bias_section(rep: Report, d: Any, laws: Any, plt: Any) -> None:
     """The bias law: its terms, residual, outliers, tables and the window figure."""
     rep.heading("Bias law")
     rep.paragraph(
@@ -212,7 +214,7 @@ def _bias_section(rep: Report, d, laws, plt) -> None:
     rep.figure(fig, "bias_law", "Window bias and the fitted law")
 
 
-def _noise_section(rep: Report, laws, plt) -> None:
+def _noise_section(rep: Report, laws: Any, plt: Any) -> None:
     """The Allan fit of the law residual: its table and figure (or why there is none)."""
     rep.heading("Noise")
     if laws.noise is None:

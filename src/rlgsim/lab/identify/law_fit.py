@@ -168,7 +168,7 @@ def _per_step(T, t_ref, step_s, extra):
 
 
 def _uhfo_law(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
-              block: str, device: dict, t_ref: float, win: Callable):
+              block: str, device: dict, t_ref: float, win: Callable) -> tuple:
     """The UHFO law on its node's temperature (linear terms) and its noise (window wander from
     the lag-1 autocorrelation, sample noise from first differences less the LSB's share):
     (law or None without a UHFO record, u0 [V], node, T_ref [°C], {key: (value, se)})."""
@@ -201,7 +201,7 @@ def _uhfo_law(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ..
     return uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise
 
 
-def _spikes(rec: RecordingData, device: dict):
+def _spikes(rec: RecordingData, device: dict) -> tuple:
     """Read-out spikes in the powered rate samples, found first so that the noise fit takes the
     rate with them taken out; returns (SpikeFit, one pulse's angle [arcsec])."""
     from rlgsim.lab.identify.spike_fit import find_spikes
@@ -218,7 +218,7 @@ def _spikes(rec: RecordingData, device: dict):
 
 def _gls_bias(rec: RecordingData, y: np.ndarray, cands: list[Term], noise: NoiseFit,
               device: dict, nodes_c: np.ndarray, node_names: tuple[str, ...], block: str,
-              bias_node: str, per_step_terms: dict):
+              bias_node: str, per_step_terms: dict) -> tuple:
     """The bias law by generalised least squares with the window-mean covariance of ``noise``
     (flicker memory included): windows the noise model cannot explain left out one at a time,
     then the mode hops found and carried (module docstring). Returns (law, outlier window

@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 import pathlib
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -136,7 +137,7 @@ def _gyro_of(source: str, axes: list[str], gyro: str | None) -> str:
     return gyro
 
 
-def _uhfo_of(imu, gyro: str) -> np.ndarray | None:
+def _uhfo_of(imu: Any, gyro: str) -> np.ndarray | None:
     """The gyro's UHFO series [V], or None without one (or one logged for other gyros only)."""
     if "uhfo" not in imu:
         return None
@@ -145,7 +146,7 @@ def _uhfo_of(imu, gyro: str) -> np.ndarray | None:
     return uhfo if np.isfinite(uhfo).any() else None
 
 
-def _table_turns(tree) -> bool:
+def _table_turns(tree: Any) -> bool:
     """Whether the dataset's turntable angles move at all."""
     motion = False
     if "turntable" in tree.children:
@@ -157,7 +158,7 @@ def _table_turns(tree) -> bool:
     return motion
 
 
-def _from_tree(source: str, tree, gyro: str | None) -> dict:
+def _from_tree(source: str, tree: Any, gyro: str | None) -> dict:
     """The recording's arrays from its opened tree: probes, chamber air, power, the gyro's
     rate [°/h] (from a recording's rate, or a dataset's pulses through its device's scale
     factor), UHFO, and the turntable's motion as a recording gives it."""
@@ -221,8 +222,8 @@ def _check_excitation(source: str, t: np.ndarray, air: np.ndarray, power: np.nda
                               f"{span:.2f} K")
 
 
-def _bias_windows(source: str, window_s: float, gyro: str, table, at_rest, rate: np.ndarray,
-                  f: float):
+def _bias_windows(source: str, window_s: float, gyro: str, table: Any, at_rest: Any,
+                  rate: np.ndarray, f: float) -> tuple[Any, int]:
     """The bias window table (the turntable's turning windows left out, the Earth rate through
     its attitude taken off) and how many windows were left out; at least 20 are needed."""
     from rlgsim.lab.windows import window_table
