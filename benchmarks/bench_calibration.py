@@ -112,8 +112,8 @@ def one_window(watch: LoadWatch) -> None:
     t_kf = best(lambda: cf.run_filter(nav, dth, dv, 100.0, motions, g, w, st, sv)) - t_tr
     lin = cf.run_filter(nav, dth, dv, 100.0, motions, g, w, st, sv)[2]["linearisation"]
     t_re = best(lambda: cf.rerun_filter(lin, nav))
-    n_x = cf.N_STATES_WANDER if any(v > 0 for pair in st.slow_noise().values()
-                                   for v in pair) else cf.N_STATES
+    n_x = cf.N_STATES_WANDER if any(np.any(np.asarray(v) > 0) for pair in st.slow_noise().values()
+                                   for v in pair) else cf.N_STATES   # levels per axis (3,)
     print(f"one 40-min window at 100 Hz ({len(ng):,} samples), one core (median CPU s of "
           f"{MIN_PAIRS} runs; wall s):")
     print(f"  from the nominal model : {t_nom:6.2f} s  (wall {w_nom:.2f} s; "
