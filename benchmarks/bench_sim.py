@@ -178,7 +178,7 @@ def counter_run(sc, out: pathlib.Path, chunk_s: float | None, compiled: bool) ->
         imu.ImuSimulator.__init__ = orig
 
 
-def main(argv: list[str] | None = None) -> None:
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, default=None, help="cut the run (default: all)")
     ap.add_argument("--truth-samples", action="store_true",
@@ -200,23 +200,17 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--trajectory", action="store_true",
                     help="instead: the throughput on a vehicle's route beside a static run's "
                          "(benchmarks/bench_sim_trajectory.py; --hours default 1)")
-    args = ap.parse_args(argv)
-    if args.trajectory:
-        from bench_sim_trajectory import main as trajectory_main
-        trajectory_main(["--hours", str(args.hours or 1.0), "--repeat", str(args.repeat)])
-        return
+    return ap.parse_args(argv)
 
-    sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
-    epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
-    tmpdir = tempfile.mkdtemp(prefix="rlgsim-bench-")
-    out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
+
+def _first_run(sc, out: pathlib.Path, chunk_s: float | None, epochs: int,
+               compiled: bool) -> tuple[float, float]:
+    """Simulate once and print the run's figures; its wall and CPU seconds (all threads)."""
     import rlgsim.sim.sensors.imu as imu
-    compiled = "numba" in sys.modules or epochs >= imu.COMPILED_MIN_EPOCHS
-    watch = LoadWatch()
     print(f"load average before: {load_text()}", flush=True)
     ru0 = resource.getrusage(resource.RUSAGE_SELF)
     wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
-    simulate(sc, out, chunk_s=args.chunk_s, progress=False)
+    simulate(sc, out, chunk_s=chunk_s, progress=False)
     wall = time.perf_counter() - wall0
     cpu = time.process_time() - cpu0
     ru1 = resource.getrusage(resource.RUSAGE_SELF)
@@ -240,10 +234,20 @@ def main(argv: list[str] | None = None) -> None:
           f"{ru1.ru_minflt - ru0.ru_minflt:,}, kernel time {ru1.ru_stime - ru0.ru_stime:.2f} s "
           f"(sim/run/_heap.py keeps freed block buffers for reuse)")
     print(f"file: {size_mb:.0f} MB ({size_mb * 1e6 / max(epochs, 1):.2f} bytes/epoch)")
-    # the machine limits, measured in the same run: normal draws + h5py writes of as many bytes
-    # as the file (issue 16: the simulator at >= 0.8 of it) and the stricter one with the
-    # simulator's own compiled normals (issue 30: >= 0.9 of it); pairs alternate their order
+    return wall, cpu
+
+
+def _limit_pairs(sc, out: pathlib.Path, chunk_s: float | None, epochs: int, compiled: bool,
+                 wall: float, cpu: float, repeat: int, watch: LoadWatch) -> None:
+    """The machine limits measured in the same run, in pairs alternating with the simulator.
+
+    The limit: normal draws + h5py writes of as many bytes as the file (issue 16: the simulator
+    at >= 0.8 of it); the stricter one draws with the simulator's own compiled normals (issue 30:
+    >= 0.9 of it). Pair 1 is the first run (simulator first); from pair 2 on the order alternates.
+    ``watch`` was started before the first run.
+    """
     nbytes = out.stat().st_size
+    size_mb = nbytes / 1e6
 
     def limits() -> tuple[float, float, float, float]:
         lim, lim_cpu = machine_limit(epochs, N_WHITE_CHANNELS, nbytes)
@@ -253,7 +257,7 @@ def main(argv: list[str] | None = None) -> None:
 
     def sim_again() -> float:
         t0 = time.perf_counter()
-        simulate(sc, out, chunk_s=args.chunk_s, progress=False)
+        simulate(sc, out, chunk_s=chunk_s, progress=False)
         return time.perf_counter() - t0
 
     walls, lims, stricts = [wall], [], []
@@ -280,8 +284,7 @@ def main(argv: list[str] | None = None) -> None:
               f"load {os.getloadavg()[0]:.2f}", flush=True)
         watch.sample()
 
-    # pair 1 ran simulator-first; from pair 2 on the order alternates (limits first, ...)
-    more_lims, more_walls = alternate(limits, sim_again, max(1, args.repeat) - 1,
+    more_lims, more_walls = alternate(limits, sim_again, max(1, repeat) - 1,
                                       lambda i, lp, w: report(i, w, lp))
     walls += more_walls
     lims += [x[0] for x in more_lims]
@@ -298,19 +301,43 @@ def main(argv: list[str] | None = None) -> None:
           f"{TARGET_STRICT:.2f}, issue 30: "
           f"{watch.verdict(statistics.median(sratios) >= TARGET_STRICT, n)})")
     print(watch.line())
+
+
+def _other_counter(sc, out: pathlib.Path, chunk_s: float | None, compiled: bool, wall: float,
+                   tmpdir: str) -> None:
+    """The same run with the other pulse counter (same bytes), and the kernel's cold cost."""
+    ref = pathlib.Path(tmpdir) / "other_counter.h5"
+    wall_other = counter_run(sc, ref, chunk_s, not compiled)
+    same = filecmp.cmp(ref, out, shallow=False)
+    ref.unlink()
+    w_c, w_n = (wall, wall_other) if compiled else (wall_other, wall)
+    print(f"the same run with the {'NumPy' if compiled else 'compiled'} pulse counter: "
+          f"{wall_other:.2f} s wall (compiled / NumPy speed: {w_n / w_c:.2f}, the second "
+          f"run warm; file {'identical' if same else 'DIFFERENT'})")
+    cold, cached = kernel_cost()
+    print(f"compiled counter in a fresh process (import numba + the kernel, one block): "
+          f"{cold:.2f} s with an empty numba cache (compiles), {cached:.2f} s cached")
+    print(f"load average after the counters: {load_text()}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = _arguments(argv)
+    if args.trajectory:
+        from bench_sim_trajectory import main as trajectory_main
+        trajectory_main(["--hours", str(args.hours or 1.0), "--repeat", str(args.repeat)])
+        return
+
+    sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
+    epochs = int(round(sc.duration_s * sc.acquisition.sample_rate_hz))
+    tmpdir = tempfile.mkdtemp(prefix="rlgsim-bench-")
+    out = pathlib.Path(args.out or os.path.join(tmpdir, "paper000.h5"))
+    import rlgsim.sim.sensors.imu as imu
+    compiled = "numba" in sys.modules or epochs >= imu.COMPILED_MIN_EPOCHS
+    watch = LoadWatch()
+    wall, cpu = _first_run(sc, out, args.chunk_s, epochs, compiled)
+    _limit_pairs(sc, out, args.chunk_s, epochs, compiled, wall, cpu, args.repeat, watch)
     if args.counters:
-        ref = pathlib.Path(tmpdir) / "other_counter.h5"
-        wall_other = counter_run(sc, ref, args.chunk_s, not compiled)
-        same = filecmp.cmp(ref, out, shallow=False)
-        ref.unlink()
-        w_c, w_n = (wall, wall_other) if compiled else (wall_other, wall)
-        print(f"the same run with the {'NumPy' if compiled else 'compiled'} pulse counter: "
-              f"{wall_other:.2f} s wall (compiled / NumPy speed: {w_n / w_c:.2f}, the second "
-              f"run warm; file {'identical' if same else 'DIFFERENT'})")
-        cold, cached = kernel_cost()
-        print(f"compiled counter in a fresh process (import numba + the kernel, one block): "
-              f"{cold:.2f} s with an empty numba cache (compiles), {cached:.2f} s cached")
-        print(f"load average after the counters: {load_text()}")
+        _other_counter(sc, out, args.chunk_s, compiled, wall, tmpdir)
     if not args.keep:
         out.unlink(missing_ok=True)
         try:

@@ -302,6 +302,22 @@ def test_no_function_is_over_100_lines():
         "remove it from KNOWN_LONG_FUNCTIONS"
 
 
+def test_the_benchmark_scripts_keep_the_same_size_rules():
+    # benchmarks/ is not a package of the wings, but it is code a reader opens: the same limits
+    bad = []
+    for path in sorted((ROOT / "benchmarks").glob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        tree = ast.parse(text)
+        n = text.count("\n")
+        if n > MAX_FILE_LINES or (n > REASON_FILE_LINES and not any(
+                reason in (ast.get_docstring(tree) or "") for reason in LONG_REASONS)):
+            bad.append(f"{_rel(path)}: {n} lines")
+        bad += [f"{_rel(path)}:{node.name}" for node in ast.walk(tree)
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+                and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES]
+    assert bad == []
+
+
 # ------------------------------------------------------------------------------ registries
 def test_one_registry_of_compensator_kinds():
     # a study's kinds and the export's class map are the one registry: every kind's estimator
