@@ -54,18 +54,21 @@ TIMING = re.compile(r"time|wall|elapsed|cpu", re.IGNORECASE)
 
 def make(out: pathlib.Path, scenarios: list[str], studies: list[str]) -> None:
     """Run the installed build's reference scenarios and studies into ``out``."""
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise SystemExit(f"compare_outputs: {out} is not an empty folder; make the outputs "
+                         f"into a new one")
     out.mkdir(parents=True, exist_ok=True)
-    if any(out.iterdir()):
-        sys.exit(f"compare_outputs: {out} is not empty; make the outputs into a new folder")
     rlgsim = [sys.executable, "-m", "rlgsim"]
-    for name in scenarios:
-        print(f"run {name}", flush=True)
-        subprocess.run([*rlgsim, "run", name, "-o", str(out / f"{name}.h5"), "--quiet"],
-                       check=True)
-    for name in studies:
-        print(f"study {name}", flush=True)
-        subprocess.run([*rlgsim, "study", name, "-o", str(out / f"{name}-study"), "--quiet"],
-                       check=True, stdout=subprocess.DEVNULL)
+    commands = [(f"run {name}", ["run", name, "-o", str(out / f"{name}.h5")])
+                for name in scenarios]
+    commands += [(f"study {name}", ["study", name, "-o", str(out / f"{name}-study")])
+                 for name in studies]
+    for label, args in commands:
+        print(label, flush=True)
+        done = subprocess.run([*rlgsim, *args, "--quiet"], stdout=subprocess.DEVNULL)
+        if done.returncode:        # rlgsim has printed its own one-line reason
+            raise SystemExit(f"compare_outputs: `rlgsim {' '.join(args)}` failed "
+                             f"(exit {done.returncode})")
 
 
 def _h5_items(path: pathlib.Path) -> dict[str, object]:
@@ -183,7 +186,11 @@ def main(argv: list[str] | None = None) -> int:
     cmp.add_argument("b", type=pathlib.Path)
     args = ap.parse_args(argv)
     if args.command == "make":
-        make(args.out, args.scenarios, args.studies)
+        try:
+            make(args.out, args.scenarios, args.studies)
+        except SystemExit as stop:
+            print(stop, file=sys.stderr)
+            return 2
         return 0
     for folder in (args.a, args.b):
         if not folder.is_dir() or next(_files(folder), None) is None:

@@ -64,3 +64,10 @@ def test_an_empty_folder_is_one_line_and_status_2(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert compare_outputs.main(["compare", str(a), str(tmp_path / "empty")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_make_refuses_a_folder_that_holds_files(tmp_path, capsys):
+    a = _write(tmp_path / "a", "/x.toml", "1")
+    assert compare_outputs.main(["make", str(a), "--scenarios", "--studies"]) == 2
+    assert "not an empty folder" in capsys.readouterr().err
+    assert sorted(p.name for p in a.iterdir()) == ["report.md", "run.h5", "scores.csv"]

@@ -6,9 +6,9 @@ warmed by a first run, whose peak holds one-off allocations). A whole-run array 
 truth (13 float64 per sample) would add 13·8·(144 000 − 24 000) B ≈ 12.5 MB to the longer
 run's peak, one of its increments (6 float64) 5.8 MB; what the blocks need is the same for both.
 The peak of one run depends on how many blocks the prefetch worker holds at that moment (thread
-scheduling: ±2 MB between runs of the same duration, more on a loaded machine), so each
-duration's figure is the smallest peak of three runs (measured: differences 0.2–1.6 MB), and
-the bound is half the smallest whole-run array. (HDF5's own chunk cache, outside tracemalloc, is bounded per dataset —
+scheduling: a few 600 s blocks of about 1 MB each, so runs of the same duration differ by
+megabytes), so each duration's figure is the smallest peak of three runs, and the bound is
+half the smallest whole-run array. (HDF5's own chunk cache, outside tracemalloc, is bounded per dataset —
 benchmarks/bench_sim_memory.py, docs/trajectories.md.)
 """
 

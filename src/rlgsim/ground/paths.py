@@ -136,10 +136,7 @@ def output_file(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] 
         if not stat.S_ISREG(st.st_mode):
             raise UserInputError(f"{p}: is {_kind(st.st_mode)}; an output must be a regular "
                                  f"file (it would be replaced), choose another {option}")
-        for source in inputs:
-            if source and _same(p, source):
-                raise UserInputError(f"{p}: is also an input of this command ({source}); "
-                                     f"choose another {option}")
+        _refuse_an_input(p, inputs, lambda source: f" ({source}); choose another {option}")
     return p
 
 
@@ -152,11 +149,17 @@ def output_folder(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike
         what = "a regular file" if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
         raise UserInputError(f"{p}: is {what}, not a folder; choose another output folder "
                              f"with {option}")
+    _refuse_an_input(p, inputs, lambda _: f"; choose another output folder with {option}")
+    return p
+
+
+def _refuse_an_input(p: pathlib.Path, inputs: Iterable[str | os.PathLike],
+                     advice: Callable[[str | os.PathLike], str]) -> None:
+    """Refuse an output ``p`` that is one of the command's ``inputs`` (the same file); the
+    message ends with ``advice(that input)``."""
     for source in inputs:
         if source and _same(p, source):
-            raise UserInputError(f"{p}: is also an input of this command; choose another "
-                                 f"output folder with {option}")
-    return p
+            raise UserInputError(f"{p}: is also an input of this command{advice(source)}")
 
 
 def name_path(name: str, *, prefix: str = "", suffix: str = "", source: str = "",
