@@ -118,6 +118,21 @@ def test_drive_truth_group_and_bytes_whatever_the_chunking(tmp_path):
                     for name in fmt.OPTIONAL_VARIABLES[fmt.TRAJECTORY]]
 
 
+def test_a_stopped_drive_stops_its_kinematics_thread(tmp_path):
+    """A vehicle's kinematics start in their own worker before the file is laid out and run
+    blocks ahead: a run stopped after its first block stops that worker and leaves no file."""
+    import itertools
+    import threading
+
+    asked = itertools.count()
+    sc = parse_scenario(drive(), str(tmp_path / "drive.toml"), base_dir=tmp_path)
+    with pytest.raises(KeyboardInterrupt):
+        simulate(sc, tmp_path / "x.h5", progress=False, should_stop=lambda: next(asked) >= 1)
+    assert next(asked) == 2                     # one block ran
+    assert not [t for t in threading.enumerate() if t.name.startswith("rlgsim-")]
+    assert not (tmp_path / "x.h5").exists()
+
+
 def test_gnss_ins_sim_motion_definition(tmp_path):
     """Types 1 and 2 with gnss-ins-sim's axes: forward x → our y, down z → our −z."""
     csv = tmp_path / "route.csv"

@@ -173,18 +173,12 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
     chunk = float(chunk_s if chunk_s is not None else scenario.acquisition.chunk_s)
     if not chunk > 0:
         raise ValueError("chunk_s must be > 0")
-    from rlgsim.sim.run.run_budget import check_budget, check_motions
+    from rlgsim.sim.run.run_budget import check_motions
     from rlgsim.sim.run import run_to_run
     run_attrs = run_to_run.attrs(scenario)
     scenario = run_to_run.applied(scenario)   # this run's turn-on and lab (none without run_seed)
     check_motions(scenario)                 # before the timeline holds them all
     timeline = build_timeline(scenario)
-    step = timeline.step_s
-    n_steps = timeline.n_steps
-    per_block = int(round(BLOCK_S / step))
-    n_blocks = math.ceil(n_steps / per_block)
-    blocks_per_write = max(1, int(round(chunk / BLOCK_S)))
-
     thermal = ThermalPart(scenario, timeline)
     stages = [s for s in (f(scenario, timeline) for f in STAGES) if s is not None]
     motion = None
@@ -196,7 +190,29 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
             motion = Motion(timeline.segments, scenario.site)  # exact turntable kinematics
 
     attrs = {**_root_attrs(scenario, timeline), **run_attrs}
+    # Each block's buffers reuse the previous block's pages (no page faults; sim/run/_heap.py).
+    keep_freed_memory()
+    with contextlib.ExitStack() as started:
+        for s in stages:                    # work that needs no file (a vehicle's kinematics)
+            if hasattr(s, "start"):         # begins now, while the file is laid out; stopped
+                started.callback(s.close)   # by the stage's close() whatever happens
+                s.start(motion)
+        return _run(scenario, timeline, out, attrs, thermal, stages, motion, chunk,
+                    progress, should_stop)
+
+
+def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: list,
+         motion, chunk: float, progress: bool, should_stop: Callable[[], bool] | None
+         ) -> pathlib.Path:
+    """:func:`simulate`'s file and block loop (the stages made and started)."""
+    step = timeline.step_s
+    n_steps = timeline.n_steps
+    per_block = int(round(BLOCK_S / step))
+    n_blocks = math.ceil(n_steps / per_block)
+    blocks_per_write = max(1, int(round(chunk / BLOCK_S)))
     from tqdm import tqdm
+
+    from rlgsim.sim.run.run_budget import check_budget
     with DatasetWriter(out, attrs) as w:
         write_timeline(w, timeline)
         writers = {}
@@ -222,8 +238,6 @@ def simulate(scenario, out_path: str | pathlib.Path | None, *, chunk_s: float | 
                    delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
         # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
         # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
-        # Each block's buffers reuse the previous block's pages (no page faults; sim/run/_heap.py).
-        keep_freed_memory()
         appender = _Appender(writers, blocks_per_write)
         try:
             with one_blas_thread(), _no_cyclic_gc():

@@ -58,7 +58,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from rlgsim.sim.rng import generator
+from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.sensors.gyro import sample_step_index
 from rlgsim.sim.sensors.imu_model import ImuRealisation
 from rlgsim.sim.sensors.noise import SlowNoise
@@ -77,6 +77,11 @@ COMPILED_MIN_EPOCHS = 5_000_000
 #: 100 Hz, alternating runs at load ~1.5: two, three and four blocks ahead all 2.88-2.93 s
 #: median wall; each block's normals hold 1.4 MB).
 PREFETCH_BLOCKS = 2
+
+#: How many blocks ahead a vehicle's kinematics are computed (increments, their step sums and
+#: the truth rows: ~9 MB a block at 100 Hz), in their own worker thread from before the file is
+#: laid out (:meth:`ImuSimulator.start`): they need nothing of the file or of the thermal state.
+MOTION_AHEAD = 3
 
 
 @dataclass
@@ -133,9 +138,15 @@ class ImuSimulator:
         self._pool = None
         #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
         self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
-        #: a vehicle's increments of the queued blocks, by (first step, samples): computed by
-        #: the worker too (the trajectory's compiled kernels release the GIL)
-        self._motion_ahead: dict[tuple[int, int], Any] = {}
+        #: a vehicle's kinematics (:meth:`_kinematics_now`) of the queued blocks, by (first
+        #: step, steps, samples): computed in their own worker thread (the trajectory's
+        #: compiled kernels release the GIL), :data:`MOTION_AHEAD` blocks ahead
+        self._motion_ahead: dict[tuple[int, int, int], Any] = {}
+        self._motion_pool = None
+        self._motion_next = 0                   # first step of the next block to queue
+        #: ``rows(t_s, states)`` of a vehicle's truth group, made with its kinematics (the
+        #: stage's; None: the states are kept for the caller instead)
+        self.motion_rows: Any = None
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
         # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
         acc_axes = a.axes if a is not None else ()
@@ -179,12 +190,50 @@ class ImuSimulator:
         return z
 
     # ---- one block ------------------------------------------------------------------------
+    def start(self, motion: Any) -> None:
+        """Adopt the run's ``motion``; a vehicle's kinematics (:meth:`_kinematics_now`) of the
+        first :data:`MOTION_AHEAD` blocks then start in a worker thread at once — while the
+        caller lays out the file — and stay that many blocks ahead of :meth:`block` (the same
+        numbers whichever thread computes them; :meth:`close` stops it)."""
+        self.motion = motion
+        if self.prefetch and self.n_steps is not None and self._is_vehicle():
+            self._queue_motion(0)
+
+    def _is_vehicle(self) -> bool:
+        return getattr(self.motion, "kind", "") == "trajectory"
+
+    def _queue_motion(self, k_taken: int) -> None:
+        """Queue a vehicle's kinematics of the blocks after thermal step ``k_taken`` (the
+        block layout of :func:`rlgsim.sim.run.simulate.simulate`: :data:`BLOCK_S` each, the
+        last one shorter) until :data:`MOTION_AHEAD` are queued or the run ends."""
+        per_block = int(round(BLOCK_S / self.step_s))
+        if self._motion_pool is None:
+            self._motion_pool = ThreadPoolExecutor(max_workers=1,
+                                                   thread_name_prefix="rlgsim-motion")
+        self._motion_next = max(self._motion_next, k_taken)
+        while len(self._motion_ahead) < MOTION_AHEAD and self._motion_next < self.n_steps:
+            k0 = self._motion_next
+            m = min(per_block, self.n_steps - k0)
+            n = self._block_size(m)
+            self._motion_ahead[(k0, m, n)] = self._motion_pool.submit(self._kinematics_now,
+                                                                      k0, m, n)
+            self._motion_next = k0 + m
+
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
+        """:meth:`_kinematics_now` of the block — a vehicle's from the worker thread when it
+        queued the block (then the next block is queued)."""
+        ahead = self._motion_ahead.pop((k0, m, n), None)
+        if ahead is None:
+            return self._kinematics_now(k0, m, n)
+        out = ahead.result()
+        self._queue_motion(k0 + m)
+        return out
+
+    def _kinematics_now(self, k0: int, m: int, n: int) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
         the steps at rest of each, their sums per thermal step and the table at each step's
-        end."""
-        ahead = self._motion_ahead.pop((k0, n), None)
-        mb = ahead.result() if ahead is not None else self._vehicle_block(k0, n)
+        end; a vehicle's truth rows too (:attr:`motion_rows`)."""
+        mb = self._vehicle_block(k0, n)
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
@@ -205,8 +254,10 @@ class ImuSimulator:
         """The motion's block of ``n`` samples from thermal step ``k0``; a vehicle's with its
         truth states (``states``) too."""
         mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
-        if getattr(self.motion, "kind", "") == "trajectory":
+        if self._is_vehicle():
             mb.states = self.motion.truth(mb.t_s)
+            if self.motion_rows is not None:    # the truth group's rows, made here once
+                mb.rows, mb.states = self.motion_rows(mb.t_s, mb.states), None
         return mb
 
     def _drives(self, b: int, m: int, slow_state: Any) -> dict[str, Any]:
@@ -244,11 +295,13 @@ class ImuSimulator:
         :data:`PREFETCH_BLOCKS` blocks are queued, so the worker does not wait for this
         thread — its kinematics and drives, computed here from the carried slow-noise state."""
         normals = self._take_normals((b, k0, m, n))
-        if self.n_steps is not None and k0 + m >= self.n_steps:
-            self.close()                        # the last block: nothing to prefetch
-        elif self.prefetch:
+        last = self.n_steps is not None and k0 + m >= self.n_steps
+        if self.prefetch and not last:
             self._queue_after(b, k0, m)
-        return {**normals, **self._kinematics(b, k0, m, n), **self._drives(b, m, slow_state)}
+        kinematics = self._kinematics(b, k0, m, n)
+        if last:
+            self.close()                        # the last block: nothing to prefetch
+        return {**normals, **kinematics, **self._drives(b, m, slow_state)}
 
     def _take_normals(self, key: tuple[int, int, int, int]) -> dict[str, Any]:
         """The normals of block ``key`` = (b, k0, m, n): the worker's when it queued this
@@ -267,9 +320,8 @@ class ImuSimulator:
     def _queue_after(self, b: int, k0: int, m: int) -> None:
         """Queue the normals of the blocks after block ``b`` (first step ``k0``, blocks of ``m``
         steps assumed, up to the run's end; a block of another length is drawn when asked for)
-        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block (three
-        on a vehicle: its increments and truth states too — the same numbers, whichever thread
-        computes them)."""
+        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block (a
+        vehicle's kinematics go to their own worker: :meth:`start`)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
         if self._ahead:
@@ -283,24 +335,25 @@ class ImuSimulator:
             self._ahead.append(((b, k0, nm, n),
                                 [self._pool.submit(self._gyro_normals, b, n),
                                  self._pool.submit(self._accel_normals, b, n)]))
-            if getattr(self.motion, "kind", "") == "trajectory":     # a vehicle's kinematics
-                self._motion_ahead[(k0, n)] = self._pool.submit(self._vehicle_block, k0, n)
 
     def _cancel_ahead(self) -> None:
+        """Drop the queued normals (those of a block the worker has started are not used)."""
         for _, parts in self._ahead:
             for part in parts:
                 part.cancel()
         self._ahead.clear()
+
+    def close(self) -> None:
+        """Stop the prefetch threads (blocks queued and not taken are dropped)."""
+        self._cancel_ahead()
         for part in self._motion_ahead.values():
             part.cancel()
         self._motion_ahead.clear()
-
-    def close(self) -> None:
-        """Stop the prefetch thread (blocks queued and not taken are dropped)."""
-        self._cancel_ahead()
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+        self._motion_next = self.n_steps or 0   # queue no more
+        for pool in (self._pool, self._motion_pool):
+            if pool is not None:
+                pool.shutdown(wait=True)
+        self._pool = self._motion_pool = None
 
     def block(self, state: ImuState, b: int, trace
               ) -> tuple[dict[str, dict[str, dict[str, np.ndarray]]], ImuState]:

@@ -88,16 +88,27 @@ class ImuStage(Stage):
         """Stop the simulator's worker thread (:meth:`ImuSimulator.close`)."""
         self.sim.close()
 
+    def start(self, motion) -> None:
+        """Adopt the run's kinematics ``motion`` (the stage's own when None) before the first
+        block: a vehicle's increments and ``trajectory`` rows then start in the simulator's
+        worker thread (:meth:`ImuSimulator.start`) while the caller lays out the file."""
+        if motion is None and self.trajectory is not None:
+            motion = self.trajectory.build(float(self.timeline.duration_s))
+        motion = motion if motion is not None else Motion(self.turntable_segments,
+                                                          self.scenario.site)
+        if getattr(motion, "kind", "turntable") == "trajectory":
+            self.sim.motion_rows = lambda t_s, states: trajectory_rows(motion, t_s, states)
+        self.sim.start(motion)
+
     def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
         """Rows ``{group: {dim: {variable: array}}}`` of block ``b``; ``motion`` the run's
         :class:`rlgsim.sim.motion.kinematics.Motion` (the stage's own when None)."""
         if self.sim.motion is None:                 # first block: adopt the run's kinematics
-            if motion is None and self.trajectory is not None:
-                motion = self.trajectory.build(float(self.timeline.duration_s))
-            self.sim.motion = (motion if motion is not None
-                               else Motion(self.turntable_segments, self.scenario.site))
+            self.start(motion)
         rows, state = self.sim.block(state, b, trace)
         if getattr(self.sim.motion, "kind", "turntable") == "trajectory":   # a vehicle's states
             mb = self.sim.last_motion_block
-            rows[TRAJECTORY] = {"sample": trajectory_rows(self.sim.motion, mb.t_s, mb.states)}
+            made = getattr(mb, "rows", None)        # made with the kinematics (worker thread)
+            rows[TRAJECTORY] = {"sample": made if made is not None else
+                                trajectory_rows(self.sim.motion, mb.t_s, mb.states)}
         return rows, state
