@@ -147,9 +147,6 @@ def _sidecar_text(lab_csv, identify: str, site: bool = True) -> str:
 
 @pytest.mark.parametrize("identify, words", [
     ("", "a recording needs a device template"),
-    ('[identify]\ndevice_template = "trplg_001"\nthermal_template = "rlg_single"\n',
-     "several gyros (x, y, z); say which one to identify (--gyro AXIS, or in the sidecar "
-     "[identify] gyro)"),
     ('[identify]\ndevice_template = "trplg_001"\ngyro = "q"\n',
      "identify.gyro: value 'q' not allowed; must be one of the [gyro] axes (x, y, z)"),
     ('[identify]\ndevice = "trplg_001"\n', "identify.device: unknown key; allowed: "

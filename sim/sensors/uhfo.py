@@ -12,7 +12,8 @@ corr(bias, T) ≈ 0.71. The model:
     UHFO(t)   = LSB · round((U_true + e) / LSB)              [V]   (what the test software logs)
 
 ``law`` is a :class:`rlgsim.sim.sensors.temperature_laws.LawSpec` in volts on the discharge node (default
-``<block>.discharge``), ``w`` a first-order Gauss–Markov wander of the discharge
+``<block>.discharge``), one law per gyro (each number a scalar for every gyro or an array with one
+value per gyro, as in the gyro's own law tables), ``w`` a first-order Gauss–Markov wander of the discharge
 (standard deviation ``wander_v``, correlation time ``wander_tau_s``) — the part of the
 excitation that no thermometer sees and that makes UHFO a better regressor than temperature —
 ``e`` white read-out noise (``noise_v`` per thermal sample) and ``LSB`` the ADC step
@@ -66,7 +67,7 @@ class UhfoModel:
                                           min_exclusive=True),
                    noise_v=get_float(table, "noise_v", ctx, 0.0, min=0.0),
                    lsb_v=get_float(table, "lsb_v", ctx, 0.0, min=0.0),
-                   law=_law(table, ctx, 1))
+                   law=_law(table, ctx, _components(table)))
 
     def for_axes(self, n: int) -> "UhfoModel":
         """The model with its law sized for ``n`` gyros."""
@@ -91,6 +92,17 @@ class UhfoModel:
         return Uhfo(law=self.law.realise(draw), axes=tuple(axes), blocks=tuple(blocks),
                     wander_v=wander, wander_tau_s=self.wander_tau_s, noise_v=noise,
                     lsb_v=self.lsb_v)
+
+
+def _components(table: Mapping) -> int:
+    """How many gyros the law's arrays give (1 when every number is a scalar): the table is
+    checked on its own here, and against the device's gyro count by :meth:`UhfoModel.for_axes`
+    (a law key with another count is then one error naming it)."""
+    sizes = [len(v) for k, v in table.items() if k not in OWN_KEYS and isinstance(v, list)
+             and k != "gradients"]
+    sizes += [len(c) for g in table.get("gradients", []) if isinstance(g, Mapping)
+              for c in g.values() if isinstance(c, list)]
+    return sizes[0] if sizes else 1
 
 
 def _law(table: Mapping, ctx: Ctx, n: int) -> LawSpec:

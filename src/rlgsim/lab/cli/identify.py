@@ -56,11 +56,15 @@ def run(args: argparse.Namespace) -> int:
         for k, why in th.refused.items():
             print(f"  not identified: {k}: {why}")
         print("probe RMS [°C]: " + ", ".join(f"{k} {v:.3f}" for k, v in th.rms_fitted_c.items()))
-        print(f"bias law terms: {', '.join(r.laws.bias.terms) or 'constant'} "
-              f"(window RMS {r.laws.bias_rms_deg_per_h:.4g} °/h)")
-        if r.scale_factor is not None:
-            for line in r.scale_factor.lines:
-                print(line)
+        for g in r.gyros or [r]:        # one line per gyro of a several-gyro twin
+            who = f"gyro {g.axis} " if r.gyros else ""
+            print(f"{who}bias law terms: {', '.join(g.laws.bias.terms) or 'constant'} "
+                  f"(window RMS {g.laws.bias_rms_deg_per_h:.4g} °/h)")
+            if g.scale_factor is not None:
+                for line in g.scale_factor.lines:
+                    print(who + line)
+        if r.gyros and args.suggest_programme:
+            print(f"next experiment: designed for gyro {r.gyros[0].axis} only")
         if args.suggest_programme:
             if r.suggestion is None:
                 print("next experiment: none suggested — the recording separates every "
