@@ -199,7 +199,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
                          "compiled kernel's cold cost (a fresh numba cache)")
     ap.add_argument("--trajectory", action="store_true",
                     help="instead: the throughput on a vehicle's route beside a static run's "
-                         "(benchmarks/bench_sim_trajectory.py; --hours default 1)")
+                         "(benchmarks/bench_sim_trajectory.py; --hours default 4)")
     return ap.parse_args(argv)
 
 
@@ -324,7 +324,8 @@ def main(argv: list[str] | None = None) -> None:
     args = _arguments(argv)
     if args.trajectory:
         from bench_sim_trajectory import main as trajectory_main
-        trajectory_main(["--hours", str(args.hours or 1.0), "--repeat", str(args.repeat)])
+        trajectory_main([*(["--hours", str(args.hours)] if args.hours else []),
+                         "--repeat", str(args.repeat)])
         return
 
     sc = parse_scenario(scenario_text(args.hours, args.truth_samples), "paper000_ramp.toml")
