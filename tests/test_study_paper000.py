@@ -144,6 +144,36 @@ def test_truth_scores_match_an_independent_recomputation(run):
                 np.sqrt(np.mean((pred - est) ** 2)), rel=1e-6)
 
 
+def test_shapes_reading_agrees_with_table2_and_the_truth(run):
+    """The reading of the paper's summary numbers (shapes_reading.csv): its in-sample columns
+    are Table 2's, its cubic share is 1 − R²_LSM, its σ_e and n are recomputed here with numpy
+    from model_predictions.csv, and every class follows from its own columns."""
+    from rlgsim.lab.studies.paper000_reading import classify
+    out, _, _, _, _ = run
+    reading = {r["parameter"]: r for r in _read_csv(out / "shapes_reading.csv")}
+    table2 = {r["parameter"]: r for r in _read_csv(out / "table2_ours.csv")}
+    preds = _read_csv(out / "model_predictions.csv")
+    assert set(reading) == set(PARAMS)
+    for p in PARAMS:
+        r, t2 = reading[p], table2[p]
+        assert float(r["RMSE impr %"]) == pytest.approx(float(t2["RMSE impr %"]), rel=1e-9)
+        assert float(r["R² impr %"]) == pytest.approx(float(t2["R² impr %"]), rel=1e-6)
+        assert float(r["R² LSM"]) == pytest.approx(float(t2["R² LSM"]), rel=1e-9)
+        assert float(r["cubic share %"]) == pytest.approx(100 * (1 - float(t2["R² LSM"])),
+                                                          rel=1e-6)
+        mine = [q for q in preds if q["parameter"] == p]
+        T, est, truth = (np.array([float(q[c]) for q in mine])
+                         for c in ("temperature_c", "estimate", "truth"))
+        cubic = np.polyval(np.polyfit(T, truth, 3), T)
+        assert float(r["σ_e"]) == pytest.approx(np.std(est - truth, ddof=1), rel=1e-6)
+        assert float(r["n beyond cubic"]) == pytest.approx(np.std(truth - cubic, ddof=1),
+                                                           rel=1e-4, abs=1e-12)
+        assert r["class"] == classify(float(r["cubic share %"]) / 100, float(r["n/σ_e"]))
+    classes = _read_csv(out / "shapes_classes.csv")
+    assert sum(int(c["count"]) for c in classes) == len(PARAMS)
+    assert "Reading the paper's summary numbers" in (out / "report.md").read_text()
+
+
 def test_system_compensation_removes_a_strong_temperature_slope(run):
     """accelerometer x bias: ~20 µg/K (rlg_imu_000) over a 70 K ramp, so its raw estimates
     spread over ~1400 µg. The drift is a deterministic, repeatable function of the sensor's

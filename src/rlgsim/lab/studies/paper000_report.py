@@ -14,6 +14,7 @@ from rlgsim.lab.report import Report, Table
 from rlgsim.lab.study import StudyResult
 from rlgsim.lab.studies.paper000_config import (PAPER_AVG_IMPROVEMENT, PAPER_MAX_IMPROVEMENT,
                                                 Config, Outcome, improvement)
+from rlgsim.lab.studies import paper000_reading
 from rlgsim.lab.studies.paper000_figures import fit_figure, residual_figure
 
 
@@ -61,6 +62,7 @@ def report(study, cfg: Config, result: StudyResult) -> Report:
     _table2_section(rep, o)
     if o.truth_scores:
         _truth_section(rep, o)
+    paper000_reading.add_section(rep, o, cfg.degree)
     rep.figure(fit_figure(raw, xs, ys, pred, ok, units), "parameters_vs_temperature",
                "The 15 parameters vs temperature: calibration estimate ±1σ, truth (window "
                "mean), HHO-RVR and cubic LSM fits.")
