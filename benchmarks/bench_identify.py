@@ -84,6 +84,46 @@ BIAS = {"node": "A", "t_ref_c": 20.0, "value_deg_per_h": 0.01, "c1_deg_per_h_per
 
 
 TRUE_LAW = {"c1": 3e-4, "rate": -0.01, "gradient[A-G]": 0.008}
+#: issue 28's coverage targets: the fraction inside the ±1σ (68.3 %) and ±2σ (95.4 %)
+#: intervals, 68 ± 6 % and 95 ± 3 %, over at least 20 units
+COVERAGE_TARGETS = ((0.68, 0.06), (0.95, 0.03))
+COVERAGE_MIN_UNITS = 20
+
+
+def coverage_verdict(f1: float, f2: float, n_units: int) -> str:
+    """"met" or what is off (1σ / 2σ too narrow or too wide) against COVERAGE_TARGETS."""
+    if n_units < COVERAGE_MIN_UNITS:
+        return f"no verdict ({n_units} units < {COVERAGE_MIN_UNITS})"
+    off = []
+    for label, f, (target, tol) in zip(("1σ", "2σ"), (f1, f2), COVERAGE_TARGETS):
+        if f < target - tol:
+            off.append(f"{label} too narrow")
+        elif f > target + tol:
+            off.append(f"{label} too wide")
+    return "met" if not off else ", ".join(off)
+
+
+def _inside(in1: np.ndarray, in2: np.ndarray, per_unit: list | None = None) -> tuple:
+    """Fractions inside the 1σ and 2σ intervals and their standard errors: binomial for
+    independent estimates, else (``per_unit``: [(in1, in2) of each unit], correlated within a
+    unit) the spread of the per-unit fractions / √units."""
+    f1, f2 = float(np.mean(in1)), float(np.mean(in2))
+    if per_unit is None:
+        return f1, np.sqrt(f1 * (1 - f1) / in1.size), f2, np.sqrt(f2 * (1 - f2) / in2.size)
+    e1 = np.std([np.mean(a) for a, _ in per_unit], ddof=1) / np.sqrt(len(per_unit))
+    e2 = np.std([np.mean(b) for _, b in per_unit], ddof=1) / np.sqrt(len(per_unit))
+    return f1, e1, f2, e2
+
+
+def coverage_table(rows: list[tuple[str, int, tuple]], n_units: int) -> None:
+    """Issue 28's table: each row's fractions inside ±1σ / ±2σ beside the target, a verdict."""
+    (t1, d1), (t2, d2) = COVERAGE_TARGETS
+    print(f"\n   coverage over {n_units} units (target: 1σ {t1:.0%} ± {d1:.0%}, 2σ {t2:.0%} ± "
+          f"{d2:.0%}, over ≥ {COVERAGE_MIN_UNITS} units)")
+    print(f"   {'':34s} {'n':>5s}  {'1σ':>10s}  {'2σ':>10s}  verdict")
+    for name, n, (f1, e1, f2, e2) in rows:
+        print(f"   {name:34s} {n:5d}  {f1:4.0%} ± {e1:3.0%}  {f2:4.0%} ± {e2:3.0%}  "
+              f"{coverage_verdict(f1, f2, n_units)}")
 
 
 def coverage_unit(task: tuple[int, dict, str]) -> dict:
@@ -100,7 +140,7 @@ def coverage_unit(task: tuple[int, dict, str]) -> dict:
     template = presets.load_thermal_file("rlg_single").data
     dev_t = presets.load_device_file("trplg_001").data
     out = {k: [] for k in ("zt", "zt_bm", "zt_q", "rows", "z_avg", "z_comb", "zl",
-                           "zl_exact")}
+                           "zl_exact", "it68", "it95")}
     true_law = TRUE_LAW
     with threadpool_limits(limits=1, user_api="blas"):
         dev = IT.device_truth(folder, IT.thermal_truth(folder, mult), bias=BIAS,
@@ -115,6 +155,8 @@ def coverage_unit(task: tuple[int, dict, str]) -> dict:
             out["zt"].append(dz / fit.rel_se[k])
             out["zt_bm"].append(dz / fit.fit.se[fit.fit.names.index(k)])
             out["zt_q"].append(dz / fit.se_quantised[k])
+            out["it68"].append(abs(dz) / fit.interval_68[k])    # < 1: inside its interval
+            out["it95"].append(abs(dz) / fit.interval_95[k])
             out["rows"].append((u, k, true, fit.multipliers[k],
                                 fit.rel_se[k] * fit.multipliers[k]))
         dev_law = {**dev_t, "gyro": {**dev_t["gyro"], "bias": BIAS}}
@@ -232,6 +274,17 @@ def coverage(n_units: int, work: pathlib.Path, jobs: int = 1) -> None:
         print(f"   {name}: {len(z)} estimates, |z| < 1: {np.mean(z < 1):.0%} ± {e1:.0%} "
               f"(nominal 68 %), |z| < 2: {np.mean(z < 2):.0%} ± {e2:.0%} (nominal 95 %), "
               f"largest |z| {z.max():.2f}")
+    it68, it95 = np.asarray(cat("it68")), np.asarray(cat("it95"))
+    print(f"   thermal multipliers inside their reported 68.3 % / 95.4 % intervals (the wider of "
+          f"the sandwich's ±1, ±2 standard errors and the probes' error model's percentile "
+          f"interval): {np.mean(it68 < 1):.0%} / {np.mean(it95 < 1):.0%}")
+    za, zc = np.abs(np.asarray(z_avg)), np.abs(np.asarray(z_comb))
+    zpu = [(np.abs(z) < 1, np.abs(z) < 2) for z in z_pred]
+    coverage_table([("law coefficients (model-averaged)", za.size, _inside(za < 1, za < 2)),
+                    ("thermal multipliers", it68.size, _inside(it68 < 1, it95 < 1)),
+                    ("predictions on another programme", zp.size,
+                     _inside(np.abs(zp) < 1, np.abs(zp) < 2, zpu)),
+                    ("combined effects", zc.size, _inside(zc < 1, zc < 2))], n_units)
     print(f"   law prediction on another programme: RMS of z per unit "
           f"{', '.join(f'{v:.2f}' for v in per_unit)} (nominal 1); with the true thermal "
           f"state {', '.join(f'{np.sqrt(np.mean(z ** 2)):.2f}' for z in z_pred_true)}")

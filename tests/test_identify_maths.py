@@ -282,7 +282,8 @@ def test_quantised_reading_covariance_against_analytic_cases():
     temperature keeps the whole quantisation error (variance q²/12, not q²/12n: the error is
     held), two probes with independent grid offsets halve it, and noise far above the
     resolution dithers the error white ((σ² + q²/12)/n)."""
-    from rlgsim.estimators.identify.quantisation import quantised_covariance
+    from rlgsim.estimators.identify.quantisation import (quantised_covariance,
+                                                         quantised_intervals, quantised_scores)
     n, q = 500, 0.0625
     J = np.ones((n, 1))
     soak = np.full((n, 1), 21.3)
@@ -300,6 +301,15 @@ def test_quantised_reading_covariance_against_analytic_cases():
     half[::2] = False
     var2 = quantised_covariance(J, soak, half, np.zeros(1), np.full(1, q), draws=2000)[0, 0]
     assert var2 == pytest.approx(q ** 2 / 48, rel=0.1)
+    # the percentile intervals: the held error of one soaked probe is uniform on ±q/2, so its
+    # central P interval is ±P·q/2 — wider than ±1σ at 68.3 % (±1.18σ) and narrower than
+    # ±2σ at 95.4 % (±1.65σ), not the Gaussian ±1σ, ±2σ
+    scores, a_inv = quantised_scores(J, soak, ok, np.zeros(1), np.full(1, q), draws=4000)
+    h68, h95 = quantised_intervals(scores, a_inv)[:, 0]
+    # quantile of a uniform from 4000 draws: standard error √(P(1−P)/4000)·q ≤ 0.008·q/2
+    assert h68 == pytest.approx(0.6827 * q / 2, abs=0.02 * q / 2)
+    assert h95 == pytest.approx(0.9545 * q / 2, abs=0.02 * q / 2)
+    assert np.sqrt(var) < h68 < 2 * np.sqrt(var) and h95 < 2 * np.sqrt(var)
 
 
 def test_batched_heater_network_equals_the_integrator():

@@ -27,7 +27,17 @@ difference is then what the recording cannot determine, and the group is named i
 
 Combined effect of an unseparable group: the one thing the recording determines about it, the
 law's dependence along the members' common direction in units of the most included member
-(:func:`_combined`), with a model-averaged standard error.
+(:func:`_combined`), averaged over the models that hold the group (at least one member), the
+weights renormalised — the effect given that the group is in the law, reported beside the
+group's inclusion probability. Averaging in the models without the group would put a point
+mass at exactly 0 into the estimate: it shrinks the estimate towards 0 by the exclusion weight
+and counts the estimate itself as spread, so where the truth is 0 the interval is too wide and
+where it is not the estimate is biased — a model-averaged estimator with data-driven weights is
+a nonlinear mixture whose ``β̄ ± z·se`` interval lacks the nominal coverage (Hjort & Claeskens,
+JASA 98, 2003, §§4–5; Claeskens & Hjort, *Model Selection and Model Averaging*, 2008, ch. 7),
+whereas within the models that estimate the effect it is an ordinary estimate. (Coverage
+benchmark, 20 units: 87 % / 100 % of |z| below 1 / 2 averaged over every model, the group
+without true members — c2 ~ c3 — 95 % below 1.)
 
 Stand-ins: how the combined effect splits among a group's members is *not* determined, and the
 subset weights above do not express that — they concentrate on whichever member the noise
@@ -231,7 +241,7 @@ def _connected(c: str, edges: dict, lin_names: Sequence[str]) -> tuple[list[str]
 
 
 def _group_reason(group: list[str], pairs: dict, averaged: dict, lead: str, value: float,
-                  se: float, slopes: dict) -> str:
+                  se: float, slopes: dict, group_incl: float = 1.0) -> str:
     """The one-line reason of an unseparable group (its inclusion probabilities, correlations,
     combined effect and the programme feature that would separate it)."""
     corr = ", ".join(f"{a}/{b} {rr:+.3f}" for (a, b), rr in pairs.items())
@@ -243,7 +253,8 @@ def _group_reason(group: list[str], pairs: dict, averaged: dict, lead: str, valu
             f"model-averaged with the selection and the stand-in splits (each member alone "
             f"carrying the combined effect) in their standard errors; what the recording "
             f"does determine is their combined effect, in units of {lead}: {value:.4g} ± "
-            f"{se:.2g} (standard error, selection included; {per} {lead}-equivalents); "
+            f"{se:.2g} (standard error, selection included, given the group in the law — "
+            f"probability {group_incl:.2f}; {per} {lead}-equivalents); "
             f"{_separating_feature(group)} would separate them")
 
 
@@ -274,16 +285,19 @@ def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
             continue
         group, pairs = _connected(c, edges, lin_names)
         seen.update(group)
-        lead, value, se, slopes = _combined(group, averaged, base, lcols, chosen_lin, models)
+        lead, value, se, slopes, value_all, incl = _combined(group, averaged, base, lcols,
+                                                             chosen_lin, models)
         combined[tuple(group)] = (lead, value, se, slopes)
-        standins[tuple(group)] = _standins(group, lead, value, base, base_names, lcols,
+        # the stand-ins split the effect the averaged law carries (its excluding models
+        # included), as the prediction they widen averages over every model
+        standins[tuple(group)] = _standins(group, lead, value_all, base, base_names, lcols,
                                            chosen_lin)
         for g in group:              # the member's coefficient over the stand-in splits
             v, se_g, p = averaged[g]
             hyp = [standins[tuple(group)][g][0] if h == g else 0.0 for h in group]
             averaged[g] = (v, float(np.sqrt(se_g ** 2 + np.mean((np.array(hyp) - v) ** 2))), p)
         groups.append((tuple(group), _group_reason(group, pairs, averaged, lead, value, se,
-                                                   slopes)))
+                                                   slopes, incl)))
     return averaged, tuple(groups), c_hat, tuple(models), combined, standins
 
 
@@ -321,8 +335,10 @@ def _combined(group, averaged, base, lcols, chosen_lin, models):
     term. Each member's feature, with the chosen law's other terms and the intercept removed,
     is regressed on the lead's (slope ``s_i``, 1 for the lead); in every averaged model the
     combined coefficient is ``Σ β_i s_i`` over the members it holds, with variance ``sᵀ Σ_β s``;
-    averaged over the models like a coefficient (mean, variance plus spread). Returns
-    ``(lead, value, standard error, {member: slope})``."""
+    averaged like a coefficient (mean, variance plus spread) over the models holding at least
+    one member, their weights renormalised (module docstring). Returns ``(lead, value, standard
+    error, {member: slope}, value averaged over every model (0 where the group is out),
+    inclusion probability of the group)``."""
     lead = max(group, key=lambda g: (averaged[g][2], -list(group).index(g)))
     others = [k for k in chosen_lin if k not in group]
     Z = np.column_stack([base] + [lcols[k] for k in others])
@@ -339,10 +355,16 @@ def _combined(group, averaged, base, lcols, chosen_lin, models):
         s = np.array([slopes[names[i]] for i in idx])
         vals.append(float(beta[idx] @ s) if idx else 0.0)
         vars_.append(float(s @ cov[np.ix_(idx, idx)] @ s) if idx else 0.0)
-        ws.append(wi)
+        ws.append(wi if idx else 0.0)
     v, s2, w = np.array(vals), np.array(vars_), np.array(ws)
+    incl = float(w.sum())
+    unconditional = float(w @ v)
+    if incl <= 0:                            # no averaged model holds the group
+        return lead, 0.0, 0.0, slopes, 0.0, 0.0
+    w = w / incl
     mean = float(w @ v)
-    return lead, mean, float(np.sqrt(w @ (s2 + (v - mean) ** 2))), slopes
+    return (lead, mean, float(np.sqrt(w @ (s2 + (v - mean) ** 2))), slopes, unconditional,
+            incl)
 
 
 def vif_of(base: np.ndarray, lcols: dict, chosen: list[str]) -> dict[str, float]:

@@ -58,7 +58,7 @@ from typing import Callable
 import numpy as np
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit, screen
-from rlgsim.estimators.identify.quantisation import quantised_covariance
+from rlgsim.estimators.identify.quantisation import quantised_intervals, quantised_scores
 from rlgsim.lab.identify.thermal_params import (CHAMBER_AIR, ThermalParam, apply_multipliers,
                                                 thermal_parameters)
 from rlgsim.lab.identify.thermal_problem import (_BOUND, _JOB, _Problem, _workers, build,
@@ -95,6 +95,13 @@ class ThermalFit:
     #: (:func:`rlgsim.estimators.identify.quantisation.quantised_covariance`); ``rel_se`` is
     #: the larger of these and the batch-means sandwich (``fit.se``)
     se_quantised: dict = field(default_factory=dict)
+    #: half-widths of the log-multipliers' central 68.3 % and 95.4 % intervals (the coverage
+    #: of ±1 and ±2 standard deviations of a Gaussian): the wider of the batch-means
+    #: sandwich's Gaussian ±1, ±2 ``fit.se`` and the percentile interval of the probes' error
+    #: model (:func:`rlgsim.estimators.identify.quantisation.quantised_intervals`), whose error
+    #: is flatter than Gaussian
+    interval_68: dict = field(default_factory=dict)
+    interval_95: dict = field(default_factory=dict)
 
 
 #: largest standard error of a log-multiplier still reported as identified (a factor e)
@@ -242,16 +249,23 @@ def _result(pb: _Problem, res, free: list[str], refused: dict[str, str]) -> Ther
     assert res is None or list(res.names) == free
     mult = dict(zip(free, np.exp(res.x))) if res is not None else {}
     rel_se = dict(zip(free, res.se)) if res is not None else {}
-    se_q = {}
+    se_q: dict = {}
+    i68: dict = {}
+    i95: dict = {}
     if res is not None:
         # the probes' own error model (resolution, noise) carried through the Jacobian; the
         # reported standard error is the larger of it and the batch means (which also see
         # what the error model does not: a template family that cannot follow the unit)
         _, read_fit, *_ = pb.model(mult)
-        cq = quantised_covariance(res.jac, read_fit[pb.rows], pb.mask,
-                                  pb.pr0.noise_sigma_c[pb.cols], pb.pr0.resolution_c[pb.cols])
+        scores, a_inv = quantised_scores(res.jac, read_fit[pb.rows], pb.mask,
+                                         pb.pr0.noise_sigma_c[pb.cols],
+                                         pb.pr0.resolution_c[pb.cols])
+        cq = a_inv @ (scores.T @ scores / scores.shape[0]) @ a_inv
         se_q = dict(zip(free, np.sqrt(np.clip(np.diag(cq), 0, None))))
         rel_se = {k: max(v, se_q[k]) for k, v in rel_se.items()}
+        h68, h95 = quantised_intervals(scores, a_inv)
+        i68 = {k: max(float(res.se[j]), float(h68[j])) for j, k in enumerate(free)}
+        i95 = {k: max(2.0 * float(res.se[j]), float(h95[j])) for j, k in enumerate(free)}
     nodes, fitted_read, net, pr, fitted = pb.model(mult, full=True)
     _, template_read, *_ = pb.model({}, full=True)
     fitted, changes = apply_multipliers(template, params, mult)
@@ -267,4 +281,4 @@ def _result(pb: _Problem, res, free: list[str], refused: dict[str, str]) -> Ther
                       probe_names=tuple(probe_names), rms_template_c=rms(template_read),
                       rms_fitted_c=rms(fitted_read), fitted=fitted, changes=changes,
                       network=net, probes=pr, nodes_c=nodes, probe_fit_c=fitted_read,
-                      se_quantised=se_q)
+                      se_quantised=se_q, interval_68=i68, interval_95=i95)
