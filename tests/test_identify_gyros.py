@@ -148,3 +148,13 @@ def test_gyro_views_and_merge_keep_a_three_gyro_template():
     with pytest.raises(UserInputError) as e:
         device_from_file(presets.TomlFile(**{**vars(f), "data": d}))
     assert "c1_v_per_k" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_recorded_gyro_the_template_lacks_is_one_line():
+    from rlgsim.lab.identify.gyro_views import template_component
+    assert template_component({"gyro": {"axes": ["z"]}}, "x", "run.csv") == 0   # stands for all
+    assert template_component({"gyro": {"axes": ["x", "y", "z"]}}, "y", "run.csv") == 1
+    with pytest.raises(UserInputError) as e:
+        template_component({"gyro": {"axes": ["x", "y"]}}, "z", "run.csv")
+    assert str(e.value).startswith("run.csv: gyro 'z' not allowed; the device template's gyros "
+                                   "are x, y") and "\n" not in str(e.value)

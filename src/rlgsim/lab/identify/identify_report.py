@@ -9,7 +9,7 @@ import numpy as np
 
 from rlgsim.lab.report import Report, Table
 
-__all__ = ["build_report"]
+__all__ = ["build_report", "gyro_sections"]
 
 
 def _law_tables(rep: Report, sel, title: str, unit: str) -> None:
@@ -240,10 +240,18 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    d, laws = result.data, result.laws
-    rep = Report(f"Digital twin of {d.source}")
+    rep = Report(f"Digital twin of {result.data.source}")
     _intro(rep, result, device_name, thermal_name)
     _thermal_section(rep, result, plt)
+    gyro_sections(rep, result.data, result.laws, result.scale_factor, result.device, plt)
+    return rep
+
+
+def gyro_sections(rep: Report, d: Any, laws: Any, scale_factor: Any, device: dict,
+                  plt: Any) -> None:
+    """What is fitted per gyro: the bias law, anomalies, the UHFO law, the noise and the scale
+    factor, with their figures (once in a single gyro's report, once per gyro in a
+    several-gyro twin's, :mod:`.identify_report_gyros`)."""
     _bias_section(rep, d, laws, plt)
     _anomaly_section(rep, laws)
     if laws.uhfo is not None:
@@ -253,7 +261,6 @@ def build_report(result, device_name: str, thermal_name: str) -> Report:
                           f"{k} {v:.4g} ± {s:.2g}" for k, (v, s) in laws.uhfo_noise.items()))
         _law_tables(rep, laws.uhfo, "UHFO law", "V")
     _noise_section(rep, laws, plt)
-    if result.scale_factor is not None:
+    if scale_factor is not None:
         from rlgsim.lab.identify.scale_factor_report import scale_factor_section
-        scale_factor_section(rep, result.scale_factor, result.device)
-    return rep
+        scale_factor_section(rep, scale_factor, device)

@@ -48,19 +48,7 @@ def _gyro_section(rep: Report, result: Any, g: Any, plt: Any) -> None:
             else scale_factor_line(g.data))
     rep.paragraph(f"{len(g.data.windows)} windows of {g.data.window_s:g} s. "
                   + line[0].upper() + line[1:] + ".")
-    R._bias_section(rep, g.data, g.laws, plt)
-    R._anomaly_section(rep, g.laws)
-    laws = g.laws
-    if laws.uhfo is not None:
-        rep.heading("UHFO law")
-        rep.paragraph(f"Node `{laws.uhfo_node}`; U₀ = {laws.u0_v:.4f} V. Discharge wander and "
-                      f"read-out noise from the residual: " + ", ".join(
-                          f"{k} {v:.4g} ± {s:.2g}" for k, (v, s) in laws.uhfo_noise.items()))
-        R._law_tables(rep, laws.uhfo, "UHFO law", "V")
-    R._noise_section(rep, laws, plt)
-    if g.scale_factor is not None:
-        from rlgsim.lab.identify.scale_factor_report import scale_factor_section
-        scale_factor_section(rep, g.scale_factor, result.device)
+    R.gyro_sections(rep, g.data, g.laws, g.scale_factor, g.device, plt)
     for t in rep.tables[before:]:
         t.title = f"Gyro {g.axis}: {t.title}"
         t.csv_name = f"{slug(t.title)}.csv"

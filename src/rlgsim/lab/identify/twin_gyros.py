@@ -32,13 +32,15 @@ __all__ = ["GyroTwin", "recorded_gyros", "identify_gyros"]
 @dataclass
 class GyroTwin:
     """One gyro of a several-gyro identification: its recording view, law fit, scale-factor
-    fit (None: a static recording) and the single-gyro template view it was fitted on."""
+    fit (None: a static recording), the single-gyro template view it was fitted on and its
+    own single-gyro twin (before the merge)."""
 
     axis: str
     data: object
     laws: object
     scale_factor: object
     template: dict
+    device: dict
 
 
 def recorded_gyros(source: str) -> list[str]:
@@ -70,7 +72,7 @@ def _fit_gyro(axis: str, view: dict, data, thermal, names) -> tuple[GyroTwin, di
         if "scale_factor" in tol:
             tol["scale_factor"] = {k: v for k, v in tol["scale_factor"].items()
                                    if k in table or (k.startswith("knee_") and "knee_ppm" in table)}
-    return GyroTwin(axis, data, laws, sf, view), dev, comments
+    return GyroTwin(axis, data, laws, sf, view, dev), dev, comments
 
 
 def _header(source: str, dev_name: str, axes, gyros: list[GyroTwin], lines) -> str:
