@@ -121,6 +121,8 @@ class _Problem:
         self.rows, self.obs, self.mask, self.obs0 = rows, obs, mask, obs0
         self.params = params
         pool = None
+        if batched:                 # compiled once here (numba's cache), before any fork
+            from rlgsim.lab.identify import _batch_twin_kernel  # noqa: F401
         if batched and workers > 1:
             import multiprocessing
             _JOB["fun"] = self.residuals_part
