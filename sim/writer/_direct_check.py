@@ -12,12 +12,14 @@ two file images byte for byte. :func:`rlgsim.sim.writer.dataset._direct_path_ok`
 process, before the first direct write, and keeps HDF5's filter for the process if the images
 differ.
 
-The file: the writer's file settings (``libver``, ``track_order``); a chunk cache of 16 KiB
-(the writer's datasets use the library's default, 1 MiB: the eviction rules are the same, and
-the smaller cache overflows with 130 KiB of data instead of megabytes); two int32 scale-offset
+The file: the writer's file settings (``libver``, ``track_order``), written twice: with no chunk
+cache (the simulator's files: :data:`rlgsim.sim.writer.dataset.CHUNK_CACHE_BYTES`, each chunk
+written at once) and with a chunk cache of 16 KiB (a group added to an existing file keeps the
+library's default, 1 MiB: the eviction rules are the same, and the smaller cache overflows with
+130 KiB of data instead of megabytes); two int32 scale-offset
 datasets of 3 columns like the pulses (chunks of 3 and 6 KiB) and an unfiltered one, appended
 in uneven blocks: 23 chunks of the first (the cache holds 5 at a time), chunk ranges from one
-value to the full int32 span, a partial last chunk. Cost: ~7 ms after the packer is loaded
+value to the full int32 span, a partial last chunk. Cost: ~15 ms after the packer is loaded
 (which the first direct write would load anyway).
 """
 
@@ -27,8 +29,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-#: Chunk-cache size [bytes] of the check's in-memory file (5 chunks of the int32 dataset).
-_CACHE_BYTES = 16 << 10
+#: Chunk-cache sizes [bytes] of the check's in-memory files: none (the simulator's files) and
+#: 5 chunks of the int32 dataset.
+_CACHE_BYTES = (0, 16 << 10)
 _ROWS = 256                              # rows per chunk of the int32 dataset (3 KiB chunks)
 _N = 23 * _ROWS - 100                    # rows written: 22 whole chunks and a partial one
 
@@ -53,17 +56,17 @@ def _data() -> dict[str, np.ndarray]:
 
 
 def _image(direct: bool, rows: dict[str, np.ndarray], group_writer: Any,
-           close_stages: Callable[[list], None]) -> bytes:
+           close_stages: Callable[[list], None], cache_bytes: int) -> bytes:
     """The file image written by the writer's code (``group_writer``: the
     :class:`rlgsim.sim.writer.dataset.GroupWriter` class, ``close_stages`` its module's
     ``_close_stages``; passed in, so this module imports nothing of the writer) with the direct
-    path ``direct``."""
+    path ``direct`` and a chunk cache of ``cache_bytes`` per dataset."""
     import h5py
 
     GroupWriter, _close_stages = group_writer, close_stages
     with h5py.File(f"direct-check-{direct}.h5", "w", driver="core", backing_store=False,
                    libver=("earliest", "v110"), track_order=True,
-                   rdcc_nbytes=_CACHE_BYTES) as f:
+                   rdcc_nbytes=cache_bytes) as f:
         g = GroupWriter(f.create_group("g", track_order=True), direct=direct)
         g.dimension("sample")
         g.coordinate("axis", ["x", "y", "z"], description="axis")
@@ -91,7 +94,8 @@ def direct_path_agrees(group_writer: Any, close_stages: Callable[[list], None]) 
     files differ or the direct path fails."""
     try:
         rows = _data()
-        return (_image(True, rows, group_writer, close_stages)
-                == _image(False, rows, group_writer, close_stages))
+        return all(_image(True, rows, group_writer, close_stages, cache)
+                   == _image(False, rows, group_writer, close_stages, cache)
+                   for cache in _CACHE_BYTES)
     except Exception:                      # noqa: BLE001 — any failure: keep HDF5's path
         return False

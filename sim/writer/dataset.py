@@ -56,6 +56,16 @@ from rlgsim.ground.provenance import versions_json
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
+#: HDF5's chunk cache [bytes per dataset] of a file the simulator writes: none. The writer hands
+#: HDF5 whole chunks only (:class:`_ChunkStage`) and never reads them back, so a cache would only
+#: hold each dataset's latest chunks until it needs room or the file closes. With the library's
+#: default (8 MiB per dataset since HDF5 2.0, 1 MiB before) a run's resident memory grew with its
+#: duration until every growing dataset's cache was full — a 1 Hz float64 series fills 8 MiB in
+#: 12 days, so a run kept its slow series whole: ~1.8 MB per simulated hour on the land route and
+#: on a static run (benchmarks/bench_sim_memory.py). With no cache each chunk gets its file space
+#: when it is written, in the order of writing: the file's layout (not its content, format or
+#: determinism) differs from a file written with the cache.
+CHUNK_CACHE_BYTES = 0
 _STR = h5py.string_dtype("utf-8")
 #: NAME of a netCDF-4 dimension scale that is not a variable (netCDF-C / h5netcdf convention).
 _NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
@@ -380,7 +390,10 @@ class DatasetWriter:
         self.path = check_writable(path)
         remove_stale_temporaries(self.path)
         self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
-        self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True)
+        # HDF5's chunk cache off (rdcc_nbytes=0, :data:`CHUNK_CACHE_BYTES`): every chunk goes
+        # to the file when it is written (see the constant)
+        self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True,
+                               rdcc_nbytes=CHUNK_CACHE_BYTES)
         self._groups: list[GroupWriter] = []
         # The format marker is written last (commit): until then the file says it is
         # incomplete, so the temporary file of a killed run is never taken for a dataset.
