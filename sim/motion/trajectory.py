@@ -78,6 +78,8 @@ for _lv, _pts in enumerate((4, 3, 2)):
 _RTOL = 1e-13
 _ATOL = (1e-15, 1e-15, 1e-9)
 _TIME_TOL_S = 1e-6
+#: grid points of a leg evaluated at once by :meth:`Trajectory.peak_inputs` (~2 MB of arrays)
+_PEAK_SLICE = 4096
 #: highest |latitude| a route may reach (the ENU frame is singular at the poles) [rad]
 MAX_LATITUDE_RAD = np.radians(89.9)
 #: the WGS-84 constants the compiled kernel needs, in its order (a, e², Ω, γ_e, k, f, m)
@@ -414,16 +416,25 @@ class Trajectory:
     # ---- checks -------------------------------------------------------------------------
     def peak_inputs(self, step_s: float = 0.5) -> tuple[float, float, float]:
         """Largest |ω_ib^b| component [rad/s] and |f^b| component [m/s²] over the run, on a
-        grid of ``step_s`` plus the leg ends, and the time of the largest rate."""
+        grid of ``step_s`` plus the leg ends, and the time of the largest rate.
+
+        A leg's grid is ``np.linspace(0, duration, m)``, evaluated :data:`_PEAK_SLICE` points at
+        a time (``k · duration / (m − 1)``, its last point the duration: linspace's own numbers),
+        so the memory does not grow with a leg's length — a run's closing hold lasts as long as
+        the run (~3 MB per hour of it at once before)."""
         best_w, best_f, at = 0.0, 0.0, 0.0
         for j, leg in enumerate(self.legs):
             m = max(2, int(np.ceil(leg.duration_s / step_s)) + 1)
-            tau = np.linspace(0.0, leg.duration_s, m)
-            w, f = self._inputs(j, tau)
-            iw = int(np.argmax(np.max(np.abs(w), axis=1)))
-            if np.max(np.abs(w[iw])) > best_w:
-                best_w, at = float(np.max(np.abs(w[iw]))), float(self._t0[j] + tau[iw])
-            best_f = max(best_f, float(np.max(np.abs(f))))
+            step = leg.duration_s / (m - 1)
+            for lo in range(0, m, _PEAK_SLICE):
+                tau = np.arange(lo, min(m, lo + _PEAK_SLICE), dtype=float) * step
+                if lo + tau.size == m:
+                    tau[-1] = leg.duration_s
+                w, f = self._inputs(j, tau)
+                iw = int(np.argmax(np.max(np.abs(w), axis=1)))
+                if np.max(np.abs(w[iw])) > best_w:
+                    best_w, at = float(np.max(np.abs(w[iw]))), float(self._t0[j] + tau[iw])
+                best_f = max(best_f, float(np.max(np.abs(f))))
         return best_w, best_f, at
 
 
