@@ -45,8 +45,19 @@ class GyroTwin:
 
 def recorded_gyros(source: str) -> list[str]:
     """The gyro axes of a recording or a dataset ([] when it has none: the single-gyro path
-    then refuses it in its own words)."""
+    then refuses it in its own words): a recording's sidecar ``[gyro] axes`` when it lists them
+    (the reader holds the columns to that list), else the opened table; a dataset's ``imu/gyro``
+    coordinate."""
     from rlgsim.ground.datatree import open_tree
+    from rlgsim.ground.recording import is_recording, read_sidecar, sidecar_path
+    if is_recording(source):
+        axes = read_sidecar(sidecar_path(source)).gyro_axes
+        if axes is not None:
+            return [str(a) for a in axes]
+    else:
+        from rlgsim.ground.dataset_format import open_dataset
+        with open_dataset(source) as ds:               # the coordinate alone, not the tree
+            return ds.strings("imu", "gyro") if ds.has("imu", "gyro") else []
     tree = open_tree(source)
     try:
         if "imu" not in tree.children or "gyro" not in tree["imu"].coords:
