@@ -42,7 +42,6 @@ every averaged model (inclusion 1).
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -50,7 +49,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit
-from rlgsim.estimators.identify.term_averaging import (averaging, conditioned, corr_matrix, vif_of,
+from rlgsim.estimators.identify.subset_conditioning import passing
+from rlgsim.estimators.identify.term_averaging import (averaging, corr_matrix, vif_of,
                                                       without_intercept)
 from rlgsim.estimators.identify.whitening import whitener
 
@@ -201,9 +201,7 @@ def _best_subset(y: np.ndarray, base: np.ndarray, names: list[str], lcols: dict,
     best = (_bic(y, base, k_extra), [])
     for size in range(1, min(max_linear, len(names)) + 1):
         best_k = None
-        for combo in itertools.combinations(names, size):
-            if not conditioned(R, combo):
-                continue
+        for combo in passing(R, names, size):          # the well-conditioned ones
             X = np.column_stack([base] + [lcols[c] for c in combo])
             b = _bic(y, X, k_extra)
             if best_k is None or b < best_k[0]:

@@ -38,4 +38,7 @@ def whitener(noise_cov: np.ndarray | None, n: int) -> Callable[[np.ndarray], np.
     if C.shape != (n, n):
         raise ValueError(f"noise_cov must be ({n}, {n}), got {C.shape}")
     L = jittered_cholesky(C)
-    return lambda v: solve_triangular(L, np.asarray(v, dtype=float), lower=True)
+    # L is finite (a Cholesky factor): its check on every call would cost a pass over n²
+    # values, more than the solve of a short vector; the vector is checked as before
+    return lambda v: solve_triangular(L, np.asarray_chkfinite(np.asarray(v, dtype=float)),
+                                      lower=True, check_finite=False)

@@ -55,6 +55,7 @@ from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 from rlgsim.estimators.identify.window_noise import covariance_from_fit
 from rlgsim.sim.sensors.gyro import pulses_per_arcsec as template_pulses_per_arcsec
+from rlgsim.lab.identify.feature_memo import remembered as _remembered
 from rlgsim.lab.identify.node_names import node_column
 from rlgsim.lab.identify.recording_data import RecordingData
 
@@ -137,7 +138,7 @@ def _candidates(T: np.ndarray, t_ref: float, step_s: float, win, law: dict,
         else:
             def f(th, T=T):
                 return win(1.0 / (1.0 + np.exp(-np.clip((T - th[0]) / th[1], -60, 60))))
-        terms.append(Term(key, f, ("center_c", "width_k"), grid,
+        terms.append(Term(key, _remembered(f), ("center_c", "width_k"), grid,
                           lower=(lo, 0.2), upper=(hi, span / 2)))
     return terms
 
@@ -268,11 +269,10 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     bias_node = str(law.get("node", gyro.get("node", "A")))
     t_ref = float(law.get("t_ref_c", gyro.get("t_ref_c", 20.0)))
     step = rec.step_s
-    f_slow = 1.0 / step
     rows = _window_rows(rec)
 
     def win(v: np.ndarray) -> np.ndarray:
-        return np.asarray(window_average(np.asarray(v, dtype=float), f_slow,
+        return np.asarray(window_average(np.asarray(v, dtype=float), 1.0 / step,
                                          rec.window_s))[rows]
 
     uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise = _uhfo_law(rec, nodes_c, node_names, block,
