@@ -86,3 +86,45 @@ def simulate(scenario_path: pathlib.Path, out: pathlib.Path) -> pathlib.Path:
     from rlgsim.sim.run.scenario import load_scenario
     from rlgsim.sim.run.simulate import simulate as _sim
     return _sim(load_scenario(str(scenario_path)), str(out), progress=False)
+
+
+#: three gyros with different bias laws (°/h; x = T − 25 °C at node A; U − U₀ in V): x linear,
+#: y linear + quadratic, z through its UHFO only (tests/test_identify_gyros.py,
+#: benchmarks/identify_gyros.py)
+THREE_GYRO_BIAS = {"value_deg_per_h": [0.01, -0.02, 0.0],
+                   "c1_deg_per_h_per_k": [-3.0e-4, 4.0e-4, 0.0],
+                   "c2_deg_per_h_per_k2": [0.0, 2.0e-5, 0.0],
+                   "uhfo_deg_per_h_per_v": [0.0, 0.0, -0.0273],
+                   "langmuir_deg_per_h_per_ma": 0.0}
+#: the bias keys of THREE_GYRO_BIAS → the law fit's term names
+BIAS_TERMS = {"value_deg_per_h": "intercept", "c1_deg_per_h_per_k": "c1",
+              "c2_deg_per_h_per_k2": "c2", "uhfo_deg_per_h_per_v": "uhfo"}
+
+
+def three_gyro_lab_csv(folder: pathlib.Path, bias: dict, *, seed: int = 1,
+                       device_seed: int | None = None, uhfo_axes: tuple[str, ...] = ("z",)
+                       ) -> pathlib.Path:
+    """A three-gyro unit (trplg_001 gyros x, y, z on ``rlg_single``'s one block, each with its
+    own bias law: ``bias`` keys with one value per gyro) through PROGRAMME_A, exported as a lab
+    CSV that keeps the UHFO columns of ``uhfo_axes`` only, with a sidecar whose [identify]
+    table names the templates (no gyro). Returns the CSV's path."""
+    import tomllib
+
+    import pandas as pd
+
+    from rlgsim.ground.recording_export import export
+    th = thermal_truth(folder, {})
+    dev = device_truth(folder, th, bias=bias)
+    d = tomllib.loads(dev.read_text())
+    d["gyro"].update(axes=["x", "y", "z"], blocks=["g"] * 3)
+    dev.write_text(dumps(d), encoding="utf-8")
+    rec = simulate(scenario(folder, dev, seed=seed, device_seed=device_seed), folder / "r.h5")
+    out = export(str(rec), "csv", str(folder / "export.csv"))
+    t = pd.read_csv(out.table).drop(columns=[f"uhfo_{a}_v" for a in "xyz"
+                                             if a not in uhfo_axes])
+    t.to_csv(folder / "lab.csv", index=False)
+    (folder / "lab.toml").write_text(
+        out.sidecar.read_text().replace("export.csv", "lab.csv")
+        + '\n[identify]\ndevice_template = "trplg_001"\nthermal_template = "rlg_single"\n',
+        encoding="utf-8")
+    return folder / "lab.csv"

@@ -12,7 +12,6 @@ import copy
 import tomllib
 
 import numpy as np
-import pandas as pd
 import pytest
 
 import identify_truth as IT
@@ -22,11 +21,8 @@ from rlgsim.lab.identify.preset_text import dumps
 
 AXES = ("x", "y", "z")
 #: the truth: one bias law per gyro (°/h; x = T − 25 °C at node A; U − U₀ in V)
-TRUTH = {"value_deg_per_h": [0.01, -0.02, 0.0], "c1_deg_per_h_per_k": [-3.0e-4, 4.0e-4, 0.0],
-         "c2_deg_per_h_per_k2": [0.0, 2.0e-5, 0.0], "uhfo_deg_per_h_per_v": [0.0, 0.0, -0.0273],
-         "langmuir_deg_per_h_per_ma": 0.0}
-TERMS = {"value_deg_per_h": "intercept", "c1_deg_per_h_per_k": "c1",
-         "c2_deg_per_h_per_k2": "c2", "uhfo_deg_per_h_per_v": "uhfo"}
+TRUTH = IT.THREE_GYRO_BIAS
+TERMS = IT.BIAS_TERMS
 
 
 @pytest.fixture(scope="module")
@@ -34,22 +30,9 @@ def twin(tmp_path_factory):
     """The unit simulated (rlg_single network, trplg_001 gyros on its one block), exported,
     its UHFO kept for gyro z only, and identified with the sidecar alone (no gyro named)."""
     folder = tmp_path_factory.mktemp("gyros")
-    th = IT.thermal_truth(folder, {})
-    dev = IT.device_truth(folder, th, bias=TRUTH)
-    d = tomllib.loads(dev.read_text())
-    d["gyro"].update(axes=list(AXES), blocks=["g"] * 3)
-    dev.write_text(dumps(d), encoding="utf-8")
-    rec = IT.simulate(IT.scenario(folder, dev), folder / "r.h5")
-    from rlgsim.ground.recording_export import export
-    out = export(str(rec), "csv", str(folder / "export.csv"))
-    t = pd.read_csv(out.table).drop(columns=["uhfo_x_v", "uhfo_y_v"])
-    t.to_csv(folder / "lab.csv", index=False)
-    (folder / "lab.toml").write_text(
-        out.sidecar.read_text().replace("export.csv", "lab.csv")
-        + '\n[identify]\ndevice_template = "trplg_001"\nthermal_template = "rlg_single"\n',
-        encoding="utf-8")
+    lab = IT.three_gyro_lab_csv(folder, TRUTH)
     from rlgsim.lab.identify import identify
-    return identify(str(folder / "lab.csv"), folder / "twin"), folder
+    return identify(str(lab), folder / "twin"), folder
 
 
 def test_each_gyro_law_within_its_stated_uncertainty(twin):
