@@ -40,7 +40,8 @@ def coverage(units: int, work: pathlib.Path) -> pathlib.Path:
     rows: dict[str, list[float]] = {}
     first = None
     print(f"A. coverage over {units} drawn three-gyro units (4.9 h, 1 Hz, rlg_single, "
-          f"PROGRAMME_A; truth terms only; z = (estimate − truth) / model-averaged SE)")
+          f"PROGRAMME_A; every coefficient of the truth's keys that a gyro's law holds, a "
+          f"true 0 included; z = (estimate − truth) / model-averaged SE)")
     for u in range(units):
         f = work / f"unit{u}"
         f.mkdir()
@@ -91,8 +92,9 @@ def timing(lab: pathlib.Path, pairs: int, work: pathlib.Path, watch: LoadWatch) 
     ratios = [a / b for a, b in zip(three, one)]
     print(f"\nB. CPU time, three gyros vs one gyro (--gyro z) on unit 1, {pairs} alternated "
           f"pairs")
-    print(f"   three gyros: CPU {spread(three, '.1f', ' s')}; wall {spread(walls['three'], '.1f', ' s')}")
-    print(f"   one gyro:    CPU {spread(one, '.1f', ' s')}; wall {spread(walls['one'], '.1f', ' s')}")
+    for what, cpu, wall in (("three gyros", three, walls["three"]),
+                            ("one gyro", one, walls["one"])):
+        print(f"   {what}: CPU {spread(cpu, '.1f', ' s')}; wall {spread(wall, '.1f', ' s')}")
     med = sorted(ratios)[len(ratios) // 2]
     print(f"   ratio (three / one, CPU): {spread(ratios, '.2f')}; target < {RATIO_TARGET:g} "
           f"(three separate identifications ≈ 3): "

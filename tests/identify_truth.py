@@ -88,8 +88,8 @@ def simulate(scenario_path: pathlib.Path, out: pathlib.Path) -> pathlib.Path:
     return _sim(load_scenario(str(scenario_path)), str(out), progress=False)
 
 
-#: three gyros with different bias laws (°/h; x = T − 25 °C at node A; U − U₀ in V): x linear,
-#: y linear + quadratic, z through its UHFO only (tests/test_identify_gyros.py,
+#: three gyros with different bias laws (°/h; x = T − 25 °C at node A; U − U₀ in V):
+#: x linear, y linear + quadratic, z through its UHFO only (tests/test_identify_gyros.py,
 #: benchmarks/identify_gyros.py)
 THREE_GYRO_BIAS = {"value_deg_per_h": [0.01, -0.02, 0.0],
                    "c1_deg_per_h_per_k": [-3.0e-4, 4.0e-4, 0.0],

@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import tomllib
 
-import numpy as np
 import pytest
 
 import identify_truth as IT
@@ -103,30 +102,39 @@ def test_the_preset_runs_with_each_gyro_law(twin, tmp_path):
 
 
 def test_gyro_views_and_merge_keep_a_three_gyro_template():
-    """A three-gyro template (rlg_imu_000) cut into its gyros and merged back gives its own
-    laws; a UHFO law with a value per gyro reads, one with the wrong count is one line."""
+    """A three-gyro template (rlg_imu_000 with a law per gyro) cut into its gyros and merged
+    back gives its own laws; one gyro's view is a valid single-gyro template (what --gyro fits
+    on); a UHFO law with a value per gyro reads, one with the wrong count is one line."""
     from rlgsim.sim import presets
-    from rlgsim.sim.run.scenario import device_from_file
+    from rlgsim.sim.config import Ctx
+    from rlgsim.sim.run.scenario import device_from_file, validate_device_tables
     from rlgsim.lab.identify.gyro_views import gyro_view, merge_devices
+    from rlgsim.lab.identify.twin_gyros import one_gyro_template
     f = presets.load_device_file("rlg_imu_000")
-    tmpl = {k: v for k, v in f.data.items() if k != "run_to_run"}
+    tmpl = {k: v for k, v in copy.deepcopy(f.data).items() if k != "run_to_run"}
+    tmpl["gyro"]["bias"]["c1_deg_per_h_per_k"] = [1e-4, 2e-4, 3e-4]
+    tmpl["gyro"]["bias"]["gradients"][0]["coeff_deg_per_h_per_k"] = [0.004, 0.0, -0.002]
+    tmpl["gyro"]["misalignment"]["value_arcsec"] = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    tmpl["uhfo"]["value_v"] = [4.0, 5.0, 6.0]
+    validate_device_tables(tmpl, Ctx("rlg_imu_000 with a law per gyro"))
     views = [gyro_view(tmpl, a, i) for i, a in enumerate(AXES)]
     assert [v["gyro"]["blocks"] for v in views] == [["gx"], ["gy"], ["gz"]]
+    y = one_gyro_template(tmpl, ["y"], "run.h5")
+    assert y == views[1] and y["gyro"]["axes"] == ["y"]
+    assert y["gyro"]["bias"]["c1_deg_per_h_per_k"] == 2e-4 and y["uhfo"]["value_v"] == 5.0
+    assert y["gyro"]["misalignment"]["value_arcsec"] == [3.0, 4.0]
+    validate_device_tables(y, Ctx("the y view"))
+    assert one_gyro_template(views[2], ["z"], "run.h5") is views[2]   # one gyro: itself
 
     class NoHops:
         hops, uhfo = None, None
     merged, _ = merge_devices(tmpl, AXES, views, [{}] * 3, [NoHops()] * 3)
     for law in ("bias", "scale_factor", "misalignment"):
-        for key, v in tmpl["gyro"][law].items():
-            m = merged["gyro"][law][key]
-            if isinstance(v, list) and isinstance(m, list):
-                assert m == v, (law, key)
-            else:                                    # a scalar stays a scalar or its copies
-                assert np.all(np.asarray(m) == np.asarray(v)), (law, key)
+        assert merged["gyro"][law] == tmpl["gyro"][law], law
+    assert merged["uhfo"] == tmpl["uhfo"]
     d = copy.deepcopy(f.data)
     d["uhfo"]["value_v"] = [4.0, 5.0, 6.0]
-    dev = device_from_file(presets.TomlFile(**{**vars(f), "data": d}))
-    assert dev is not None
+    assert device_from_file(presets.TomlFile(**{**vars(f), "data": d})) is not None
     d["uhfo"]["c1_v_per_k"] = [0.1, 0.2]
     with pytest.raises(UserInputError) as e:
         device_from_file(presets.TomlFile(**{**vars(f), "data": d}))

@@ -9,9 +9,10 @@ the turntable turns, the scale-factor law (:mod:`.scale_factor_fit`); write
 ``thermal.toml``, ``device.toml``, ``replay.toml`` (:mod:`.preset_text`) and the report
 (:mod:`.identify_report`); the texts are :mod:`.twin_text`'s, the templates
 :mod:`.twin_templates`'s; a recording of several gyros with none chosen goes to
-:mod:`.twin_gyros` (one device preset with every gyro's law). Templates: for an rlgsim dataset the device and thermal presets it
-was simulated with (its embedded texts); for a recording ``device_template`` is required and
-``thermal_template`` defaults to the device template's ``thermal_preset``.
+:mod:`.twin_gyros` (one device preset with every gyro's law). Templates: for an rlgsim
+dataset the device and thermal presets it was simulated with (its embedded texts); for a
+recording ``device_template`` is required and ``thermal_template`` defaults to the device
+template's ``thermal_preset``; a several-gyro template gives the chosen gyro's view.
 """
 
 from __future__ import annotations
@@ -75,14 +76,16 @@ def _identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
         check_name(name)
     from rlgsim.lab.identify.sidecar_choices import sidecar_choices
     chosen = sidecar_choices(source, device_template, thermal_template, gyro)
-    if chosen.gyro is None:              # several gyros and none chosen: one twin of them all
-        from rlgsim.lab.identify import twin_gyros as G
-        if len(axes := G.recorded_gyros(source)) > 1:
-            return G.identify_gyros(source, out_dir, axes, chosen, name, suggest_programme,
-                                    overwrite, t0)
+    from rlgsim.lab.identify import twin_gyros as G
+    axes = [chosen.gyro] if chosen.gyro is not None else G.recorded_gyros(source)
+    if len(axes) > 1:                    # several gyros and none chosen: one twin of them all
+        return G.identify_gyros(source, out_dir, axes, chosen, name, suggest_programme,
+                                overwrite, t0)
     device_template, thermal_template = chosen.device_template, chosen.thermal_template
     inputs = _inputs(source, device_template, thermal_template)
-    dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template)
+    dev_name, dev_t, th_name, th_t = load_templates(source, device_template, thermal_template,
+                                                    several=True)
+    dev_t = G.one_gyro_template(dev_t, axes, source)   # a several-gyro template: that gyro's
     name = name or f"{dev_name}_twin"
     planned_outputs(out_dir, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     data = read_recording(source, gyro=chosen.gyro)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from rlgsim.ground.errors import UserInputError
 from rlgsim.lab.report import write_atomic
 
-__all__ = ["GyroTwin", "recorded_gyros", "identify_gyros"]
+__all__ = ["GyroTwin", "recorded_gyros", "identify_gyros", "one_gyro_template"]
 
 
 @dataclass
@@ -65,6 +65,16 @@ def recorded_gyros(source: str) -> list[str]:
         return [str(a) for a in tree["imu"]["gyro"].values]
     finally:
         tree.close()
+
+
+def one_gyro_template(template: dict, axes: list[str], source: str) -> dict:
+    """The template a one-gyro identification fits on: itself when it has one gyro (or the
+    recording none, which the reader refuses), else the single-gyro view of the recorded gyro
+    ``axes[0]`` (:func:`rlgsim.lab.identify.gyro_views.gyro_view`: its block, its laws)."""
+    from rlgsim.lab.identify.gyro_views import gyro_view, template_component
+    if len(template.get("gyro", {}).get("axes", [])) <= 1 or not axes:
+        return template
+    return gyro_view(template, axes[0], template_component(template, axes[0], source))
 
 
 def _fit_gyro(axis: str, view: dict, data, thermal, names) -> tuple[GyroTwin, dict, dict]:
