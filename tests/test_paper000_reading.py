@@ -70,3 +70,16 @@ def test_without_truth_only_the_in_sample_part():
     row = rd.parameter_reading(t, est, np.full_like(truth, np.nan), truth, lsm)
     assert math.isnan(row["σ_e"]) and row["class"] == "?"
     assert np.isfinite(row["R² impr %"])
+
+
+def test_class_b_profile_worked_by_hand():
+    """Four curves carry 15 × 2.29 − 11 × 0.1 = 33.25 points: 8.3125 % each; at g = 80 % the
+    cubic leaves 0.083125 / (1 − 0.04 + 0.083125) = 7.97 %."""
+    cb = rd.class_b_profile()
+    assert cb["R² impr %"][0] == pytest.approx(8.3125, rel=1e-12)
+    assert cb["cubic share %"][1] == pytest.approx(100 * 0.083125 / (1 - 0.04 + 0.083125),
+                                                   rel=1e-9)
+    assert cb["n/σ_e"][1] == pytest.approx(math.sqrt(1 / 0.04 - 1), rel=1e-12)
+    # the share and the gain give back the R² improvement (eq. R1)
+    for a, g in zip(cb["cubic share %"], (55.0, 80.0)):
+        assert rd.r2_gain_pct(a / 100, g) == pytest.approx(8.3125, rel=1e-9)

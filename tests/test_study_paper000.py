@@ -172,6 +172,10 @@ def test_shapes_reading_agrees_with_table2_and_the_truth(run):
     classes = _read_csv(out / "shapes_classes.csv")
     assert sum(int(c["count"]) for c in classes) == len(PARAMS)
     assert "Reading the paper's summary numbers" in (out / "report.md").read_text()
+    paper = _read_csv(out / "paper_reading.csv")
+    assert [r["paper"] for r in paper][:4] == ["35.27", "80.12", "9.15", "2.29"]
+    counts = paper[4]["ours"].split(" (")[0].split(" / ")
+    assert counts == [str(sum(r["class"] == c for r in reading.values())) for c in "abc"]
 
 
 def test_system_compensation_removes_a_strong_temperature_slope(run):
