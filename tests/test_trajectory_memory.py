@@ -8,8 +8,9 @@ run's peak, one of its increments (6 float64) 5.8 MB; what the blocks need is th
 The peak of one run depends on how many blocks the prefetch worker holds at that moment (thread
 scheduling: a few 600 s blocks of about 1 MB each, so runs of the same duration differ by
 megabytes), so each duration's figure is the smallest peak of three runs, and the bound is
-half the smallest whole-run array. (HDF5's own chunk cache, outside tracemalloc, is bounded per dataset —
-benchmarks/bench_sim_memory.py, docs/trajectories.md.)
+half the smallest whole-run array. (Memory outside tracemalloc — HDF5's — is held by
+tests/test_run_memory.py and benchmarks/bench_sim_memory.py: the writer's files have no chunk
+cache.)
 """
 
 from __future__ import annotations
