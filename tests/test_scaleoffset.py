@@ -104,8 +104,9 @@ def test_datasets_hdf5_must_pack_are_declined():
 def _write(path: pathlib.Path, blocks: list[dict[str, np.ndarray]], direct: bool,
            monkeypatch, extra_append: bool = False) -> None:
     """A dataset like the simulator's: two pulse-like scale-offset variables (one with chunks
-    larger than HDF5's chunk cache: written at once), an unfiltered one, appended block by
-    block in uneven blocks."""
+    larger than HDF5's chunk cache: written at once), two unfiltered ones (``w`` like the
+    ``trajectory`` velocity: more whole chunks than the cache holds, the direct path's raw
+    bytes), appended block by block in uneven blocks."""
     monkeypatch.setattr(dataset, "DIRECT_CHUNKS", direct)
     with dataset.DatasetWriter(path, {"seed": 1}) as w:
         g = w.group("imu", "test group")
@@ -118,6 +119,8 @@ def _write(path: pathlib.Path, blocks: list[dict[str, np.ndarray]], direct: bool
         g.variable("big", ("sample", "axis"), units="1", dtype=np.int32, description="big chunks",
                    storage={"scaleoffset": 0, "chunks": (700_000, 3)})       # > 8 MiB
         g.variable("v", ("sample",), units="V", dtype=np.float32, description="unfiltered")
+        g.variable("w", ("sample", "axis"), units="m s-1", description="unfiltered float64",
+                   storage={"chunks": (4096, 3)})
         for rows in blocks:
             g.append("sample", rows)
         if extra_append:
@@ -133,7 +136,8 @@ def _blocks(rng: np.random.Generator, n: int) -> list[dict[str, np.ndarray]]:
         p[: m // 3] = rng.integers(-2000, 2000, (m // 3, 3))
         out.append({"p": p, "q": rng.integers(-5, 5, m).astype(np.int16),
                     "big": rng.integers(-9, 9, (m, 3)).astype(np.int32),
-                    "v": rng.standard_normal(m).astype(np.float32)})
+                    "v": rng.standard_normal(m).astype(np.float32),
+                    "w": rng.standard_normal((m, 3))})
     return out
 
 
@@ -149,7 +153,7 @@ def test_the_direct_path_writes_the_same_file(tmp_path, monkeypatch):
         _write(tmp_path / f"{direct}.h5", blocks, direct, monkeypatch)
     assert (tmp_path / "True.h5").read_bytes() == (tmp_path / "False.h5").read_bytes()
     with h5py.File(tmp_path / "True.h5") as f:
-        for name in ("p", "q", "big", "v"):
+        for name in ("p", "q", "big", "v", "w"):
             np.testing.assert_array_equal(f["imu"][name][...],
                                           np.concatenate([b[name] for b in blocks]))
 
@@ -180,7 +184,7 @@ def test_rows_appended_after_a_flush_are_all_stored(tmp_path, monkeypatch):
     blocks = _blocks(np.random.default_rng(8), 6)
     _write(tmp_path / "x.h5", blocks, True, monkeypatch, extra_append=True)
     with h5py.File(tmp_path / "x.h5") as f:
-        for name in ("p", "q", "big", "v"):
+        for name in ("p", "q", "big", "v", "w"):
             want = np.concatenate([b[name] for b in blocks + blocks[:1]])
             np.testing.assert_array_equal(f["imu"][name][...], want)
 

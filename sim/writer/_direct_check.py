@@ -17,8 +17,10 @@ cache (the simulator's files: :data:`rlgsim.sim.writer.dataset.CHUNK_CACHE_BYTES
 written at once) and with a chunk cache of 16 KiB (a group added to an existing file keeps the
 library's default, 1 MiB: the eviction rules are the same, and the smaller cache overflows with
 130 KiB of data instead of megabytes); two int32 scale-offset
-datasets of 3 columns like the pulses (chunks of 3 and 6 KiB) and an unfiltered one, appended
-in uneven blocks: 23 chunks of the first (the cache holds 5 at a time), chunk ranges from one
+datasets of 3 columns like the pulses (chunks of 3 and 6 KiB), two unfiltered float64 ones
+whose whole chunks also go the direct path (3 columns like the ``trajectory`` velocity, chunks
+of 6 KiB; one column, chunks of 4 KiB) and an unfiltered float32 one that never fills a chunk
+(HDF5's path throughout), appended in uneven blocks: 23 chunks of the first (the cache holds 5 at a time), chunk ranges from one
 value to the full int32 span, a partial last chunk. Cost: ~15 ms after the packer is loaded
 (which the first direct write would load anyway).
 """
@@ -52,7 +54,9 @@ def _data() -> dict[str, np.ndarray]:
     q = rng.integers(-9, 9, (_N, 3)).astype(np.int32)
     q[:700] = 0
     v = rng.standard_normal(_N).astype(np.float32)
-    return {"p": p, "q": q, "v": v}
+    r = rng.standard_normal((_N, 3))
+    s = rng.standard_normal(_N)
+    return {"p": p, "q": q, "v": v, "r": r, "s": s}
 
 
 def _image(direct: bool, rows: dict[str, np.ndarray], group_writer: Any,
@@ -75,12 +79,16 @@ def _image(direct: bool, rows: dict[str, np.ndarray], group_writer: Any,
         g.variable("q", ("sample", "axis"), units="1", dtype=np.int32, description="q",
                    storage={"scaleoffset": 0, "chunks": (2 * _ROWS, 3)})
         g.variable("v", ("sample",), units="1", dtype=np.float32, description="v")
+        g.variable("r", ("sample", "axis"), units="1", description="r",
+                   storage={"chunks": (_ROWS, 3)})
+        g.variable("s", ("sample",), units="1", description="s",
+                   storage={"chunks": (2 * _ROWS,)})
         lo = 0
         for m in (37, 900, 1, 2000, 513, _N):
             hi = min(_N, lo + m)
             g.append("sample", {k: a[lo:hi] for k, a in rows.items()})
             lo = hi
-        if direct and any(g._staged[k].direct is None for k in ("p", "q")):
+        if direct and any(g._staged[k].direct is None for k in ("p", "q", "r", "s")):
             raise RuntimeError("the direct path declined the check's datasets")
         g.flush()                          # what DatasetWriter.commit does, in its order
         _close_stages([g])

@@ -13,6 +13,12 @@ encoded chunks in a mirror of that cache (the same capacity in bytes of unfilter
 read from the dataset's access properties) and writes each one when HDF5 would have flushed it.
 A direct write allocates, writes and indexes a chunk in the same order as a flush.
 
+An **unfiltered** dataset (the ``trajectory`` group's 13 float64 states per IMU sample, 37 MB
+an hour at 100 Hz) takes the same path with its chunks' raw bytes (``codec`` None): its whole
+chunks went through the cache the same way (copied in, allocated and written at eviction), and
+HDF5's chunk-cache bookkeeping of a 256 KiB chunk cost ~3× the plain write of its bytes (the
+writer thread's CPU; benchmarks/bench_sim_trajectory.py).
+
 Two calls stay with HDF5: the dataset's first write goes through ``write_direct`` for its first
 chunk (HDF5 creates the chunk index then; that chunk stays in HDF5's cache, and the direct write
 of its encoded copy at its turn evicts it unwritten), and a partial chunk (the last one)
@@ -34,12 +40,13 @@ from rlgsim.sim.writer._scaleoffset import Codec, codec_of, encode
 class DirectChunks:
     """The mirror of one dataset's chunk cache, holding encoded chunks (see the module)."""
 
-    def __init__(self, ds: h5py.Dataset, codec: Codec, capacity: int, compiled: bool) -> None:
+    def __init__(self, ds: h5py.Dataset, codec: Codec | None, capacity: int,
+                 compiled: bool) -> None:
         self.ds = ds
-        self.codec = codec
+        self.codec = codec                    # None: an unfiltered dataset (its raw bytes)
         self.rows = int(ds.chunks[0])
         self.tail = (0,) * (len(ds.shape) - 1)
-        self.chunk_bytes = codec.chunk_elements * codec.dtype.itemsize
+        self.chunk_bytes = _chunk_bytes(ds)
         self.capacity = capacity              # bytes of unfiltered chunks; 0: no cache
         self.compiled = compiled
         #: chunks the cache holds: (n + 1)·chunk_bytes > capacity ⇔ n ≥ capacity // chunk_bytes
@@ -53,22 +60,33 @@ class DirectChunks:
         stay: not a scale-offset dataset :mod:`rlgsim.sim.writer._scaleoffset` encodes, rows already
         written, chunks not spanning the trailing dimensions, or a cache small enough in slots
         that chunks could collide in its hash table."""
+        if ds.chunks is None or start != 0 or ds.shape[0] != 0 \
+                or tuple(ds.chunks[1:]) != ds.shape[1:]:
+            return None
         codec = codec_of(ds)
-        if codec is None or start != 0 or ds.shape[0] != 0 or tuple(ds.chunks[1:]) != ds.shape[1:]:
+        if codec is None and not _raw(ds):
             return None
         nslots, nbytes, _w0 = ds.id.get_access_plist().get_chunk_cache()
-        chunk_bytes = codec.chunk_elements * codec.dtype.itemsize
+        chunk_bytes = _chunk_bytes(ds)
         cacheable = nslots > 0 and chunk_bytes <= nbytes
         capacity = int(nbytes) if cacheable else 0
         if cacheable and capacity // chunk_bytes + 2 >= nslots:
             return None
         return cls(ds, codec, capacity, compiled)
 
-    def write(self, data: np.ndarray, row: int) -> None:
+    def write(self, data: np.ndarray, row: int, reused: bool = True) -> None:
         """Whole chunks ``data`` (a multiple of the chunk's rows) at row ``row`` (a chunk
-        boundary; the dataset already extends over them)."""
-        buf, ends = encode(self.codec, data, compiled=self.compiled)
-        buf = buf[:ends[-1]].copy()               # what the mirror holds: the encoded bytes
+        boundary; the dataset already extends over them); ``reused``: the caller changes
+        ``data`` afterwards (its staging buffer), so an unfiltered dataset's mirror keeps a
+        copy (else the array itself: rows handed to the writer do not change)."""
+        if self.codec is None:                    # unfiltered: the chunks' own bytes
+            buf = np.ascontiguousarray(data, dtype=self.ds.dtype).reshape(-1).view(np.uint8)
+            ends = np.arange(0, buf.size + 1, self.chunk_bytes)
+            if reused:
+                buf = buf.copy()
+        else:
+            buf, ends = encode(self.codec, data, compiled=self.compiled)
+            buf = buf[:ends[-1]].copy()           # what the mirror holds: the encoded bytes
         first = 0
         if not self.started:
             # HDF5 creates the chunk index at the dataset's first write
@@ -102,3 +120,13 @@ class DirectChunks:
         self.pending.append((row, chunk))
         if not self.capacity:
             self.make_room()
+
+
+def _chunk_bytes(ds: h5py.Dataset) -> int:
+    """Bytes of one whole chunk of ``ds`` before any filter."""
+    return int(np.prod(ds.chunks, dtype=np.int64)) * ds.dtype.itemsize
+
+
+def _raw(ds: h5py.Dataset) -> bool:
+    """Whether ``ds`` stores its chunks as they are: no filter, numbers of a fixed size."""
+    return ds.dtype.kind in "fiu" and ds.id.get_create_plist().get_nfilters() == 0

@@ -17,9 +17,10 @@ the file and ``os.replace``-s it onto the final path, so a run that fails or is 
 leaves a file at the output path. HDF5 chunk shapes depend only on a variable's shape, never on
 how the caller chunks its appends, so the stored arrays do not depend on the chunk size. The
 whole chunks of scale-offset variables (the IMU pulses) are packed by
-:mod:`rlgsim.sim.writer._scaleoffset` and written directly when HDF5's chunk cache would have written
-them (:mod:`rlgsim.sim.writer._direct_chunks`): the same bytes as HDF5's filter, in a fraction of its
-CPU time — once a self-check has shown that with the HDF5 this process loaded
+:mod:`rlgsim.sim.writer._scaleoffset`, and those of unfiltered numeric variables (a vehicle's
+``trajectory`` states) taken as they are, and written directly when HDF5's chunk cache would
+have written them (:mod:`rlgsim.sim.writer._direct_chunks`): the same bytes as HDF5's path, in a
+fraction of its CPU time — once a self-check has shown that with the HDF5 this process loaded
 (:mod:`rlgsim.sim.writer._direct_check`; HDF5's filter otherwise).
 :func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
 
@@ -235,7 +236,8 @@ class _ChunkStage:
     and every run of full chunks goes to the file in one ``write_direct`` — straight from the
     caller's array when it is aligned. Memory: one chunk per dataset.
 
-    A scale-offset dataset's whole chunks are packed here instead of by HDF5's filter and
+    A scale-offset dataset's whole chunks are packed here instead of by HDF5's filter (an
+    unfiltered one's taken as they are) and
     written with ``write_direct_chunk`` when HDF5 would have written them
     (:mod:`rlgsim.sim.writer._direct_chunks`, :data:`DIRECT_CHUNKS`): the same file, bytes and all.
     :meth:`close` (in the order the stages were created: the order HDF5 closes the datasets
@@ -256,7 +258,9 @@ class _ChunkStage:
         self.flushed = False
         self.order = next(_STAGE_ORDER)      # creation order = the dataset's open order
 
-    def _write(self, data: np.ndarray) -> None:
+    def _write(self, data: np.ndarray, reused: bool = True) -> None:
+        """Rows ``data`` to the file after the rows written (``reused``: ``data`` is the
+        staging buffer, which changes afterwards)."""
         k = data.shape[0]
         # Dataset.resize(n, axis=0) without its checks (~35 µs a call: the dataset's creation
         # properties and shape read back each time): the same HDF5 call
@@ -267,7 +271,7 @@ class _ChunkStage:
             self.direct.close()
             self.direct = None
         if self.direct is not None and k % self.rows == 0 and self.written % self.rows == 0:
-            self.direct.write(data, self.written)
+            self.direct.write(data, self.written, reused)
         else:
             if self.direct is not None:
                 self.direct.make_room()      # what HDF5 evicts to cache this partial chunk
@@ -293,7 +297,8 @@ class _ChunkStage:
             self.fill = 0
         full = (m - pos) // r * r
         if full:
-            self._write(np.ascontiguousarray(arr[pos:pos + full], dtype=self.dtype))
+            self._write(np.ascontiguousarray(arr[pos:pos + full], dtype=self.dtype),
+                        reused=False)
             pos += full
         if pos < m:
             if self.buf is None:
@@ -351,7 +356,7 @@ def _direct_chunks(ds: h5py.Dataset, start: int, force: bool | None = None):
     """The direct-chunk path of a dataset (:class:`rlgsim.sim.writer._direct_chunks.DirectChunks`)
     or None (HDF5's own path). ``force`` True/False: on/off without :data:`DIRECT_CHUNKS` or
     the self-check (the self-check's own files)."""
-    if force is False or ds.scaleoffset is None:
+    if force is False or ds.chunks is None:
         return None
     numba = "numba" in sys.modules
     if force is None and not (DIRECT_CHUNKS is not False and (DIRECT_CHUNKS or numba)
