@@ -149,3 +149,19 @@ def test_a_recorded_gyro_the_template_lacks_is_one_line():
         template_component({"gyro": {"axes": ["x", "y"]}}, "z", "run.csv")
     assert str(e.value).startswith("run.csv: gyro 'z' not allowed; the device template's gyros "
                                    "are x, y") and "\n" not in str(e.value)
+
+
+def test_a_gyro_the_recording_cannot_support_is_named():
+    """One gyro's refusal in a several-gyro identification names it, and the gyros read before
+    it as identifiable alone (twin_gyros._read)."""
+    from rlgsim.lab.identify.twin_gyros import _read
+
+    def reader(source, gyro):
+        if gyro == "y":
+            raise UserInputError(f"{source}: only 3 complete powered 100 s windows of the gyro")
+        return gyro
+    assert _read(reader, "run.csv", "x", ["x", "y", "z"]) == "x"
+    with pytest.raises(UserInputError) as e:
+        _read(reader, "run.csv", "y", ["x", "y", "z"])
+    assert str(e.value) == ("run.csv: only 3 complete powered 100 s windows of the gyro (gyro y; "
+                            "gyro x can be identified alone: --gyro x)")
