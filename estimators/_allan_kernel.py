@@ -1,33 +1,74 @@
-"""Compiled sums of the overlapping Allan variance (numba).
+"""The overlapping Allan deviation (``allantools.oadev(..., data_type="freq")``) with its inner
+sum compiled (numba, ``nogil``): allantools' own phase (:func:`allantools.frequency2phase`), τ
+list (:func:`allantools.tau_generator`) and small-n rule, then per averaging factor ``m`` one
+pass over the phase ``x``::
 
-``allantools.oadev`` evaluates, for each averaging factor m, the sum of squared second
-differences of the phase, Σ (x[i+2m] − 2·x[i+m] + x[i])² over i = 0 … N−2m−1 (NIST SP 1065,
-eq. 11), with four NumPy temporaries of N values per m. On the studies' figures (2.9 M samples
-of an 8 h run at 100 Hz, 21 octave averaging times, five curves per test run) that loop was the
-largest single cost of a report: 0.87 s a curve against 0.17 s for one compiled pass per m
-without temporaries (measured on the same series, 26 November 2026, under load; the ratio is
-what matters). allantools stays the reference for everything else — the frequency-to-phase
-integration, the τ list, dropping τ with fewer than two terms — and
-``tests/test_allan_kernel.py`` holds this sum to allantools' deviation on the same data.
+    v_i = (x_{i+2m} − 2·x_{i+m}) + x_i,   s = Σ_i v_i²,   σ(τ) = √(s / 2n) / m · f
+
+(NIST SP 1065 eq. 11; n = N − 2m second differences of the N phase values).
+
+Why not allantools itself: the same numbers in fewer passes. allantools builds three slices,
+two temporaries and a product per τ — five passes over the record at each of some twenty
+octave τ. On the studies' figures (2.9 M samples of an 8 h run at 100 Hz, five curves per test
+run) that was the largest single cost of a report (0.87 s a curve against 0.17 s compiled, one
+series, 26 November 2026, under load: the ratio is what counts), and twice per identification
+of a 20 h, 100 Hz recording. Here the squares ``v_i²`` are written in one compiled pass into one
+reused buffer (the same IEEE-754 operations in the same order, no ``fastmath``), then summed by
+``numpy.sum`` as allantools sums them, so the deviations are allantools' bit for bit
+(tests/test_allan_kernel.py, tests/test_identify_allan.py). Users: the studies' Allan figures
+(:func:`rlgsim.estimators.metrics.allan_deviation`) and the twin's noise fit
+(:mod:`rlgsim.estimators.identify.allan_noise`, octave τ up to a limit).
 """
 
 from __future__ import annotations
 
+import allantools
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
+
+__all__ = ["oadev", "oadev_octave"]
 
 
-@njit(cache=True, nogil=True)
-def second_difference_sums(phase: np.ndarray, ms: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """For each averaging factor ``ms[k]`` (samples, ≥ 1), the sum over i of
-    (phase[i+2m] − 2·phase[i+m] + phase[i])², i = 0 … len(phase)−2m−1 (0 where no term)."""
-    out = np.zeros(ms.size)
-    n_all = phase.size
-    for k in range(ms.size):
-        m = ms[k]
-        s = 0.0
-        for i in range(n_all - 2 * m):
-            d = phase[i + 2 * m] - 2.0 * phase[i + m] + phase[i]
-            s += d * d
-        out[k] = s
-    return out
+@njit(nogil=True, cache=True)
+def _squared_second_differences(x, m, out):                   # pragma: no cover (compiled)
+    """``out[i] = ((x[i+2m] − 2·x[i+m]) + x[i])²`` for ``i < x.size − 2m`` (allantools'
+    operations, one pass)."""
+    for i in range(x.size - 2 * m):
+        v = x[i + 2 * m] - 2.0 * x[i + m] + x[i]
+        out[i] = v * v
+
+
+def oadev(freq: np.ndarray, rate_hz: float, taus: ArrayLike | str = "octave",
+          max_tau_s: float = np.inf
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(taus, adev, adev_error, ns)`` of :func:`allantools.oadev` with ``data_type="freq"``
+    (only τ ≤ ``max_tau_s``; estimates from a single difference left out as allantools does):
+    τ [s], the deviation in the unit of ``freq``, its 1-σ error ``adev/√n`` and the number of
+    differences n (float, as allantools returns it)."""
+    phase = allantools.frequency2phase(np.asarray(freq, dtype=float), rate_hz)
+    phase, m, tau = allantools.tau_generator(phase, rate_hz, taus)
+    m = np.asarray(m, dtype=np.int64)
+    tau = np.asarray(tau, dtype=float)
+    use = tau <= max_tau_s
+    m, tau = m[use], tau[use]
+    phase = np.ascontiguousarray(phase, dtype=np.float64)
+    buf = np.empty(phase.size)
+    sums = np.empty(m.size)
+    for j, mj in enumerate(m):
+        k = max(phase.size - 2 * int(mj), 0)
+        _squared_second_differences(phase, int(mj), buf)
+        sums[j] = np.sum(buf[:k])               # numpy's pairwise sum, as allantools sums
+    n = np.maximum(phase.size - 2 * m, 1)
+    adev = np.sqrt(sums / (2.0 * n)) / m * rate_hz
+    big = n > 1
+    adev, n = adev[big], n[big].astype(float)
+    return tau[big], adev, adev / np.sqrt(n), n
+
+
+def oadev_octave(freq: np.ndarray, rate_hz: float, max_tau_s: float = np.inf
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(taus, adev, ns)`` of :func:`oadev` at octave τ up to ``max_tau_s`` (the twin's
+    noise fit)."""
+    tau, adev, _, n = oadev(freq, rate_hz, "octave", max_tau_s)
+    return tau, adev, n.astype(np.int64)

@@ -124,28 +124,10 @@ def allan_deviation(x: ArrayLike, rate_hz: float,
         if taus.size == 0:
             raise ValueError(f"no averaging time in {np.asarray(taus_s)} s fits in "
                              f"{arr.shape[0]} samples at {rate_hz} Hz (need 1 ≤ τ·rate < n/2)")
-    tau, adev, err, n = _oadev(arr, rate_hz, taus)
+    from rlgsim.estimators._allan_kernel import oadev       # allantools' numbers, compiled
+    tau, adev, err, n = oadev(arr, rate_hz, taus)
     return AllanDeviation(tau, adev, err, n)
 
-
-def _oadev(x: np.ndarray, rate_hz: float, taus: ArrayLike | str
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``allantools.oadev(x, rate_hz, "freq", taus)`` with its per-τ sum compiled
-    (:mod:`rlgsim.estimators._allan_kernel`): allantools' phase integration, τ list and
-    small-n rule; σ(τ) = √(S / (2 n)) / m · rate with S the sum of the n = N − 2m squared
-    second differences of the phase (NIST SP 1065, eq. 11)."""
-    from allantools import allantools as reference          # its helpers live in the module
-    from rlgsim.estimators._allan_kernel import second_difference_sums
-    phase = reference.input_to_phase(x, rate_hz, "freq")
-    phase, m, tau = reference.tau_generator(phase, rate_hz, taus)
-    m = np.asarray(m, dtype=np.int64)
-    n = np.maximum(phase.size - 2 * m, 1)
-    sums = second_difference_sums(np.ascontiguousarray(phase, dtype=np.float64), m)
-    adev = np.sqrt(sums / (2.0 * n)) / m * rate_hz
-    keep = n > 1
-    tau = np.asarray(tau, dtype=float)[keep]
-    adev, n = adev[keep], n[keep]
-    return tau, adev, adev / np.sqrt(n), n.astype(float)
 
 
 def rmse(y_true: ArrayLike, y_pred: ArrayLike) -> float:

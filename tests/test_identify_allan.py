@@ -165,7 +165,7 @@ def test_compiled_overlapping_adev_equals_allantools():
     second differences compiled, summed by numpy as allantools sums them) against
     ``allantools.oadev`` on white plus random-walk rate noise: the same τ, counts and
     deviations, bit for bit."""
-    from rlgsim.estimators.identify._allan_kernel import oadev_octave
+    from rlgsim.estimators._allan_kernel import oadev_octave
     rng = np.random.default_rng(952)
     n = 2 ** 16
     y = rng.normal(0.0, 1.0, n) + np.cumsum(rng.normal(0.0, 0.01, n))

@@ -2,7 +2,8 @@
 Annex C; the conventions of docs/sensors.md).
 
 The overlapping Allan variance of the rate (``allantools.oadev``, ``data_type="freq"``, octave
-τ; its sum compiled in :mod:`._allan_kernel`) is fitted by the sum of the independent IEEE 952 terms
+τ; its sum compiled in :mod:`rlgsim.estimators._allan_kernel`) is fitted by the sum of the
+independent IEEE 952 terms
 
     σ²(τ) = 3Q²/τ² + N²/τ + (2 ln 2/π)·B² + K²τ/3
 
@@ -54,7 +55,7 @@ import allantools
 import numpy as np
 from scipy.optimize import nnls
 
-from rlgsim.estimators.identify._allan_kernel import oadev_octave
+from rlgsim.estimators._allan_kernel import oadev_octave
 
 __all__ = ["NoiseFit", "fit_allan", "DECORRELATED"]
 
