@@ -177,7 +177,7 @@ def summary_text(rows: Mapping[str, Mapping[str, Any]]) -> str:
     if over:
         text += ("; " + ", ".join(over) + " exceed the paper's maximum R² improvement: their "
                  "trend is small against their scatter, so the structure beyond a cubic a "
-                 "model could follow is the scatter's size, not several times it")
+                 "model could follow is at most the scatter's size, not several times it")
     return text + "."
 
 
