@@ -23,7 +23,9 @@ def add_subparser(sub) -> None:
     p.add_argument("--thermal-template", metavar="PRESET",
                    help="thermal preset whose topology the twin keeps (default: the device "
                         "template's thermal_preset)")
-    p.add_argument("--gyro", metavar="AXIS", help="which gyro, when the recording has several")
+    p.add_argument("--gyro", metavar="AXIS", help="identify this gyro only (default: every "
+                                                  "gyro of the recording, into one device "
+                                                  "preset with each gyro's law)")
     p.add_argument("--name", help="name of the twin device (default: <template>_twin)")
     p.add_argument("-o", "--output", metavar="DIR", required=True,
                    help="folder for device.toml, thermal.toml, the replay scenario and the "
