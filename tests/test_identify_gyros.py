@@ -152,16 +152,16 @@ def test_a_recorded_gyro_the_template_lacks_is_one_line():
 
 
 def test_a_gyro_the_recording_cannot_support_is_named():
-    """One gyro's refusal in a several-gyro identification names it, and the gyros read before
-    it as identifiable alone (twin_gyros._read)."""
-    from rlgsim.lab.identify.twin_gyros import _read
-
-    def reader(source, gyro):
-        if gyro == "y":
-            raise UserInputError(f"{source}: only 3 complete powered 100 s windows of the gyro")
-        return gyro
-    assert _read(reader, "run.csv", "x", ["x", "y", "z"]) == "x"
-    with pytest.raises(UserInputError) as e:
-        _read(reader, "run.csv", "y", ["x", "y", "z"])
-    assert str(e.value) == ("run.csv: only 3 complete powered 100 s windows of the gyro (gyro y; "
-                            "gyro x can be identified alone: --gyro x)")
+    """One gyro's refusal in a several-gyro read names it, and the gyros read before it as
+    identifiable alone (recording_data.read_recordings); a one-gyro read's stays as it was."""
+    from rlgsim.lab.identify.recording_data import _naming
+    msg = "run.csv: only 3 complete powered 100 s windows of the gyro"
+    with pytest.raises(UserInputError) as e, _naming(["x", "y", "z"], "y", 1):
+        raise UserInputError(msg)
+    assert str(e.value) == msg + " (gyro y; gyro x can be identified alone: --gyro x)"
+    with pytest.raises(UserInputError) as e, _naming(["x", "y", "z"], "x", 0):
+        raise UserInputError(msg)
+    assert str(e.value) == msg + " (gyro x)"
+    with pytest.raises(UserInputError) as e, _naming([None], None, 0):
+        raise UserInputError(msg)
+    assert str(e.value) == msg

@@ -29,8 +29,8 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.sensors.gyro import pulses_per_arcsec
 from rlgsim.lab.identify.table_motion import motion_from_dataset, motion_from_recording
 
-__all__ = ["RecordingData", "read_recording", "NEEDS", "MIN_DURATION_S", "MIN_SPAN_K",
-           "scale_factor_line", "screen_probe_glitches"]
+__all__ = ["RecordingData", "read_recording", "read_recordings", "NEEDS", "MIN_DURATION_S",
+           "MIN_SPAN_K", "scale_factor_line", "screen_probe_glitches"]
 
 #: what an identification needs, quoted in every refusal
 NEEDS = ("identification needs at least 2 h of powered data with probe temperatures, the "
@@ -248,17 +248,56 @@ def _bias_windows(source: str, window_s: float, gyro: str, table: Any, at_rest: 
 def read_recording(path: str | os.PathLike, *, gyro: str | None = None,
                    window_s: float = 100.0) -> RecordingData:
     """Read and check a recording (table + sidecar) or an rlgsim dataset."""
+    return read_recordings(path, [gyro], window_s=window_s)[0]
+
+
+def read_recordings(path: str | os.PathLike, gyros: list[str | None], *,
+                    window_s: float = 100.0) -> list[RecordingData]:
+    """:func:`read_recording` of each of ``gyros``, the recording opened once (a several-gyro
+    identification, :mod:`.twin_gyros`); with several gyros a refusal names the gyro (and the
+    gyros read before it, which ``--gyro`` identifies alone)."""
     from rlgsim.ground.datatree import open_tree
-    from rlgsim.ground.recording import is_recording
     source = os.fspath(path)
     p = pathlib.Path(source)
     if not p.exists():
         raise UserInputError(f"{source}: no such file")
     tree = open_tree(source, load=True)
+    out: list[RecordingData] = []
     try:
-        r = _from_tree(source, tree, gyro)
+        raw = []
+        for g in gyros:
+            with _naming(gyros, g, len(raw)):
+                raw.append(_from_tree(source, tree, g))
     finally:
         tree.close()
+    for g, r in zip(gyros, raw):
+        with _naming(gyros, g, len(out)):
+            out.append(_checked(source, r, window_s))
+    return out
+
+
+class _naming:
+    """Re-raise a refusal for gyro ``g`` of several ``gyros`` with the gyro named, and the
+    ``done`` gyros before it as identifiable alone."""
+
+    def __init__(self, gyros: list, g, done: int) -> None:
+        self.gyros, self.g, self.done = gyros, g, gyros[:done]
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, kind, exc, tb) -> bool:
+        if kind is UserInputError and len(self.gyros) > 1:
+            raise UserInputError(f"{exc} (gyro {self.g}" + (
+                f"; gyro {', '.join(self.done)} can be identified alone: --gyro "
+                f"{self.done[0]})" if self.done else ")")) from None
+        return False
+
+
+def _checked(source: str, r: dict, window_s: float) -> RecordingData:
+    """One gyro's arrays (:func:`_from_tree`) checked and completed: the turntable's motion,
+    the regular temperature grid, bridged gaps, the excitation, probe glitches, the windows."""
+    from rlgsim.ground.recording import is_recording
     gyro, f, rate, table, motion = r["gyro"], r["f"], r["rate"], r["table"], r["motion"]
     if motion and table is None and not is_recording(source):
         from rlgsim.ground.dataset_format import open_dataset

@@ -77,18 +77,6 @@ def one_gyro_template(template: dict, axes: list[str], source: str) -> dict:
     return gyro_view(template, axes[0], template_component(template, axes[0], source))
 
 
-def _read(read_recording, source: str, axis: str, axes: list[str]):
-    """One gyro's view of the recording; a refusal names the gyro (and, when the gyros before
-    it were read, the way round it: those one at a time)."""
-    try:
-        return read_recording(source, gyro=axis)
-    except UserInputError as exc:
-        done = axes[:axes.index(axis)]
-        raise UserInputError(f"{exc} (gyro {axis}" + (
-            f"; gyro {', '.join(done)} can be identified alone: --gyro {done[0]})" if done
-            else ")")) from None
-
-
 def _fit_gyro(axis: str, view: dict, data, thermal, names) -> tuple[GyroTwin, dict, dict]:
     """One gyro's laws on the shared thermal state, and its single-gyro twin device."""
     from rlgsim.lab.identify.law_fit import fit_laws
@@ -139,7 +127,7 @@ def identify_gyros(source: str, out_dir, axes: list[str], chosen, name: str | No
     from rlgsim.lab.identify.outputs import planned_outputs
     from rlgsim.lab.identify.preset_text import dumps
     from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
-    from rlgsim.lab.identify.recording_data import read_recording
+    from rlgsim.lab.identify.recording_data import read_recordings
     from rlgsim.lab.identify.thermal_fit import fit_thermal
     inputs = files_read(source, chosen.device_template, chosen.thermal_template)
     dev_name, dev_t, th_name, th_t = load_templates(source, chosen.device_template,
@@ -147,7 +135,7 @@ def identify_gyros(source: str, out_dir, axes: list[str], chosen, name: str | No
     index = [template_component(dev_t, a, source) for a in axes]
     name = name or f"{dev_name}_twin"
     planned_outputs(out_dir, name, inputs, overwrite=overwrite, next_file=suggest_programme)
-    datas = [_read(read_recording, source, a, axes) for a in axes]
+    datas = read_recordings(source, axes)          # the file opened once
     data0, probe_lines = map_probes(th_t, datas[0], sidecar_probe_table(source), source)
     datas = [data0] + [dataclasses.replace(d, probe_names=data0.probe_names,
                                            probes_c=data0.probes_c) for d in datas[1:]]
