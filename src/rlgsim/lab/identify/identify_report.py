@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import math
+
 from typing import Any
 
 import numpy as np
@@ -136,15 +138,21 @@ def _thermal_tables(rep: Report, th: Any) -> None:
     for p in th.params:
         if p.name in th.multipliers:
             m = th.multipliers[p.name]
+            h = th.interval_95.get(p.name)
             rows.append({"parameter": p.name, "what": p.description, "multiplier": m,
-                         "standard error": th.rel_se[p.name] * m, "status": "fitted"})
+                         "standard error": th.rel_se[p.name] * m,
+                         "95 % interval": (f"{m * math.exp(-h):.5g} – {m * math.exp(h):.5g}"
+                                           if h is not None else ""), "status": "fitted"})
         else:
             rows.append({"parameter": p.name, "what": p.description, "multiplier": 1.0,
-                         "standard error": None,
+                         "standard error": None, "95 % interval": "",
                          "status": "kept at the template: " + th.refused.get(p.name, "")})
     rep.table(Table.from_records("Thermal multipliers (× template)", rows,
                                  note="a multiplier scales the template's design values of "
-                                      "that group; refused parameters keep the template"))
+                                      "that group; refused parameters keep the template; the "
+                                      "95 % interval (95.4 %, ±2σ of a Gaussian) is the wider of "
+                                      "±2 batch-means standard errors and the probes' error "
+                                      "model's percentile interval"))
     if th.fit is not None:
         names = th.fit.names
         c = th.fit.corr
