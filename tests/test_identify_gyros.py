@@ -31,7 +31,7 @@ def twin(tmp_path_factory):
     folder = tmp_path_factory.mktemp("gyros")
     lab = IT.three_gyro_lab_csv(folder, TRUTH)
     from rlgsim.lab.identify import identify
-    return identify(str(lab), folder / "twin"), folder
+    return identify(str(lab), folder / "twin", suggest_programme=True), folder
 
 
 def test_each_gyro_law_within_its_stated_uncertainty(twin):
@@ -72,6 +72,10 @@ def test_one_device_preset_holds_every_gyro_law(twin):
     assert dev["uhfo"]["value_v"][2] == pytest.approx(r.gyros[2].laws.u0_v, rel=1e-9)
     assert dev["uhfo"]["value_v"][:2] == [5.0, 5.0]
     report = (folder / "twin" / "report.md").read_text()
+    # the next experiment: one programme, for the first gyro with terms it cannot separate
+    want = next((g.axis for g in r.gyros if g.laws.bias.unseparable), "x")
+    assert r.next_gyro == want and r.next_path is not None and r.next_path.exists()
+    assert f"designed for gyro `{want}` only" in report
     for a in AXES:
         assert f"## Gyro {a}" in report and (folder / "twin" /
                                               f"gyro_{a}_bias_law_coefficients.csv").exists()

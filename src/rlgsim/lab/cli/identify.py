@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
                 for line in g.scale_factor.lines:
                     print(who + line)
         if r.gyros and args.suggest_programme:
-            print(f"next experiment: designed for gyro {r.gyros[0].axis} only")
+            print(f"next experiment: designed for gyro {r.next_gyro} only")
         if args.suggest_programme:
             if r.suggestion is None:
                 print("next experiment: none suggested — the recording separates every "

@@ -35,7 +35,8 @@ def _intro(rep: Report, result: Any, device_name: str, thermal_name: str) -> Non
                       f"their ±5 neighbours were taken as glitches and left out.")
     if result.suggestion is not None:
         rep.paragraph(f"The next experiment (`{result.next_path.name}`) is designed for gyro "
-                      f"`{axes[0]}` only.")
+                      f"`{result.next_gyro}` only (the first whose bias law has terms this "
+                      f"recording cannot separate, else the first gyro).")
 
 
 def _gyro_section(rep: Report, result: Any, g: Any, plt: Any) -> None:

@@ -11,8 +11,9 @@ single-gyro template standing for every gyro) and with its own UHFO column when 
 has one for it (``uhfo_<axis>_v``; a gyro without one gets a law without a UHFO term). The
 per-gyro twins are merged into one ``device.toml`` whose laws hold one value per gyro
 (:func:`rlgsim.lab.identify.gyro_views.merge_devices`), and the report has a section per gyro.
-The next experiment (``suggest_programme``) is designed for the first gyro only (said in the
-report and printed).
+The next experiment (``suggest_programme``) is designed for one gyro only (said in the report
+and printed): the first whose bias law has terms this recording cannot separate, else the
+first gyro.
 """
 
 from __future__ import annotations
@@ -162,11 +163,12 @@ def identify_gyros(source: str, out_dir, axes: list[str], chosen, name: str | No
                                          [*chosen.notes, *probe_lines]))
     stext = scenario_text(data0, name)
     suggestion, ntext = None, None
+    target = next((g for g in gyros if g.laws.bias.unseparable), gyros[0])
     if suggest_programme:
         from rlgsim.lab.identify import next_experiment as NE
-        suggestion = NE.suggest_programme(data0, thermal, gyros[0].laws, gyros[0].template)
+        suggestion = NE.suggest_programme(target.data, thermal, target.laws, target.template)
         if suggestion is not None:
-            ntext = NE.scenario_text(suggestion, data0, name)
+            ntext = NE.scenario_text(suggestion, target.data, name)
     for text in (ttext, dtext, stext, ntext or ""):
         tomllib.loads(text)                        # never write what cannot be read back
     _check_preset(dev, source)
@@ -183,7 +185,8 @@ def identify_gyros(source: str, out_dir, axes: list[str], chosen, name: str | No
         thermal=thermal, laws=gyros[0].laws, device=dev, thermal_preset=fitted_thermal,
         seconds=time.perf_counter() - t0, name=name, scale_factor=gyros[0].scale_factor,
         probe_lines=tuple(probe_lines), notes=chosen.notes, suggestion=suggestion,
-        next_path=next_path, gyros=tuple(gyros))
+        next_path=next_path, gyros=tuple(gyros),
+        next_gyro=target.axis if suggest_programme else None)
     from rlgsim.lab.identify.identify_report_gyros import build_gyros_report
     build_gyros_report(result, dev_name, th_name).write(out)
     return result

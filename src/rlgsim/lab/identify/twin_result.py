@@ -41,3 +41,4 @@ class Identification:
     suggestion: object = None
     next_path: pathlib.Path | None = None
     gyros: tuple = ()        # every gyro of a several-gyro twin (twin_gyros.GyroTwin)
+    next_gyro: str | None = None   # the gyro a several-gyro twin's next experiment is for
