@@ -79,9 +79,11 @@ COMPILED_MIN_EPOCHS = 5_000_000
 PREFETCH_BLOCKS = 2
 
 #: How many blocks ahead a vehicle's kinematics are computed (increments, their step sums and
-#: the truth rows: ~9 MB a block at 100 Hz), in their own worker thread from before the file is
-#: laid out (:meth:`ImuSimulator.start`): they need nothing of the file or of the thermal state.
-MOTION_AHEAD = 3
+#: the truth rows: ~9 MB a block at 100 Hz), in their own two worker threads — a block's
+#: increments in one, its truth rows in the other (the compiled kernels release the GIL) — from
+#: before the file is laid out (:meth:`ImuSimulator.start`): they need nothing of the file or of
+#: the thermal state. Two, not more: each block held ahead is memory (tests/test_trajectory_memory.py).
+MOTION_AHEAD = 2
 
 
 @dataclass
@@ -138,9 +140,10 @@ class ImuSimulator:
         self._pool = None
         #: queued blocks in order: ((b, k0, m, n), [futures of its gyro and accel normals])
         self._ahead: deque[tuple[tuple[int, int, int, int], list[Any]]] = deque()
-        #: a vehicle's kinematics (:meth:`_kinematics_now`) of the queued blocks, by (first
-        #: step, steps, samples): computed in their own worker thread (the trajectory's
-        #: compiled kernels release the GIL), :data:`MOTION_AHEAD` blocks ahead
+        #: a vehicle's kinematics of the queued blocks, by (first step, steps, samples): the
+        #: futures of :meth:`_kinematics_now` and :meth:`_truth_rows` (None: made with the
+        #: kinematics), computed in their own two worker threads (the trajectory's compiled
+        #: kernels release the GIL), :data:`MOTION_AHEAD` blocks ahead
         self._motion_ahead: dict[tuple[int, int, int], Any] = {}
         self._motion_pool = None
         self._motion_next = 0                   # first step of the next block to queue
@@ -192,9 +195,9 @@ class ImuSimulator:
     # ---- one block ------------------------------------------------------------------------
     def start(self, motion: Any) -> None:
         """Adopt the run's ``motion``; a vehicle's kinematics (:meth:`_kinematics_now`) of the
-        first :data:`MOTION_AHEAD` blocks then start in a worker thread at once — while the
+        first :data:`MOTION_AHEAD` blocks then start in two worker threads at once — while the
         caller lays out the file — and stay that many blocks ahead of :meth:`block` (the same
-        numbers whichever thread computes them; :meth:`close` stops it)."""
+        numbers whichever thread computes them; :meth:`close` stops them)."""
         self.motion = motion
         if self.prefetch and self.n_steps is not None and self._is_vehicle():
             self._queue_motion(0)
@@ -208,15 +211,17 @@ class ImuSimulator:
         last one shorter) until :data:`MOTION_AHEAD` are queued or the run ends."""
         per_block = int(round(BLOCK_S / self.step_s))
         if self._motion_pool is None:
-            self._motion_pool = ThreadPoolExecutor(max_workers=1,
+            self._motion_pool = ThreadPoolExecutor(max_workers=2,
                                                    thread_name_prefix="rlgsim-motion")
         self._motion_next = max(self._motion_next, k_taken)
         while len(self._motion_ahead) < MOTION_AHEAD and self._motion_next < self.n_steps:
             k0 = self._motion_next
             m = min(per_block, self.n_steps - k0)
             n = self._block_size(m)
-            self._motion_ahead[(k0, m, n)] = self._motion_pool.submit(self._kinematics_now,
-                                                                      k0, m, n)
+            apart = self.motion_rows is not None         # the truth rows in the other thread
+            self._motion_ahead[(k0, m, n)] = (
+                self._motion_pool.submit(self._kinematics_now, k0, m, n, not apart),
+                self._motion_pool.submit(self._truth_rows, k0, n) if apart else None)
             self._motion_next = k0 + m
 
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
@@ -225,15 +230,25 @@ class ImuSimulator:
         ahead = self._motion_ahead.pop((k0, m, n), None)
         if ahead is None:
             return self._kinematics_now(k0, m, n)
-        out = ahead.result()
+        out = ahead[0].result()
+        if ahead[1] is not None:
+            out["motion"].rows = ahead[1].result()
         self._queue_motion(k0 + m)
         return out
 
-    def _kinematics_now(self, k0: int, m: int, n: int) -> dict[str, Any]:
+    def _truth_rows(self, k0: int, n: int) -> Any:
+        """A vehicle's truth rows (:attr:`motion_rows`) of the ``n`` samples from thermal step
+        ``k0``, at the sample end times :meth:`_vehicle_block`'s block has."""
+        from rlgsim.sim.motion.kinematics import _edges
+        t_s = _edges(round(k0 * self.step_s * self.rate_hz), np.arange(n) + 1, self.rate_hz)
+        return self.motion_rows(t_s, self.motion.truth(t_s))
+
+    def _kinematics_now(self, k0: int, m: int, n: int, truth: bool = True) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),
         the steps at rest of each, their sums per thermal step and the table at each step's
-        end; a vehicle's truth rows too (:attr:`motion_rows`)."""
-        mb = self._vehicle_block(k0, n)
+        end; a vehicle's truth rows too (:attr:`motion_rows`) unless ``truth`` is False (then
+        :meth:`_truth_rows` makes them)."""
+        mb = self._vehicle_block(k0, n, truth)
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
@@ -250,11 +265,11 @@ class ImuSimulator:
             out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
 
-    def _vehicle_block(self, k0: int, n: int) -> Any:
+    def _vehicle_block(self, k0: int, n: int, truth: bool = True) -> Any:
         """The motion's block of ``n`` samples from thermal step ``k0``; a vehicle's with its
-        truth states (``states``) too."""
+        truth states (``states``) too (``truth``)."""
         mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
-        if self._is_vehicle():
+        if self._is_vehicle() and truth:
             mb.states = self.motion.truth(mb.t_s)
             if self.motion_rows is not None:    # the truth group's rows, made here once
                 mb.rows, mb.states = self.motion_rows(mb.t_s, mb.states), None
@@ -346,8 +361,10 @@ class ImuSimulator:
     def close(self) -> None:
         """Stop the prefetch threads (blocks queued and not taken are dropped)."""
         self._cancel_ahead()
-        for part in self._motion_ahead.values():
-            part.cancel()
+        for parts in self._motion_ahead.values():
+            for part in parts:
+                if part is not None:
+                    part.cancel()
         self._motion_ahead.clear()
         self._motion_next = self.n_steps or 0   # queue no more
         for pool in (self._pool, self._motion_pool):
