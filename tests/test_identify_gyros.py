@@ -136,6 +136,17 @@ def test_gyro_views_and_merge_keep_a_three_gyro_template():
     for law in ("bias", "scale_factor", "misalignment"):
         assert merged["gyro"][law] == tmpl["gyro"][law], law
     assert merged["uhfo"] == tmpl["uhfo"]
+    # a knee only gyro x selected: the others' knee 0 at the law's default centre, no spread
+    views[0]["gyro"]["bias"].update(knee_deg_per_h=0.01, knee_c=12.0)
+    views[0]["tolerance"]["gyro"]["bias"]["knee_c"] = 2.0
+    for v in views[1:]:
+        for t in (v["gyro"]["bias"], v["tolerance"]["gyro"]["bias"]):
+            for key in ("knee_deg_per_h", "knee_c"):
+                t.pop(key, None)
+    merged, _ = merge_devices(tmpl, AXES, views, [{}] * 3, [NoHops()] * 3)
+    assert merged["gyro"]["bias"]["knee_deg_per_h"] == [0.01, 0.0, 0.0]
+    assert merged["gyro"]["bias"]["knee_c"] == [12.0, 25.0, 25.0]
+    assert merged["tolerance"]["gyro"]["bias"]["knee_c"] == [2.0, 0.0, 0.0]
     d = copy.deepcopy(f.data)
     d["uhfo"]["value_v"] = [4.0, 5.0, 6.0]
     assert device_from_file(presets.TomlFile(**{**vars(f), "data": d})) is not None

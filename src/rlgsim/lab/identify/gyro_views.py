@@ -100,8 +100,9 @@ def gyro_view(template: dict, axis: str, index: int) -> dict:
     return dev
 
 
-def _default(key: str, k: int) -> Any:
-    d = _DEFAULTS.get(key, 0.0)
+def _default(key: str, k: int, law: bool = True) -> Any:
+    """A key's value for a gyro whose table lacks it: the law's default (0 for a tolerance)."""
+    d = _DEFAULTS.get(key, 0.0) if law else 0.0
     return d if k == 1 else [d] * k
 
 
@@ -118,11 +119,12 @@ def _note(axes: Sequence[str], notes: list[str | None], what: str = "not selecte
 
 
 def _merge_table(axes: Sequence[str], tables: list[dict | None], path: tuple,
-                 comments: list[dict], k: int, missing: Sequence[str] | None = None
-                 ) -> tuple[dict, dict]:
+                 comments: list[dict], k: int, missing: Sequence[str] | None = None,
+                 law_defaults: bool = True) -> tuple[dict, dict]:
     """Merge one law table of every gyro (None: the gyro has none) and the comments at
     ``path`` + key; ``missing`` says per gyro what a key without a comment is (default: a
-    term not selected)."""
+    term not selected); a key a gyro's table lacks is the law's default, or 0 without
+    ``law_defaults`` (a tolerance: no spread)."""
     missing = list(missing or ["not selected (0)"] * len(tables))
     present = [t for t in tables if t is not None]
     keys: list[str] = []
@@ -135,7 +137,8 @@ def _merge_table(axes: Sequence[str], tables: list[dict | None], path: tuple,
             out[key], com_g = _merge_gradients(axes, tables, path, comments, k)
             com.update(com_g)
             continue
-        vals = [t.get(key, _default(key, k)) if t is not None else _default(key, k)
+        vals = [t.get(key, _default(key, k, law_defaults)) if t is not None
+                else _default(key, k, law_defaults)
                 for t in tables]
         notes = [c.get(path + (key,)) for c in comments]
         if key in SCALAR_KEYS:
@@ -266,7 +269,7 @@ def merge_devices(template: dict, axes: Sequence[str], devs: list[dict],
         tabs = [d.get("tolerance", {}).get("gyro", {}).get(law) for d in devs]
         if any(t is not None for t in tabs):
             tol["gyro"][law], _ = _merge_table(axes, tabs, ("tolerance", "gyro", law),
-                                               comments, k)
+                                               comments, k, law_defaults=False)
     uh = [d.get("uhfo") for d in devs]
     if any(u is not None for u in uh):
         kept = ["not fitted (0)" if lf.uhfo is not None else "kept from the template (no UHFO "
@@ -275,7 +278,8 @@ def merge_devices(template: dict, axes: Sequence[str], devs: list[dict],
         com.update(c)
         tabs = [d.get("tolerance", {}).get("uhfo") for d in devs]
         if any(t is not None for t in tabs):
-            tol["uhfo"], _ = _merge_table(axes, tabs, ("tolerance", "uhfo"), comments, 1)
+            tol["uhfo"], _ = _merge_table(axes, tabs, ("tolerance", "uhfo"), comments, 1,
+                                          law_defaults=False)
     nz = [d.get("noise") for d in devs]
     if any(n is not None for n in nz):
         out["noise"], c = _pooled(axes, nz, ("noise",), comments)
