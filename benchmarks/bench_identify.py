@@ -262,7 +262,7 @@ def coverage(n_units: int, work: pathlib.Path, jobs: int = 1, setpoint_offsets: 
     z_pred = [r["z_pred"] for r in units]
     z_pred_true = [r["z_pred_true"] for r in units]
     split = [r["split"] for r in units]
-    print(f"\nA. coverage over {n_units} units (rlg_single, 4.9 h programme, trplg_001 noise; "
+    print(f"\nA. coverage over {n_units} units (rlg_single, 3.8 h programme, trplg_001 noise; "
           + (f"set-points shifted per unit by U[0, {q:g} °C)" if setpoint_offsets
              else "set-points as written") + ")")
     print("   unit  multiplier                        drawn   recovered  std.err")
@@ -312,14 +312,17 @@ def coverage(n_units: int, work: pathlib.Path, jobs: int = 1, setpoint_offsets: 
     print(f"   thermal multipliers inside their reported 68.3 % / 95.4 % intervals (the wider of "
           f"the sandwich's ±1, ±2 standard errors and the probes' error model's percentile "
           f"interval): {np.mean(it68 < 1):.0%} / {np.mean(it95 < 1):.0%}")
-    def per_unit(key):
+    def inside_by_unit(key):
         return [(np.abs(np.asarray(r[key])) < 1, np.abs(np.asarray(r[key])) < 2) for r in units]
-    coverage_table([("law coefficients (model-averaged)", len(z_avg), _inside(per_unit("z_avg"))),
+    coverage_table([("law coefficients (model-averaged)", len(z_avg),
+                     _inside(inside_by_unit("z_avg"))),
                     ("thermal multipliers", it68.size,
                      _inside([(np.asarray(r["it68"]) < 1, np.asarray(r["it95"]) < 1)
                               for r in units])),
-                    ("predictions on another programme", zp.size, _inside(per_unit("z_pred"))),
-                    ("combined effects", len(z_comb), _inside(per_unit("z_comb")))], n_units)
+                    ("predictions on another programme", zp.size,
+                     _inside(inside_by_unit("z_pred"))),
+                    ("combined effects", len(z_comb), _inside(inside_by_unit("z_comb")))],
+                   n_units)
     print(f"   law prediction on another programme: RMS of z per unit "
           f"{', '.join(f'{v:.2f}' for v in per_unit)} (nominal 1); with the true thermal "
           f"state {', '.join(f'{np.sqrt(np.mean(z ** 2)):.2f}' for z in z_pred_true)}")
