@@ -7,7 +7,7 @@ subset of up to six of a dozen candidates (some 2,500) again for each nonlinear 
 one small matrix inverse per Python call. Here the subsets of one size are inverted in one
 stacked ``numpy.linalg.inv`` (LAPACK's ``gesv`` on each matrix, as for one matrix alone) and
 remembered for the correlation matrix they belong to; a singular subset makes the stacked call
-fail, and then each subset is screened on its own as before.
+fail, and then the stack is halved until it stands alone and is screened as before.
 """
 
 from __future__ import annotations
@@ -21,6 +21,21 @@ from rlgsim.estimators.identify.term_averaging import MAX_VIF, conditioned
 __all__ = ["passing"]
 
 
+def _screen(R: dict, combos: list[tuple[str, ...]], idx: np.ndarray) -> list[bool]:
+    """:func:`conditioned` of each subset (rows of ``idx``: their positions in ``R``), the
+    stack inverted at once; a stack with a singular matrix (which fails as a whole) halved
+    until the singular ones are alone and screened one by one."""
+    if len(combos) == 1:
+        return [conditioned(R, combos[0])]
+    subs = R["R"][idx[:, :, None], idx[:, None, :]]
+    try:
+        vif = np.diagonal(np.linalg.inv(subs), axis1=1, axis2=2)
+    except np.linalg.LinAlgError:
+        h = len(combos) // 2
+        return _screen(R, combos[:h], idx[:h]) + _screen(R, combos[h:], idx[h:])
+    return list(np.all(np.isfinite(vif), axis=1) & np.all(vif <= MAX_VIF, axis=1))
+
+
 def passing(R: dict, names: list[str], size: int) -> list[tuple[str, ...]]:
     """The subsets of ``size`` of ``names`` (in :func:`itertools.combinations` order) that
     :func:`conditioned` accepts for the correlation matrix ``R`` (a
@@ -32,12 +47,6 @@ def passing(R: dict, names: list[str], size: int) -> list[tuple[str, ...]]:
         if size >= 2 and combos:
             pos = {n: i for i, n in enumerate(R["names"])}
             idx = np.array([[pos[c] for c in combo] for combo in combos])
-            subs = R["R"][idx[:, :, None], idx[:, None, :]]
-            try:
-                vif = np.diagonal(np.linalg.inv(subs), axis1=1, axis2=2)
-                ok = np.all(np.isfinite(vif), axis=1) & np.all(vif <= MAX_VIF, axis=1)
-                combos = [c for c, good in zip(combos, ok) if good]
-            except np.linalg.LinAlgError:
-                combos = [c for c in combos if conditioned(R, c)]
+            combos = [c for c, good in zip(combos, _screen(R, combos, idx)) if good]
         memo[key] = combos
     return memo[key]

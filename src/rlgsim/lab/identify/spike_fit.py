@@ -54,12 +54,11 @@ def find_spikes(rate_deg_per_h: np.ndarray, sample_rate_hz: float, pulses_per_ar
                 powered: np.ndarray) -> SpikeFit:
     """Spikes of a gyro rate series (°/h = arcsec/s per sample) with ``powered`` (N,) bool
     (module docstring)."""
-    import pandas as pd
+    from rlgsim.lab.identify._median_kernel import rolling_median   # pandas' rolling median
     rate = np.asarray(rate_deg_per_h, dtype=float)
     ok = np.asarray(powered, dtype=bool) & np.isfinite(rate)
     counts = rate * pulses_per_arcsec / float(sample_rate_hz)
-    c = pd.Series(np.where(ok, counts, np.nan))
-    med = c.rolling(31, center=True, min_periods=5).median().to_numpy()
+    med = rolling_median(np.where(ok, counts, np.nan), 31, 5)
     r = counts - med
     good = ok & np.isfinite(r)
     mad = float(np.median(np.abs(r[good] - np.median(r[good])))) if good.any() else 0.0
