@@ -83,6 +83,9 @@ def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_pat
         rd = _cli(demo, "--units", n, "--scheduler", cluster.scheduler_address,
                   "-o", "dask", "--quiet", cwd=tmp_path)
     assert rd.returncode == 0, rd.stderr
+    for d in ("w1", "w2", "dask"):       # a failed unit (e.g. a worker lost on a loaded
+        failed = [u for u in _units_table(tmp_path / d) if u["status"] != "ok"]   # machine)
+        assert not failed, f"{d}: {failed}"    # is not a byte difference: say which it was
     one, two, dask = ((tmp_path / d / "results.csv").read_bytes() for d in ("w1", "w2", "dask"))
     assert one == two == dask
     assert (tmp_path / "w1" / "units.csv").read_bytes() == \
