@@ -118,6 +118,18 @@ def test_drive_truth_group_and_bytes_whatever_the_chunking(tmp_path):
                     for name in fmt.OPTIONAL_VARIABLES[fmt.TRAJECTORY]]
 
 
+def test_kinematics_ahead_are_the_kinematics_in_place(tmp_path, monkeypatch):
+    """A vehicle's blocks are computed ahead in worker threads (the increments in one, the
+    truth rows in the other); the file is the one of every block computed on the main thread —
+    at a rate whose thermal steps hold uneven numbers of samples (7.3 Hz)."""
+    from rlgsim.sim.sensors.imu import ImuSimulator
+    text = drive().replace("sample_rate_hz = 10", "sample_rate_hz = 7.3")
+    _, ahead = run(tmp_path, text, "ahead.h5")
+    monkeypatch.setattr(ImuSimulator, "_queue_motion", lambda self, k_taken: None)
+    _, here = run(tmp_path, text, "here.h5")
+    assert filecmp.cmp(ahead, here, shallow=False)
+
+
 def test_a_stopped_drive_stops_its_kinematics_thread(tmp_path):
     """A vehicle's kinematics start in their own worker before the file is laid out and run
     blocks ahead: a run stopped after its first block stops that worker and leaves no file."""
