@@ -438,3 +438,34 @@ def test_compiled_rolling_median_equals_pandas():
         x[s:s + 40] = np.nan                  # a gap longer than the window
         want = pd.Series(x).rolling(31, center=True, min_periods=5).median().to_numpy()
         np.testing.assert_array_equal(rolling_median(x, 31, 5), want)
+
+
+@pytest.mark.parametrize("preset", ["trplg_001_cabinet", "rlg_imu"])
+def test_scaled_networks_equal_full_builds(preset):
+    """The batched Jacobian's networks scaled from the template's arrays (scaled_twin) against
+    networks built from the multiplied preset dicts, at 20 random multiplier sets (log-normal,
+    50 %): every capacity, conductance, source, boundary link and probe lag to 1e-12 relative
+    (the same products rounded in another order: a few ε), and the same heaters and topology;
+    rlg_single, where one conductance entry sums links of two multipliers (the block's mount
+    and air links), is refused."""
+    from dataclasses import fields
+    from rlgsim.sim import presets
+    from rlgsim.lab.identify.scaled_twin import ScaledTwin
+    from rlgsim.lab.identify.thermal_fit import apply_multipliers, build, thermal_parameters
+    tmpl = presets.load_thermal_file(preset).data
+    params = thermal_parameters(tmpl)
+    st = ScaledTwin(tmpl, params, build)
+    assert st.ok
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        mult = {p.name: float(np.exp(rng.normal(0.0, 0.5))) for p in params}
+        (net, pr), (want, want_pr) = st.model(mult), build(apply_multipliers(tmpl, params, mult)[0])
+        for f in fields(net):
+            a, b = getattr(net, f.name), getattr(want, f.name)
+            if isinstance(b, np.ndarray):
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=0, err_msg=f.name)
+            else:
+                assert a == b, f.name
+        np.testing.assert_allclose(pr.tau_s, want_pr.tau_s, rtol=1e-12, atol=0)
+    single = presets.load_thermal_file("rlg_single").data
+    assert not ScaledTwin(single, thermal_parameters(single), build).ok

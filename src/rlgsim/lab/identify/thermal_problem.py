@@ -121,8 +121,12 @@ class _Problem:
         self.rows, self.obs, self.mask, self.obs0 = rows, obs, mask, obs0
         self.params = params
         pool = None
+        self.scaled = None
         if batched:                 # compiled once here (numba's cache), before any fork
             from rlgsim.lab.identify import _batch_twin_kernel  # noqa: F401
+            from rlgsim.lab.identify.scaled_twin import ScaledTwin
+            scaled = ScaledTwin(template, params, build)
+            self.scaled = scaled if scaled.ok else None
         if batched and workers > 1:
             import multiprocessing
             _JOB["fun"] = self.residuals_part
@@ -154,8 +158,11 @@ class _Problem:
         """Residual vectors at several points, integrated together (a heater network)."""
         models = []
         for x in xs:
-            d, _ = apply_multipliers(self.template, self.params, dict(zip(names, np.exp(x))))
-            models.append(build(d))
+            mult = dict(zip(names, np.exp(x)))
+            if self.scaled is not None:          # the template's arrays scaled (scaled_twin)
+                models.append(self.scaled.model(mult))
+            else:
+                models.append(build(apply_multipliers(self.template, self.params, mult)[0]))
         out = []
         for read in twin_readings_batch(models, self.air_f, self.power_f, self.step_f):
             r = np.where(self.mask, read[:, self.cols][self.rows] - self.obs0, 0.0)
