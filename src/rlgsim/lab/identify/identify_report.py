@@ -109,6 +109,15 @@ def _anomaly_section(rep: Report, laws) -> None:
               f"outliers (innovation beyond 5.5σ).")
 
 
+def notes_paragraphs(rep: Report, result: Any) -> None:
+    """The identification's notes, then the probe glitches left out (one paragraph each)."""
+    for note in result.notes:
+        rep.paragraph(note[0].upper() + note[1:] + ".")
+    if result.data.probe_glitches:
+        rep.paragraph(f"{result.data.probe_glitches} probe reading(s) more than 5 K from the "
+                      f"median of their ±5 neighbours were taken as glitches and left out.")
+
+
 def _intro(rep: Report, result: Any, device_name: str, thermal_name: str) -> None:
     """What was identified from what, the probe glitches left out, the scale factor's line."""
     d = result.data
@@ -119,11 +128,7 @@ def _intro(rep: Report, result: Any, device_name: str, thermal_name: str) -> Non
         f"`{thermal_name}` in {result.seconds:.1f} s. Files: `thermal.toml`, `device.toml`, "
         f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
         f"`rlgsim run {result.scenario_path.name}`).")
-    for note in result.notes:
-        rep.paragraph(note[0].upper() + note[1:] + ".")
-    if d.probe_glitches:
-        rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
-                      f"their ±5 neighbours were taken as glitches and left out.")
+    notes_paragraphs(rep, result)
     from rlgsim.lab.identify.recording_data import scale_factor_line
     if result.scale_factor is None:
         rep.paragraph(scale_factor_line(d)[0].upper() + scale_factor_line(d)[1:] + ".")

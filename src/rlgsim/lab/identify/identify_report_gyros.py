@@ -28,11 +28,8 @@ def _intro(rep: Report, result: Any, device_name: str, thermal_name: str) -> Non
           f"{', '.join(axes)}) where they differ. Files: `thermal.toml`, `device.toml`, "
           f"`{result.scenario_path.name}` (the recorded chamber programme on the twin: "
           f"`rlgsim run {result.scenario_path.name}`).")
-    for note in result.notes:
-        rep.paragraph(note[0].upper() + note[1:] + ".")
-    if d.probe_glitches:
-        rep.paragraph(f"{d.probe_glitches} probe reading(s) more than 5 K from the median of "
-                      f"their ±5 neighbours were taken as glitches and left out.")
+    from rlgsim.lab.identify.identify_report import notes_paragraphs
+    notes_paragraphs(rep, result)
     if result.suggestion is not None:
         rep.paragraph(f"The next experiment (`{result.next_path.name}`) is designed for gyro "
                       f"`{result.next_gyro}` only (the first whose bias law has terms this "

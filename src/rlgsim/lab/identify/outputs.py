@@ -15,7 +15,7 @@ import pathlib
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.paths import (MAX_NAME, check_writable, output_files, output_folder)
 
-__all__ = ["check_name", "planned_outputs", "MARKERS"]
+__all__ = ["check_name", "make_folder", "planned_outputs", "MARKERS"]
 
 #: Text near the top of each file an identification writes (how an earlier one is known).
 MARKERS = {"thermal": "identified by rlgsim identify", "device": "identified by rlgsim identify",
@@ -35,6 +35,18 @@ def check_name(name: str) -> str:
         raise UserInputError(f"--name: value {name[:40]!r}... is {len(name)} characters; at "
                              f"most {MAX_NAME - len(suffix)}")
     return name
+
+
+def make_folder(out_dir: str | os.PathLike) -> pathlib.Path:
+    """The output folder (``~`` expanded), created with its parents; one line naming it when it
+    cannot be."""
+    out = pathlib.Path(out_dir).expanduser()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"{out}: cannot create the output folder ({exc.strerror or exc})"
+                             ) from None
+    return out
 
 
 def _own(role: str, path: pathlib.Path) -> bool:

@@ -18,13 +18,11 @@ template's ``thermal_preset``; a several-gyro template gives the chosen gyro's v
 from __future__ import annotations
 
 import os
-import pathlib
 import time
 import tomllib
 
 from threadpoolctl import threadpool_limits
 
-from rlgsim.ground.errors import UserInputError
 from rlgsim.lab.identify.law_fit import fit_laws
 from rlgsim.lab.identify.recording_data import read_recording, scale_factor_line
 from rlgsim.lab.identify.scale_factor_fit import fit_scale_factor, scale_factor_table
@@ -95,12 +93,8 @@ def _identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
                           data.probes_c, source=source)
     laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
     sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
-    out = pathlib.Path(out_dir).expanduser()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(f"{out}: cannot create the output folder ({exc.strerror or exc})"
-                             ) from None
+    from rlgsim.lab.identify.outputs import make_folder
+    out = make_folder(out_dir)
     files = planned_outputs(out, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     fitted_thermal, ttext = _thermal_text(thermal, th_name, source)
     dev, comments = _device_dict(dev_t, laws, name, source)

@@ -19,7 +19,6 @@ first gyro.
 from __future__ import annotations
 
 import dataclasses
-import pathlib
 import time
 import tomllib
 from dataclasses import dataclass
@@ -151,12 +150,8 @@ def identify_gyros(source: str, out_dir, axes: list[str], chosen, name: str | No
         d["device"]["name"] = name
     dev, comments = merge_devices(dev_t, axes, devs, [f[2] for f in fits],
                                   [g.laws for g in gyros])
-    out = pathlib.Path(out_dir).expanduser()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(f"{out}: cannot create the output folder ({exc.strerror or exc})"
-                             ) from None
+    from rlgsim.lab.identify.outputs import make_folder
+    out = make_folder(out_dir)
     files = planned_outputs(out, name, inputs, overwrite=overwrite, next_file=suggest_programme)
     fitted_thermal, ttext = thermal_text(thermal, th_name, source)
     dtext = dumps(dev, comments, _header(source, dev_name, axes, gyros,
