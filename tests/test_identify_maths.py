@@ -199,39 +199,63 @@ def test_combined_effect_of_a_group_without_true_members_covers_at_nominal():
 
 def test_prediction_band_widens_along_the_unseparable_direction():
     """Rate and gradient repeat each other on the recording and the truth splits the effect
-    between them; on another programme, where the gradient no longer follows the rate, the
-    prediction's band covers the truth over 40 seeds (|z| < 2 in at least 90 % of the points;
-    the model-averaged band alone covered 60 % / 91 % below 1 / 2), and on the recording's own
-    columns the added variance is a small fraction of that on the other programme (it widens
-    along the direction the recording did not see)."""
-    z_all, z_avg_only = [], []
+    between them; on another programme the gradient no longer follows the rate. The band's
+    within-model variance is that of the model holding both members, ``x*ᵀ Σ_full x*``: it
+    equals statsmodels' GLS prediction variance of that model (``get_prediction``); on the
+    recording's own columns its mean is the hat matrix's trace p σ²/n, on the other programme
+    many times more (it widens along the direction the recording did not see). Over 40 seeds,
+    where the group is reported (the full model then holds the truth) that model's own band
+    covers near nominal and the reported band (that variance plus the models' spread) at least
+    nominal; where the noise hid the group (one member taken at > 95 %), neither can."""
+    sigma = 0.004
+    z_band, z_full, z_hidden = [], [], []
     for seed in range(40):
         rng = np.random.default_rng(100 + seed)
         n = 300
         T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
         rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
         grad = rate + 0.05 * rng.standard_normal(n)
-        y = 0.02 + 3e-4 * T - 0.005 * rate - 0.005 * grad + 0.004 * rng.standard_normal(n)
+        y = 0.02 + 3e-4 * T - 0.005 * rate - 0.005 * grad + sigma * rng.standard_normal(n)
         sel = select_terms(y, [Term("c1", lambda th, T=T: T), Term("c2", lambda th, T=T: T ** 2),
                                Term("rate", lambda th, r=rate: r),
-                               Term("gradient", lambda th, g=grad: g)])
+                               Term("gradient", lambda th, g=grad: g)],
+                           noise_cov=sigma ** 2 * np.eye(n))
         T2 = np.linspace(0, 40, 200)
         rate2 = 0.2 + 0.3 * rng.standard_normal(200)
         grad2 = 0.3 * rate2 + 0.5 * rng.standard_normal(200)     # no longer follows the rate
         new = {"c1": T2, "c2": T2 ** 2, "rate": rate2, "gradient": grad2}
         truth = 0.02 + 3e-4 * T2 - 0.005 * rate2 - 0.005 * grad2
         mean, se = sel.predict(new)
-        if seed == 0:
-            assert any(set(g) == {"rate", "gradient"} for g in sel.standins)
+        base, terms, beta, _ = sel.full_model
+        X2 = np.column_stack([np.ones(T2.size)] + [new[t] for t in terms])
+        if not sel.unseparable:
+            z_hidden.append((mean - truth) / se)
+            continue
+        assert any(set(g) == {"rate", "gradient"} for g, _ in sel.unseparable)
+        assert {"rate", "gradient"} <= set(terms) and base == ("intercept",)
+        z_band.append((mean - truth) / se)
+        z_full.append((X2 @ beta - truth) / np.sqrt(sel.full_variance(new)))
+        if len(z_band) == 1:
             own = {"c1": T, "c2": T ** 2, "rate": rate, "gradient": grad}
-            assert (np.median(sel.standin_variance(own))
-                    < 0.05 * np.median(sel.standin_variance(new)))
-        z_all.append((mean - truth) / se)
-        z_avg_only.append((mean - truth) / np.sqrt(se ** 2 - sel.standin_variance(new)))
-    z, z0 = np.abs(np.concatenate(z_all)), np.abs(np.concatenate(z_avg_only))
-    print("prediction |z| < 1, < 2 with / without the stand-in variance:",
-          np.mean(z < 1), np.mean(z < 2), np.mean(z0 < 1), np.mean(z0 < 2))
-    assert np.mean(z < 2) >= 0.9 and np.mean(z < 1) > np.mean(z0 < 1) + 0.1
+            X = np.column_stack([np.ones(n)] + [own[t] for t in terms])
+            ref = sm.GLS(y, X, sigma=sigma ** 2 * np.eye(n)).fit()
+            v_ref = ref.get_prediction(X2).se_mean ** 2 * max(ref.scale, 1.0) / ref.scale
+            # rtol: the full model's normal matrix has condition ~1e9 (T beside a rate and a
+            # gradient at r ≈ 0.99); both solve it in double precision
+            np.testing.assert_allclose(sel.full_variance(new), v_ref, rtol=1e-5)
+            np.testing.assert_allclose(X2 @ beta, ref.predict(X2), rtol=1e-5, atol=1e-9)
+            v_own = np.mean(sel.full_variance(own))
+            np.testing.assert_allclose(v_own, X.shape[1] * sigma ** 2 / n
+                                       * max(ref.scale, 1.0), rtol=1e-5)
+            assert np.median(sel.full_variance(new)) > 5 * v_own
+    zb, zf = np.abs(np.concatenate(z_band)), np.abs(np.concatenate(z_full))
+    print(f"{len(z_band)} seeds with the group: |z| < 1, < 2 band {np.mean(zb < 1):.3f} "
+          f"{np.mean(zb < 2):.3f}, full model alone {np.mean(zf < 1):.3f} {np.mean(zf < 2):.3f}; "
+          f"{len(z_hidden)} seeds without")
+    assert len(z_band) >= 30
+    # the 200 points of a seed share one coefficient error: ~35 independent draws, ± 8 % at 1σ
+    assert 0.55 <= np.mean(zf < 1) <= 0.85 and np.mean(zf < 2) >= 0.9
+    assert np.mean(zb < 1) >= 0.68 and np.mean(zb < 2) >= 0.95
 
 
 def test_window_mean_covariance_matches_the_simulators_noise_generators():

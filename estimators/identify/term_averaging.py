@@ -35,9 +35,8 @@ and counts the estimate itself as spread, so where the truth is 0 the interval i
 where it is not the estimate is biased — a model-averaged estimator with data-driven weights is
 a nonlinear mixture whose ``β̄ ± z·se`` interval lacks the nominal coverage (Hjort & Claeskens,
 JASA 98, 2003, §§4–5; Claeskens & Hjort, *Model Selection and Model Averaging*, 2008, ch. 7),
-whereas within the models that estimate the effect it is an ordinary estimate. (Coverage
-benchmark, 20 units: 87 % / 100 % of |z| below 1 / 2 averaged over every model, the group
-without true members — c2 ~ c3 — 95 % below 1.)
+whereas within the models that estimate the effect it is an ordinary estimate. (Averaged
+over every model: 87 % / 100 % of |z| below 1 / 2 over 20 coverage units.)
 
 Stand-ins: how the combined effect splits among a group's members is *not* determined, and the
 subset weights above do not express that — they concentrate on whichever member the noise
@@ -46,13 +45,20 @@ favoured, so the members' averaged coefficients and the law's prediction on anot
 alone carrying the combined effect (coefficient ``b_h``, :func:`_standins`) is a law the
 recording cannot tell from the others; they are taken as equally likely, since the recording
 does not choose. A member's coefficient gets the variance of those splits about its averaged
-value, ``mean_h (b_h·[g = h] − β̄_g)²``, added to its own; a prediction the variance of
-``u_h = b_h·d_h`` about the averaged law's ``Σ β̄_g d_g`` (mean over the members), where
-``d_h`` is the member's feature on the new programme less its regression, fitted on the
-recording, on the intercept, the fixed and nonlinear terms, the chosen law's other terms and
-the lead: zero where the new programme keeps the recording's relation between the members,
-large where it breaks it. When the true law is a same-signed mixture of members, its prediction
-lies inside the span of the stand-ins'.
+value, ``mean_h (b_h·[g = h] − β̄_g)²``, added to its own. (The prediction's band once added
+the spread of the stand-ins' predictions on the new programme, equally weighted: too wide, 77 %
+/ 95 % of |z| below 1 / 2 over 40 coverage units.)
+
+Prediction band (:func:`_full_model`, :meth:`SelectedLaw.predict
+<rlgsim.estimators.identify.term_selection.SelectedLaw.predict>`): the models' spread about the
+averaged prediction plus, in place of each subset's own variance, that of the *full* model —
+the chosen law's terms and every member of every unseparable group — ``x*ᵀ Σ_full x*``. Each
+subset's own variance is computed as if its left-out members were known to be 0, which along
+the direction the recording did not separate is exactly what is not known; the full model's
+prediction is unbiased whichever split is true and its covariance carries the collinearity, so
+its variance grows where the new programme leaves the recording's relation between the members
+(Burnham & Anderson 2002 §4.3.2 and §6.3, the unconditional variance; the full model's variance
+as the honest one around a model-averaged estimate: Hjort & Claeskens, JASA 98, 2003, §5).
 """
 
 from __future__ import annotations
@@ -262,7 +268,8 @@ def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
               lin_names: Sequence[str], lcols: dict, chosen_lin: Sequence[str], max_linear: int,
               batches: int, gls: bool = False) -> tuple:
     """Selection uncertainty of the linear subset (module docstring): (averaged, unseparable
-    groups with their reasons, ĉ, averaged models, combined effects, stand-ins)."""
+    groups with their reasons, ĉ, averaged models, combined effects, stand-ins, the full model
+    of the prediction band)."""
     R = corr_matrix(lcols, lin_names, base[:, 0])
     Xb = np.column_stack([base] + [lcols[c] for c in chosen_lin])
     _, _, r_best = _ols(y, Xb, batches, gls)
@@ -289,7 +296,7 @@ def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
                                                              chosen_lin, models)
         combined[tuple(group)] = (lead, value, se, slopes)
         # the stand-ins split the effect the averaged law carries (its excluding models
-        # included), as the prediction they widen averages over every model
+        # included), as the averaged coefficients they widen are
         standins[tuple(group)] = _standins(group, lead, value_all, base, base_names, lcols,
                                            chosen_lin)
         for g in group:              # the member's coefficient over the stand-in splits
@@ -298,7 +305,21 @@ def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
             averaged[g] = (v, float(np.sqrt(se_g ** 2 + np.mean((np.array(hyp) - v) ** 2))), p)
         groups.append((tuple(group), _group_reason(group, pairs, averaged, lead, value, se,
                                                    slopes, incl)))
-    return averaged, tuple(groups), c_hat, tuple(models), combined, standins
+    return averaged, tuple(groups), c_hat, tuple(models), combined, standins, _full_model(
+        y, base, base_names, lin_names, lcols, chosen_lin, groups, batches, gls)
+
+
+def _full_model(y, base, base_names, lin_names, lcols, chosen_lin, groups, batches, gls
+                ) -> tuple:
+    """The model holding the chosen law's terms and every member of every unseparable group
+    (module docstring, *Prediction band*): (base names, its linear terms, coefficients,
+    covariance) — unbiased whichever split of a group's effect is true, its covariance
+    carrying the collinearity along the directions the recording did not separate."""
+    members = {g for group, _ in groups for g in group}
+    terms = tuple(c for c in lin_names if c in chosen_lin or c in members)
+    X = np.column_stack([base] + [lcols[c] for c in terms])
+    beta, cov, _ = _ols(y, X, batches, gls)
+    return tuple(base_names), terms, beta, cov
 
 
 def _standins(group, lead, value, base, base_names, lcols, chosen_lin) -> dict:
@@ -308,8 +329,8 @@ def _standins(group, lead, value, base, base_names, lcols, chosen_lin) -> dict:
     chosen law's other terms removed; ``value`` for the lead itself), and the regression of
     ``h``'s feature on those columns and the lead — what the recording ties ``h`` to; on
     another programme, ``h`` less that regression is the direction the recording did not see
-    (:meth:`~rlgsim.estimators.identify.term_selection.SelectedLaw.standin_variance`). Columns whitened under GLS: the coefficients are
-    GLS coefficients, valid on unwhitened features. Returns {member: (b_h, names, coef)}."""
+    (the prediction band no longer uses it: :func:`_full_model`). Columns whitened under
+    GLS: GLS coefficients, valid on unwhitened features. Returns {member: (b_h, names, coef)}."""
     others = [k for k in chosen_lin if k not in group]
     Z = np.column_stack([base] + [lcols[k] for k in others])
     names = tuple(base_names) + tuple(others)

@@ -109,6 +109,10 @@ class SelectedLaw:
     #: regressed on the intercept, the fixed and nonlinear terms, the chosen law's other terms
     #: and the lead (:func:`~rlgsim.estimators.identify.term_averaging._standins`)
     standins: dict = field(default_factory=dict)
+    #: the model holding the chosen terms and every member of every unseparable group: (base
+    #: names, its linear terms, coefficients, covariance) — the within-model variance of
+    #: :meth:`predict` (:func:`~rlgsim.estimators.identify.term_averaging._full_model`)
+    full_model: tuple = ()
 
     def value(self, name: str) -> float:
         return float(self.fit.x[self.fit.names.index(name)])
@@ -118,39 +122,36 @@ class SelectedLaw:
 
     def predict(self, cols: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Model-averaged prediction and its standard error (selection included) from the
-        feature columns ``cols`` {term: (m,)} (nonlinear terms at their chosen parameters)."""
+        feature columns ``cols`` {term: (m,)} (nonlinear terms at their chosen parameters):
+        the variance is Burnham & Anderson's unconditional one (2002, §4.3.2, in the form
+        with the squares averaged, §6.3), the spread of the models' predictions about the average plus a
+        within-model variance taken from :attr:`full_model`, ``x*ᵀ Σ_full x*``, in place of
+        each subset's own (:mod:`~rlgsim.estimators.identify.term_averaging`, *Prediction
+        band*)."""
         m = next(iter(cols.values())).shape[0]
         preds, vars_, ws = [], [], []
         for base, subset, beta, cov, w in self.models:
-            X = np.column_stack([np.ones(m)] + [cols[c] for c in base[1:]]
-                                + [cols[c] for c in subset])
+            X = self._design(cols, base, subset, m)
             preds.append(X @ beta)
             vars_.append(np.einsum("ij,jk,ik->i", X, cov, X))
             ws.append(w)
         P, V, W = np.array(preds), np.array(vars_), np.array(ws)[:, None]
         mean = (W * P).sum(axis=0)
-        var = (W * (V + (P - mean) ** 2)).sum(axis=0)
-        return mean, np.sqrt(var + self.standin_variance(cols))
+        spread = (W * (P - mean) ** 2).sum(axis=0)
+        within = self.full_variance(cols) if self.full_model else (W * V).sum(axis=0)
+        return mean, np.sqrt(within + spread)
 
-    def standin_variance(self, cols: dict[str, np.ndarray]) -> np.ndarray:
-        """The prediction variance along the directions the recording cannot separate
-        (:mod:`~rlgsim.estimators.identify.term_averaging`, *Stand-ins*): for each unseparable
-        group, the part of every member's
-        feature on ``cols`` that its regression on the recording's other columns does not
-        reproduce, ``d_h``; each member alone carrying the group's combined effect predicts
-        ``u_h = b_h·d_h`` there, the averaged law ``ū = Σ β̄_g d_g``; the variance is the mean of
-        ``(u_h − ū)²`` over the members (equal weights: the recording does not choose)."""
+    @staticmethod
+    def _design(cols: dict, base: Sequence[str], subset: Sequence[str], m: int) -> np.ndarray:
+        return np.column_stack([np.ones(m)] + [cols[c] for c in base[1:]]
+                               + [cols[c] for c in subset])
+
+    def full_variance(self, cols: dict[str, np.ndarray]) -> np.ndarray:
+        """Variance of the :attr:`full_model`'s prediction on ``cols``, ``x*ᵀ Σ_full x*``."""
         m = next(iter(cols.values())).shape[0]
-        out = np.zeros(m)
-        for group, members in self.standins.items():
-            d = {}
-            for g, (_, names, coef) in members.items():
-                fit_g = sum((np.ones(m) if n == "intercept" else np.asarray(cols[n], float)) * a
-                            for n, a in zip(names, coef))
-                d[g] = np.asarray(cols[g], dtype=float) - fit_g
-            u_bar = sum(self.averaged[g][0] * d[g] for g in group)
-            out = out + np.mean([(members[h][0] * d[h] - u_bar) ** 2 for h in group], axis=0)
-        return out
+        base, terms, _, cov = self.full_model
+        X = self._design(cols, base, terms, m)
+        return np.einsum("ij,jk,ik->i", X, cov, X)
 
 
 def _bic(y: np.ndarray, X: np.ndarray, k_extra: int) -> float:
@@ -382,7 +383,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     else:
         res = fit(residual, x0a, names, bounds=(lo_a, hi_a), batches=batches, whitened=gls)
     base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen])
-    averaged, groups, c_hat, models, combined, standins = averaging(
+    averaged, groups, c_hat, models, combined, standins, full_model = averaging(
         y, base, ["intercept", *fixed_names, *nl_chosen], [t.name for t in lin], lcols,
         lin_chosen, max_linear, batches, gls)
     for name in nl_chosen:                     # held at the choice: its own refined values
@@ -393,4 +394,4 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
                        models=models, residual=_raw_residual(res, y_raw, fixed, chosen,
                                                              by_name, raw_features),
                        gls=gls, combined=combined, fixed=tuple(fixed_names),
-                       standins=standins)
+                       standins=standins, full_model=full_model)
