@@ -103,8 +103,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f}")
     data = a.dir / "paper000_campaign.h5"
     if not data.exists():
-        subprocess.run([sys.executable, "-m", "rlgsim", "run", "paper000_campaign", "-o",
-                        str(data), "-q"], check=True)
+        a.dir.mkdir(parents=True, exist_ok=True)
+        if subprocess.run([sys.executable, "-m", "rlgsim", "run", "paper000_campaign", "-o",
+                           str(data), "-q"]).returncode != 0:
+            return 2                       # rlgsim has said why in one line
     reader = DatasetReader(data)
     shipped = filter_settings(reader.noise(), unit_levels=reader.unit_noise())
     before = filter_settings(reader.noise())
