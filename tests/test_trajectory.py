@@ -155,20 +155,25 @@ def fine_integrals(traj: Trajectory, edges: np.ndarray, rate_hz: float
     return np.array(dth), np.array(dv)
 
 
+def assert_exact_integrals(traj, t0: float, n: int, rate_hz: float) -> None:
+    """The ``n`` samples' increments from ``t0`` equal the fine reference integrals to float64
+    rounding of sums of a few hundred terms of the increments' size."""
+    mb = traj.increments(t0, n, rate_hz)
+    k0 = round(t0 * rate_hz)
+    ref_th, ref_v = fine_integrals(traj, (k0 + np.arange(n + 1)) / rate_hz, rate_hz)
+    tol_th = 64 * np.finfo(float).eps * np.max(np.abs(ref_th)) + 1e-22
+    tol_v = 64 * np.finfo(float).eps * np.max(np.abs(ref_v))
+    assert np.max(np.abs(mb.dtheta_rad - ref_th)) < tol_th
+    assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < tol_v
+
+
 @pytest.mark.parametrize("rate_hz, t0, n", [(100.0, 9.9, 40), (100.0, 30.0, 20),
                                             (100.0, 74.99, 15), (1.0, 28.0, 6)])
 def test_increments_are_the_exact_integrals(rate_hz, t0, n):
     """Samples inside legs and across leg starts (10 s on the grid; 30.005 s and 74.9973 s
     inside a sample); at 1 Hz each sample is cut into 50 sub-intervals."""
     traj = Trajectory(manoeuvres(), START, until_s=120.0)
-    mb = traj.increments(t0, n, rate_hz)
-    k0 = round(t0 * rate_hz)
-    ref_th, ref_v = fine_integrals(traj, (k0 + np.arange(n + 1)) / rate_hz, rate_hz)
-    # float64 rounding of sums of a few hundred terms of the increments' size
-    tol_th = 64 * np.finfo(float).eps * np.max(np.abs(ref_th)) + 1e-22
-    tol_v = 64 * np.finfo(float).eps * np.max(np.abs(ref_v))
-    assert np.max(np.abs(mb.dtheta_rad - ref_th)) < tol_th
-    assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < tol_v
+    assert_exact_integrals(traj, t0, n, rate_hz)
 
 
 def constant_attitude_legs() -> list:
@@ -193,13 +198,7 @@ def test_constant_attitude_legs_are_exact_integrals(rate_hz, t0, n):
     float64 rounding of the 10-point reference, at 100 Hz and across 1-s and 2-s samples."""
     traj = Trajectory(constant_attitude_legs(), START, until_s=50.0)
     assert list(traj._level) == [1, 2, 1, 2, 2]          # and the hold to the end
-    mb = traj.increments(t0, n, rate_hz)
-    k0 = round(t0 * rate_hz)
-    ref_th, ref_v = fine_integrals(traj, (k0 + np.arange(n + 1)) / rate_hz, rate_hz)
-    tol_th = 64 * np.finfo(float).eps * np.max(np.abs(ref_th)) + 1e-22
-    tol_v = 64 * np.finfo(float).eps * np.max(np.abs(ref_v))
-    assert np.max(np.abs(mb.dtheta_rad - ref_th)) < tol_th
-    assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < tol_v
+    assert_exact_integrals(traj, t0, n, rate_hz)
 
 
 def test_at_rest_the_vehicle_senses_earth_rate_and_gravity():
