@@ -198,3 +198,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except Exception:
+        if _stop_signal:    # the SIGTERM's SystemExit raised inside a C extension's callback,
+            return 128 + _stop_signal[0]    # which turned it into another exception (h5py:
+        raise                               # SystemError); the run has cleaned up already
