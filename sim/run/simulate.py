@@ -212,7 +212,7 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
     blocks_per_write = max(1, int(round(chunk / BLOCK_S)))
     from tqdm import tqdm
 
-    from rlgsim.sim.run.run_budget import check_budget
+    from rlgsim.sim.run.run_budget import check_budget, row_bytes_of
     with DatasetWriter(out, attrs) as w:
         write_timeline(w, timeline)
         writers = {}
@@ -231,7 +231,9 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
                      steps_per_block=min(per_block, n_steps),
                      buffered_blocks=blocks_per_write + 1,
                      block_s=min(BLOCK_S, n_steps * step),
-                     progress=progress)    # refuse what cannot fit (run_budget)
+                     progress=progress,    # refuse what cannot fit (run_budget)
+                     row_bytes=row_bytes_of(w.groups))
+        w.read_dimension_lists()            # the file's bytes as when the estimate read it
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]
         bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
