@@ -194,11 +194,29 @@ def constant_attitude_legs() -> list:
                                             (100.0, 27.9, 30), (1.0, 0.0, 40), (0.5, 0.0, 20)])
 def test_constant_attitude_legs_are_exact_integrals(rate_hz, t0, n):
     """The legs of constant attitude take 3 (velocity changing) or 2 (holding) Gauss–Legendre
-    points per ≤ 0.02-s sub-interval with the dense position at each: still the integrals to
-    float64 rounding of the 10-point reference, at 100 Hz and across 1-s and 2-s samples."""
+    points per ≤ 0.02-s sub-interval with the dense position at each, the climb at a held
+    velocity its fitted 10-s chunks: still the integrals to float64 rounding of the 10-point
+    reference, at 100 Hz and across 1-s and 2-s samples."""
     traj = Trajectory(constant_attitude_legs(), START, until_s=50.0)
     assert list(traj._level) == [1, 2, 1, 2, 2]          # and the hold to the end
+    assert list(traj._chunk) == [0.0, 10.0, 0.0, 0.0, 0.0]   # the rest stand still
     assert_exact_integrals(traj, t0, n, rate_hz)
+
+
+def test_fitted_chunks_near_the_pole_are_exact_integrals():
+    """An aircraft holding 250 m/s at 85° N (the integrands' time scale R cos L / v ≈ 2200 s:
+    2.2-s chunks): the samples around a chunk's end are the 10-point reference integrals, and
+    the same numbers whichever block starts inside the chunk."""
+    x = np.zeros(6)
+    x[0], x[4] = 20.0 * DEG, 250.0
+    traj = Trajectory([rate_leg(x, np.zeros(6), 30.0)], InitialState(85.0 * DEG, 0.0, 9000.0),
+                      until_s=30.0)
+    chunk = traj._chunk[0]
+    assert 2.0 < chunk < 2.4
+    assert_exact_integrals(traj, round(3 * chunk, 2) - 0.1, 20, 100.0)
+    whole, part = traj.increments(0.0, 700, 100.0), traj.increments(3.33, 367, 100.0)
+    assert np.array_equal(whole.dtheta_rad[333:], part.dtheta_rad)
+    assert np.array_equal(whole.dv_m_per_s[333:], part.dv_m_per_s)
 
 
 def test_at_rest_the_vehicle_senses_earth_rate_and_gravity():

@@ -23,6 +23,15 @@ The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion.
   integrands vary only with the position (time scale R/v ≥ 6000 s below 1 km/s), and m = 2
   (:data:`NODES_HOLDING`) errs by ≲ Δ⁵/4320 |F| (v/R)⁴ ~ 1e-28 |F|. The position at each node
   is the dense output itself.
+* a leg of **constant attitude and velocity that moves**: a whole sample is the exact integral
+  of a **fitted chunk** (:func:`_piece_fitted`): the leg is cut into chunks of T seconds from
+  its start (``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`: min(10 s,
+  1e-3 τ), τ the time the integrands' nearest singularity in L or h is away at the leg's
+  speed); the body-frame integrands at 6 Chebyshev points of the chunk are interpolated by a
+  quintic (:func:`_chunk_fit`) whose mean over the sample is exact (:func:`_chunk_mean`).
+  Lagrange's remainder with Cauchy's estimate |F⁽⁶⁾| ≤ 6!|F|/τ⁶ bounds the interpolant's error
+  by 2(T/4τ)⁶|F| ≈ 5e-22 |F| (≤ 2e-20 |F| a half sample past the chunk's end) —
+  docs/trajectories.md. Six evaluations serve a chunk's ~1000 samples instead of two each.
 * every other leg: 4-point Gauss–Legendre with the cubic Hermite position of
   :mod:`rlgsim.sim.motion._trajectory_kernel` (its error bounds there), operation for
   operation as that module's quadrature was written.
@@ -41,7 +50,7 @@ import math
 import numpy as np
 from numba import njit
 
-from rlgsim.sim.motion._trajectory_kernel import (LF_T0, LI_GEO, LI_LEVEL, LI_STILL, W_X,
+from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL, W_X,
                                                   _earth_terms, _position, _position_rate,
                                                   _qmul, _state, _state_geodetic)
 
@@ -50,6 +59,9 @@ from rlgsim.sim.motion._trajectory_kernel import (LF_T0, LI_GEO, LI_LEVEL, LI_ST
 #: velocity too (module docstring): the quadrature levels 0, 1, 2
 NODES_TURNING, NODES_CHANGING, NODES_HOLDING = 4, 3, 2
 POINTS = (NODES_TURNING, NODES_CHANGING, NODES_HOLDING)
+#: points of the fitted chunks of a leg holding its attitude and velocity (module docstring)
+#: and the one whose integrands the others' deviations are taken from
+FIT_NODES, FIT_REF = 6, 2
 
 
 @njit(cache=True, nogil=True)
@@ -144,6 +156,78 @@ def _piece_level(coef, dcoef, legs_i, legs_f, dense, j, ta, d, sub, c, quads, le
     res[5] = c[2] * sf0 + c[5] * sf1 + c[8] * sf2
 
 
+@njit(cache=True, nogil=True)
+def _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth,
+               out):  # pragma: no cover - compiled
+    """The interpolant of the body-frame integrands (ω_ib^b, f^b) of leg ``j`` (holding its
+    attitude C_b^n = ``c`` and its velocity) over leg time [lo, hi] → ``out`` (7, 6): row 0 the
+    integrands at node :data:`FIT_REF`, rows 1 + k the coefficients of s^k of the degree-5
+    polynomial through the deviations from it at the six Chebyshev points s_i = ``fit[0]`` of
+    τ = (lo + hi)/2 + s (hi − lo)/2 (``fit[1:]`` the inverse Vandermonde matrix). The
+    deviations are ~1e-5 of the integrands (their relative change over ≤ 10 s) and exact
+    (Sterbenz), so the fit adds rounding of ~1e-5 ulp."""
+    vb0, vb1, vb2 = coef[j, 3, 0], coef[j, 4, 0], coef[j, 5, 0]
+    ve = c[0] * vb0 + c[1] * vb1 + c[2] * vb2
+    vn = c[3] * vb0 + c[4] * vb1 + c[5] * vb2
+    vu = c[6] * vb0 + c[7] * vb1 + c[8] * vb2
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    vals = np.empty((FIT_NODES, 6))
+    for i in range(FIT_NODES):
+        lat, lon, hgt = _position(legs_i, legs_f, dense, j, mid + half * fit[0, i])
+        i0, i1, i2, e0, e1, e2f, gam = _earth_terms(lat, hgt, ve, vn, vu, earth)
+        e2f += gam
+        vals[i, 0] = c[0] * i0 + c[3] * i1 + c[6] * i2
+        vals[i, 1] = c[1] * i0 + c[4] * i1 + c[7] * i2
+        vals[i, 2] = c[2] * i0 + c[5] * i1 + c[8] * i2
+        vals[i, 3] = c[0] * e0 + c[3] * e1 + c[6] * e2f
+        vals[i, 4] = c[1] * e0 + c[4] * e1 + c[7] * e2f
+        vals[i, 5] = c[2] * e0 + c[5] * e1 + c[8] * e2f
+    for q in range(6):
+        ref = vals[FIT_REF, q]
+        out[0, q] = ref
+        for k in range(FIT_NODES):
+            acc = 0.0
+            for i in range(FIT_NODES):
+                acc += fit[1 + k, i] * (vals[i, q] - ref)
+            out[1 + k, q] = acc
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _chunk_mean(b, s, dd, q):  # pragma: no cover - compiled
+    """Mean of the fitted integrand ``q`` (:func:`_chunk_fit`'s ``b``) over [s − δ, s + δ]
+    (``dd`` = δ²) in the chunk's variable: p(s) + δ² p''(s)/6 + δ⁴ p⁗(s)/120 of the quintic
+    deviation p, exact for it, added to the reference value."""
+    b1, b2, b3, b4, b5 = b[2, q], b[3, q], b[4, q], b[5, q], b[6, q]
+    p = ((((b5 * s + b4) * s + b3) * s + b2) * s + b1) * s + b[1, q]
+    p2 = ((20.0 * b5 * s + 12.0 * b4) * s + 6.0 * b3) * s + 2.0 * b2
+    p4 = 120.0 * b5 * s + 24.0 * b4
+    return b[0, q] + (p + dd * (p2 / 6.0 + dd * p4 / 120.0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _piece_fitted(coef, legs_i, legs_f, dense, j, ta, inv, chunk, c, fit, earth, bfit, fst,
+                  res):  # pragma: no cover - compiled
+    """∫ω_ib^b, ∫f^b over the whole sample [ta, ta + inv) of leg ``j`` (holding its attitude
+    C_b^n = ``c`` and velocity) → res[0:6]: the exact integral of the fitted chunk holding the
+    sample's middle (:func:`_chunk_fit`; chunks of ``chunk[j]`` seconds from the leg's start,
+    the last one up to its end). ``bfit`` holds the fit of chunk ``fst[1]`` of leg ``fst[0]``
+    (its middle and half length ``fst[2]``, ``fst[3]``), made anew when the chunk changes — the
+    same numbers whichever block asks."""
+    dur = legs_f[j, LF_DUR]
+    tm = ta + 0.5 * inv
+    n_ch = max(1, int(dur / chunk[j]))
+    i_ch = min(int(tm / chunk[j]), n_ch - 1)
+    if fst[0] != j or fst[1] != i_ch:
+        lo = i_ch * chunk[j]
+        hi = dur if i_ch == n_ch - 1 else (i_ch + 1) * chunk[j]
+        _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth, bfit)
+        fst[0], fst[1], fst[2], fst[3] = j, i_ch, 0.5 * (lo + hi), 0.5 * (hi - lo)
+    sm = (tm - fst[2]) / fst[3]
+    dl = 0.5 * inv / fst[3]
+    for q in range(6):
+        res[q] = inv * _chunk_mean(bfit, sm, dl * dl, q)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, j, ta, d, sub, frac, quads, earth, w,
            c, pos, res):  # pragma: no cover - compiled
@@ -163,7 +247,7 @@ def _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, j, ta, d, sub, frac, quad
 
 @njit(cache=True, nogil=True)
 def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dense, quads,
-                     earth, out_w, out_f, runs):  # pragma: no cover - compiled
+                     earth, chunk, fit, out_w, out_f, runs):  # pragma: no cover - compiled
     """Δθ → ``out_w``, Δv → ``out_f`` (n, 3) of samples k0 … k0 + n − 1 at ``rate`` [Hz].
 
     Sample i covers [(k0 + i)/f, (k0 + i + 1)/f); a leg start strictly inside it splits it into
@@ -172,7 +256,9 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
     ``dcoef``, ``d2coef`` the legs' channel polynomials, ``legs_i``, ``legs_f``, ``dense`` as
     :mod:`rlgsim.sim.motion._trajectory_kernel` lays them out; ``quads`` (3, 2, 4) the
     Gauss–Legendre nodes and weights of each quadrature level (:data:`POINTS` of them, the rest
-    padding); ``sub`` sub-intervals per piece. The
+    padding); ``sub`` sub-intervals per piece; ``chunk`` (m,) the fitted chunks' length [s] of
+    each leg holding its attitude and velocity while moving (0: none; module docstring), ``fit``
+    (7, 6) the Chebyshev points and inverse Vandermonde matrix of :func:`_chunk_fit`. The
     runs (lo, hi) of ≥ 2 samples standing still in one leg go to ``runs`` (r, 2); returns r."""
     m = legs_i.shape[0]
     inv = 1.0 / rate
@@ -180,6 +266,8 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
     res = np.zeros(6)
     c = np.empty(9)
     c_leg = -1
+    bfit = np.empty((FIT_NODES + 1, 6))
+    fst = np.full(4, -1.0)          # the fitted chunk held in bfit: leg, chunk, middle, half
     pos = np.empty((sub + 1, 3))
     frac = np.empty(sub + 1)
     for s in range(sub + 1):
@@ -221,8 +309,14 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
                     _state(coef, dcoef, leg, ta, w)
                     c[:] = w[0:9]
                     c_leg = leg
-                _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, leg, ta, d, sub, frac,
-                       quads, earth, w, c, pos, res)
+                dur = legs_f[leg, LF_DUR]
+                if (whole and chunk[leg] >= 4.0 * inv and dur >= 4.0 * inv
+                        and ta + inv <= dur):           # a fitted chunk (module docstring)
+                    _piece_fitted(coef, legs_i, legs_f, dense, leg, ta, inv, chunk, c, fit,
+                                  earth, bfit, fst, res)
+                else:
+                    _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, leg, ta, d, sub, frac,
+                           quads, earth, w, c, pos, res)
             acc0 += res[0]
             acc1 += res[1]
             acc2 += res[2]

@@ -74,6 +74,16 @@ MAX_SUBINTERVAL_S = 0.02
 _QUADS = np.zeros((3, 2, 4))
 for _lv, _pts in enumerate((4, 3, 2)):
     _QUADS[_lv, :, :_pts] = np.polynomial.legendre.leggauss(_pts)
+#: the fitted chunks of a leg holding its attitude and velocity while moving
+#: (sim/motion/_trajectory_block.py): six Chebyshev points on [-1, 1] (row 0) and the inverse of
+#: their Vandermonde matrix (rows 1-6: the monomial coefficients from the values)
+_FIT = np.vstack([np.polynomial.chebyshev.chebpts1(6)[None, :],
+                  np.linalg.inv(np.vander(np.polynomial.chebyshev.chebpts1(6), 6,
+                                          increasing=True))])
+#: longest fitted chunk [s] and the most of the integrands' time scale one may span (bound in
+#: sim/motion/_trajectory_block.py)
+_CHUNK_MAX_S = 10.0
+_CHUNK_OF_SCALE = 1e-3
 #: tolerances of the position integration (rad, rad, m)
 _RTOL = 1e-13
 _ATOL = (1e-15, 1e-15, 1e-9)
@@ -206,6 +216,7 @@ class Trajectory:
         self._legs_i, self._legs_f, self._dense = _leg_tables(
             self._position, self._geodetic, self._t0, np.array([leg.duration_s for leg in legs]),
             self._level, self._still)
+        self._chunk = _chunk_lengths(self._coef, self._legs_i, self._legs_f, self._dense)
 
     # ---- the legs ---------------------------------------------------------------------
     @property
@@ -406,7 +417,7 @@ class Trajectory:
         sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
         r = _kernel().block_increments(k0, n, float(rate_hz), sub, self._coef, self._dcoef,
                                        self._d2coef, self._legs_i, self._legs_f, self._dense,
-                                       _QUADS, _EARTH, dth, dv, runs)
+                                       _QUADS, _EARTH, self._chunk, _FIT, dth, dv, runs)
         constant = tuple((int(lo), int(hi)) for lo, hi in runs[:r])
         block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, constant)
         if angles:
@@ -481,3 +492,27 @@ def _leg_tables(position: list, geodetic: np.ndarray, t0: np.ndarray, duration: 
             legs_i[j, 2] = len(sol.interpolants)
     dense = np.array(rows, dtype=float).reshape(-1, 26)
     return legs_i, legs_f, np.ascontiguousarray(dense)
+
+
+def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, dense: np.ndarray
+                   ) -> np.ndarray:
+    """Per leg the length [s] of its fitted chunks (sim/motion/_trajectory_block.py): a leg of
+    constant attitude and body velocity that moves (its position the DOP853 dense output) gets
+    min(:data:`_CHUNK_MAX_S`, :data:`_CHUNK_OF_SCALE` · τ), τ = (a(1 − e²) + min(h, 0)) cos L_max
+    / |v| the time the integrands' nearest singularity in L or h is away at its speed — tan L
+    at the pole, 1/(R + h) at the Earth's centre (L_max the largest |L| at its steps' starts and
+    end, plus the most one step can add); 0 for any other leg."""
+    from rlgsim.sim.motion import _trajectory_kernel as K
+    out = np.zeros(len(legs_i))
+    for j, (kind, first, steps, level, still, _) in enumerate(legs_i):
+        speed = float(np.linalg.norm(coef[j, 3:, 0]))
+        if level != 2 or still or kind != K.POS_DENSE or steps == 0 or speed == 0.0:
+            continue
+        rows = dense[first:first + steps]
+        lat_max = float(np.max(np.abs(rows[:, 23]))) + speed * float(np.max(rows[:, 1])) / (
+            WGS84_A * (1.0 - WGS84_E2))
+        radius = WGS84_A * (1.0 - WGS84_E2) + min(float(np.min(rows[:, 25])), 0.0)
+        if lat_max >= 0.5 * np.pi or radius <= 0.0:       # pragma: no cover - the range check
+            continue
+        out[j] = min(_CHUNK_MAX_S, _CHUNK_OF_SCALE * radius * np.cos(lat_max) / speed)
+    return out
