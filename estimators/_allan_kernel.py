@@ -1,7 +1,8 @@
 """The overlapping Allan deviation (``allantools.oadev(..., data_type="freq")``) with its inner
-sum compiled (numba, ``nogil``): allantools' own phase (:func:`allantools.frequency2phase`), τ
-list (:func:`allantools.tau_generator`) and small-n rule, then per averaging factor ``m`` one
-pass over the phase ``x``::
+sum compiled (numba, ``nogil``): allantools' phase (:func:`allantools.frequency2phase`: the
+mean removed, the running sum times 1/f, a leading zero — compiled in one pass when the record
+has no NaN, allantools itself otherwise), τ list (:func:`allantools.tau_generator`) and small-n
+rule, then per averaging factor ``m`` one pass over the phase ``x``::
 
     v_i = (x_{i+2m} − 2·x_{i+m}) + x_i,   s = Σ_i v_i²,   σ(τ) = √(s / 2n) / m · f
 
@@ -31,6 +32,40 @@ __all__ = ["oadev", "oadev_octave"]
 
 
 @njit(nogil=True, cache=True)
+def _any_nan(y):                                               # pragma: no cover (compiled)
+    """Whether ``y`` holds a NaN."""
+    for i in range(y.size):
+        if np.isnan(y[i]):
+            return True
+    return False
+
+
+@njit(nogil=True, cache=True)
+def _phase(y, mean, dt, out):                                  # pragma: no cover (compiled)
+    """``out[0] = 0``, ``out[i+1] = (Σ_{k≤i} (y_k − mean))·dt``: allantools'
+    ``np.cumsum(y − mean)·dt`` with the leading zero (a running sum in index order, as
+    numpy's cumsum adds), in one pass."""
+    out[0] = 0.0
+    acc = 0.0
+    for i in range(y.size):
+        acc = acc + (y[i] - mean)
+        out[i + 1] = acc * dt
+
+
+def _frequency2phase(freq: np.ndarray, rate_hz: float) -> np.ndarray:
+    """:func:`allantools.frequency2phase` bit for bit: without a NaN its mean is numpy's
+    pairwise ``sum / n`` (what ``np.nanmean`` computes then) and its running sum is compiled
+    (:func:`_phase`: one pass instead of allantools' trim, mean, difference, cumsum, product
+    and insert, 0.45 s of a 7.2 M-sample record); with a NaN, allantools itself."""
+    y = np.ascontiguousarray(freq, dtype=np.float64)
+    if y.size == 0 or _any_nan(y):
+        return allantools.frequency2phase(y, rate_hz)
+    out = np.empty(y.size + 1)
+    _phase(y, float(np.sum(y)) / y.size, 1.0 / float(rate_hz), out)
+    return out
+
+
+@njit(nogil=True, cache=True)
 def _squared_second_differences(x, m, out):                   # pragma: no cover (compiled)
     """``out[i] = ((x[i+2m] − 2·x[i+m]) + x[i])²`` for ``i < x.size − 2m`` (allantools'
     operations, one pass)."""
@@ -46,7 +81,7 @@ def oadev(freq: np.ndarray, rate_hz: float, taus: ArrayLike | str = "octave",
     (only τ ≤ ``max_tau_s``; estimates from a single difference left out as allantools does):
     τ [s], the deviation in the unit of ``freq``, its 1-σ error ``adev/√n`` and the number of
     differences n (float, as allantools returns it)."""
-    phase = allantools.frequency2phase(np.asarray(freq, dtype=float), rate_hz)
+    phase = _frequency2phase(np.asarray(freq, dtype=float), rate_hz)
     phase, m, tau = allantools.tau_generator(phase, rate_hz, taus)
     m = np.asarray(m, dtype=np.int64)
     tau = np.asarray(tau, dtype=float)
