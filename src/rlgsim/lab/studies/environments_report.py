@@ -31,31 +31,68 @@ from rlgsim.lab.study import Study
 SPREADS = (0.3, 0.5, 1.0, 2.0)
 
 
+def _env_navigation(study: Study, config: Config, exp, unit: int):
+    """One environment's navigation dataset (or None); a task of :func:`start_navigation`."""
+    from rlgsim.lab.studies.imu_axes import imu_navigation
+    nav = imu_navigation(study, config, exp, unit=unit)
+    return None if nav is None else nav[0]
+
+
+class NavigationRuns:
+    """Every environment's navigation by the three-gyro IMU
+    (:func:`rlgsim.lab.studies.imu_axes.imu_navigation`) on its first test run, under way in a
+    worker process beside this one (:class:`rlgsim.lab.studies.task_share.TaskShare`) from
+    :func:`start_navigation` until :meth:`result`."""
+
+    def __init__(self, study: Study, config: Config, results: list[EnvResult], loaded: dict,
+                 unit: int) -> None:
+        from rlgsim.lab.studies.imu_axes import ImuRun
+        from rlgsim.lab.studies.task_share import TaskShare
+        self.study, self.config, self.unit = study, config, unit
+        self.names, tasks = [], []
+        for r in results:
+            if not all(has_truth(t) for t in r.tests) or r.tests[0].path.suffix != ".h5":
+                continue
+            test = r.env.test[0]
+            specs = tuple(r.env.train) + (test,)
+            runs = {s.key: loaded[s.key] for s in specs}        # what the task reads, only
+            exp = ImuRun(runs, tuple(r.env.train), test, r.fitted, r.predictions[test.label])
+            self.names.append(r.env.name)
+            tasks.append((study, config, exp, unit))
+        self.share = TaskShare(_env_navigation, tasks)
+
+    def result(self):
+        """({environment: dataset}, introduction), or None when no environment's test run is
+        a simulated dataset."""
+        out = {name: ds for name, ds in zip(self.names, self.share.results()) if ds is not None}
+        if not out:
+            return None
+        from rlgsim.lab.studies.imu_axes import intro, parse_navigation
+        ds = next(iter(out.values()))
+        span_h = (ds.attrs["navigation_end_s"] - ds.attrs["align_end_s"]) / 3600.0
+        plan = parse_navigation(self.study, [c.name for c in self.config.compensators])
+        return out, intro(plan, self.unit, "(each environment's first)", span_h,
+                          "Every environment navigates the IMU of the same three units, each "
+                          "compensator fitted per environment and axis.")
+
+    def close(self) -> None:
+        self.share.close()
+
+
+def start_navigation(study: Study, config: Config, results: list[EnvResult], loaded: dict,
+                     unit: int) -> NavigationRuns:
+    """Start every environment's navigation (:class:`NavigationRuns`); its ``result()`` is
+    :func:`navigation`'s."""
+    return NavigationRuns(study, config, results, loaded, unit)
+
+
 def navigation(study: Study, config: Config, results: list[EnvResult], loaded: dict,
                unit: int):
     """Every environment's navigation by the three-gyro IMU
     (:func:`rlgsim.lab.studies.imu_axes.imu_navigation`) on its first test run:
     ({environment: dataset}, introduction), or None when no environment's test run is a
     simulated dataset."""
-    from rlgsim.lab.studies.imu_axes import ImuRun, imu_navigation
-    out = {}
-    for r in results:
-        if not all(has_truth(t) for t in r.tests) or r.tests[0].path.suffix != ".h5":
-            continue
-        test = r.env.test[0]
-        exp = ImuRun(loaded, tuple(r.env.train), test, r.fitted, r.predictions[test.label])
-        nav = imu_navigation(study, config, exp, unit=unit)
-        if nav is not None:
-            out[r.env.name] = nav[0]
-    if not out:
-        return None
-    from rlgsim.lab.studies.imu_axes import intro, parse_navigation
-    ds = next(iter(out.values()))
-    span_h = (ds.attrs["navigation_end_s"] - ds.attrs["align_end_s"]) / 3600.0
-    plan = parse_navigation(study, [c.name for c in config.compensators])
-    return out, intro(plan, unit, "(each environment's first)", span_h,
-                      "Every environment navigates the IMU of the same three units, each "
-                      "compensator fitted per environment and axis.")
+    return start_navigation(study, config, results, loaded, unit).result()
 
 
 def _run_bullets(study: Study, config: Config, loaded: dict, unit: int, t_data: float,
@@ -93,6 +130,16 @@ def _definitions() -> list[str]:
 
 def report(study: Study, config: Config, loaded: dict, results: list[EnvResult], unit: int,
             t_data: float, t_total: float) -> Report:
+    """The report (module docstring); the navigation runs in a worker process meanwhile."""
+    nav_runs = start_navigation(study, config, results, loaded, unit)
+    try:
+        return _report(study, config, loaded, results, unit, t_data, t_total, nav_runs)
+    finally:
+        nav_runs.close()
+
+
+def _report(study: Study, config: Config, loaded: dict, results: list[EnvResult], unit: int,
+            t_data: float, t_total: float, nav_runs: NavigationRuns) -> Report:
     rep = Report(study.title)
     if study.description:
         rep.paragraph(study.description)
@@ -176,7 +223,7 @@ def report(study: Study, config: Config, loaded: dict, results: list[EnvResult],
 
     rep.heading("Figures", 2)
     figures(rep, results, config)
-    nav = navigation(study, config, results, loaded, unit)
+    nav = nav_runs.result()
     if nav is not None:
         from rlgsim.lab.studies.navigation_section import add_env_section
         add_env_section(rep, *nav)
