@@ -120,7 +120,8 @@ def test_drive_truth_group_and_bytes_whatever_the_chunking(tmp_path):
 
 def test_kinematics_ahead_are_the_kinematics_in_place(tmp_path, monkeypatch):
     """A vehicle's blocks are computed ahead in worker threads (the increments in one, the
-    truth rows in the other); the file is the one of every block computed on the main thread —
+    truth rows in the other, by the compiled rows kernel); the file is the one of every block
+    computed on the main thread (the rows by NumPy from the states) —
     at a rate whose thermal steps hold uneven numbers of samples (7.3 Hz)."""
     from rlgsim.sim.sensors.imu import ImuSimulator
     text = drive().replace("sample_rate_hz = 10", "sample_rate_hz = 7.3")

@@ -1,7 +1,7 @@
-"""Compiled block of a trajectory (numba): the increments and truth states of ``n`` samples.
+"""Compiled block of a trajectory (numba): the increments of ``n`` samples (their truth
+states: :mod:`rlgsim.sim.motion._trajectory_truth`).
 
-:meth:`rlgsim.sim.motion.trajectory.Trajectory.increments` and :meth:`~rlgsim.sim.motion.
-trajectory.Trajectory.truth` hand a whole block to these kernels: the sample grid, its split at
+:meth:`rlgsim.sim.motion.trajectory.Trajectory.increments` hands a whole block to this kernel: the sample grid, its split at
 the leg starts, the standing-still runs, the geodetic positions from the legs' DOP853 dense
 output and the quadrature of :mod:`rlgsim.sim.motion._trajectory_kernel` — one compiled loop
 over the samples, no per-sample NumPy temporaries (the NumPy form of the same steps cost ~15×
@@ -45,14 +45,12 @@ it (tests/test_trajectory.py).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL, W_X,
+from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL,
                                                   _earth_terms, _position, _position_rate,
-                                                  _qmul, _state, _state_geodetic)
+                                                  _state, _state_geodetic)
 
 #: Gauss–Legendre points per sub-interval of a leg whose attitude turns (with the Hermite
 #: position), of one of constant attitude whose velocity changes, and of one holding its
@@ -339,57 +337,3 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
         runs[n_runs, 0], runs[n_runs, 1] = run_lo, last_sample + 1
         n_runs += 1
     return n_runs
-
-
-@njit(cache=True, nogil=True)
-def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, out_p, out_v, out_q,
-              out_e):  # pragma: no cover - compiled
-    """The truth at run times ``t`` (k,) (a leg start belongs to the leg ending there):
-    (L, λ, h) ``out_p``, ENU velocity ``out_v``, q_b^n ``out_q`` and heading/pitch/roll
-    ``out_e``; in a leg of constant attitude C_b^n, q_b^n and the angles are computed once
-    (the same numbers: its angle channels do not depend on τ)."""
-    a_axis, e2 = earth[0], earth[1]
-    w = np.empty(32)
-    m = legs_i.shape[0]
-    c_leg = -1
-    q0 = q1 = q2 = q3 = 0.0
-    for k in range(t.size):
-        a, b = 0, m                              # first start >= t (side "left")
-        while a < b:
-            mid = (a + b) // 2
-            if legs_f[mid, LF_T0] < t[k]:
-                a = mid + 1
-            else:
-                b = mid
-        j = min(max(a - 1, 0), m - 1)
-        tau = t[k] - legs_f[j, LF_T0]
-        if legs_i[j, LI_GEO] == 1:
-            _state_geodetic(coef, dcoef, d2coef, j, tau, w, e2, a_axis)
-            out_p[k, 0], out_p[k, 1], out_p[k, 2] = w[W_X + 3], w[W_X + 4], w[W_X + 5]
-            c_leg = -1
-        elif j == c_leg:                         # constant attitude: the velocity only
-            for ch in range(3, 6):
-                v = coef[j, ch, 5]
-                for i in range(4, -1, -1):
-                    v = v * tau + coef[j, ch, i]
-                w[W_X + ch] = v
-            for i in range(3):
-                w[12 + i] = (w[3 * i] * w[W_X + 3] + w[3 * i + 1] * w[W_X + 4]
-                             + w[3 * i + 2] * w[W_X + 5])
-            out_p[k, 0], out_p[k, 1], out_p[k, 2] = _position(legs_i, legs_f, dense, j, tau)
-        else:
-            _state(coef, dcoef, j, tau, w)
-            out_p[k, 0], out_p[k, 1], out_p[k, 2] = _position(legs_i, legs_f, dense, j, tau)
-            hz, hx, hy = 0.5 * w[W_X], 0.5 * w[W_X + 1], 0.5 * w[W_X + 2]
-            q0, q1, q2, q3 = _qmul(math.cos(hz), 0.0, 0.0, -math.sin(hz),
-                                   math.cos(hx), math.sin(hx), 0.0, 0.0)
-            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, math.cos(hy), 0.0, math.sin(hy), 0.0)
-            c_leg = j if legs_i[j, LI_LEVEL] != 0 else -1
-        if legs_i[j, LI_GEO] == 1:
-            hz, hx, hy = 0.5 * w[W_X], 0.5 * w[W_X + 1], 0.5 * w[W_X + 2]
-            q0, q1, q2, q3 = _qmul(math.cos(hz), 0.0, 0.0, -math.sin(hz),
-                                   math.cos(hx), math.sin(hx), 0.0, 0.0)
-            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, math.cos(hy), 0.0, math.sin(hy), 0.0)
-        out_v[k, 0], out_v[k, 1], out_v[k, 2] = w[12], w[13], w[14]
-        out_e[k, 0], out_e[k, 1], out_e[k, 2] = w[W_X], w[W_X + 1], w[W_X + 2]
-        out_q[k, 0], out_q[k, 1], out_q[k, 2], out_q[k, 3] = q0, q1, q2, q3

@@ -172,7 +172,12 @@ def _position(legs_i, legs_f, dense, j, tau):  # pragma: no cover - compiled
             a = mid + 1
         else:
             b = mid
-    s = lo + min(max(a - 1, 0), ns - 1)
+    return _dense_at(dense, lo + min(max(a - 1, 0), ns - 1), tau)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dense_at(dense, s, tau):  # pragma: no cover - compiled
+    """(L, λ, h) of DOP853 step ``s`` of ``dense`` at leg time ``tau`` (:func:`_position`)."""
     x = (tau - dense[s, 0]) / dense[s, 1]
     y0 = y1 = y2 = 0.0
     for i in range(7):

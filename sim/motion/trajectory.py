@@ -216,6 +216,7 @@ class Trajectory:
         self._legs_i, self._legs_f, self._dense = _leg_tables(
             self._position, self._geodetic, self._t0, np.array([leg.duration_s for leg in legs]),
             self._level, self._still)
+        self._gnss = np.array([leg.gnss for leg in legs], dtype=np.int8)
         self._chunk = _chunk_lengths(self._coef, self._legs_i, self._legs_f, self._dense)
 
     # ---- the legs ---------------------------------------------------------------------
@@ -382,13 +383,30 @@ class Trajectory:
         SI): ``lat``, ``lon`` [rad], ``height`` [m], ``v_n`` (k, 3) [m/s], ``q_bn`` (k, 4),
         ``euler`` (k, 3) heading, pitch, roll [rad] — :meth:`states`' numbers, the velocity and
         attitude computed by the compiled kernel (the same formulas)."""
+        p, v, q, e, _ = self._truth_arrays(t_s, False)
+        return {"lat": p[0], "lon": p[1], "height": p[2], "v_n": v, "q_bn": q, "euler": e.T}
+
+    def truth_rows(self, t_s: np.ndarray) -> dict[str, np.ndarray]:
+        """The dataset's ``trajectory`` rows at sample end times ``t_s`` — latitude, longitude
+        [°], height [m], velocity, attitude q_b^n, heading [°, in [0, 360)], pitch, roll [°],
+        gnss_visible (int8) — made by the compiled kernel in one pass: the numbers of
+        ``rlgsim.sim.writer.schema.trajectory_rows(self, t_s)``, bit for bit
+        (sim/motion/_trajectory_truth.py)."""
+        p, v, q, e, g = self._truth_arrays(t_s, True)
+        return {"latitude": p[0], "longitude": p[1], "height": p[2], "velocity": v,
+                "attitude": q, "heading": e[0], "pitch": e[1], "roll": e[2], "gnss_visible": g}
+
+    def _truth_arrays(self, t_s: np.ndarray, degrees: bool) -> tuple[np.ndarray, ...]:
+        """(L, λ, h) (3, k), v^n (k, 3), q_b^n (k, 4), heading/pitch/roll (3, k) and the GNSS
+        flags (k,) at ``t_s`` (degrees: the rows' units)."""
+        from rlgsim.sim.motion._trajectory_truth import states_at
         t = np.ascontiguousarray(np.atleast_1d(np.asarray(t_s, dtype=float)))
         k = t.size
-        v, q, e, p = np.empty((k, 3)), np.empty((k, 4)), np.empty((k, 3)), np.empty((k, 3))
-        _kernel().states_at(t, self._coef, self._dcoef, self._d2coef, self._legs_i,
-                            self._legs_f, self._dense, _EARTH, p, v, q, e)
-        return {"lat": p[:, 0], "lon": p[:, 1], "height": p[:, 2], "v_n": v, "q_bn": q,
-                "euler": e}
+        p, v, q, e = np.empty((3, k)), np.empty((k, 3)), np.empty((k, 4)), np.empty((3, k))
+        g = np.empty(k, dtype=np.int8)
+        states_at(t, self._coef, self._dcoef, self._d2coef, self._legs_i, self._legs_f,
+                  self._dense, _EARTH, self._gnss, bool(degrees), p, v, q, e, g)
+        return p, v, q, e, g
 
     def gnss_visible(self, t_s: np.ndarray) -> np.ndarray:
         """Whether a GNSS receiver sees the sky at times ``t_s`` (the leg's flag)."""

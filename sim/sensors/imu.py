@@ -148,7 +148,8 @@ class ImuSimulator:
         self._motion_pool = None
         self._motion_next = 0                   # first step of the next block to queue
         #: ``rows(t_s, states)`` of a vehicle's truth group, made with its kinematics (the
-        #: stage's; None: the states are kept for the caller instead)
+        #: stage's; ``states`` None: it computes them too; the attribute None: the states are
+        #: kept for the caller instead)
         self.motion_rows: Any = None
         g, a, lv = self.r.gyros, self.r.accels, self.r.levels
         # one flicker bank for gyros and accelerometers (same τ grid): one lfilter per process
@@ -241,7 +242,7 @@ class ImuSimulator:
         ``k0``, at the sample end times :meth:`_vehicle_block`'s block has."""
         from rlgsim.sim.motion.kinematics import _edges
         t_s = _edges(round(k0 * self.step_s * self.rate_hz), np.arange(n) + 1, self.rate_hz)
-        return self.motion_rows(t_s, self.motion.truth(t_s))
+        return self.motion_rows(t_s, None)          # made with the states in one pass
 
     def _kinematics_now(self, k0: int, m: int, n: int, truth: bool = True) -> dict[str, Any]:
         """The motion's exact increments (``dth_t``, ``dv_t`` (3, n) rows of the body axes),

@@ -97,7 +97,10 @@ class ImuStage(Stage):
         motion = motion if motion is not None else Motion(self.turntable_segments,
                                                           self.scenario.site)
         if getattr(motion, "kind", "turntable") == "trajectory":
-            self.sim.motion_rows = lambda t_s, states: trajectory_rows(motion, t_s, states)
+            # rows from states already computed, or made by the compiled kernel in one pass
+            self.sim.motion_rows = lambda t_s, states: (
+                motion.truth_rows(t_s) if states is None
+                else trajectory_rows(motion, t_s, states))
         self.sim.start(motion)
 
     def block(self, state: ImuState, b: int, trace, motion) -> tuple[dict, ImuState]:
