@@ -91,6 +91,51 @@ def _versions_json() -> str:
     return versions_json()
 
 
+class _TextAttributes:
+    """Text attributes written as h5py's ``obj.attrs[name] = text`` writes them — a scalar
+    variable-length UTF-8 string, the same HDF5 calls (an existing one deleted, H5Acreate,
+    H5Awrite, H5Aclose) with the same types — without the per-call type guessing and
+    conversion of h5py's high-level path: ~0.02 ms an attribute instead of ~0.07 ms, and a run
+    writes ~170 of them (``units``, ``description``) while it lays out its file."""
+
+    def __init__(self) -> None:
+        from h5py import h5s, h5t
+        self._file_type = h5t.py_create(_STR, logical=True)   # as AttributeManager.create
+        self._memory_type = h5t.py_create(_STR)
+        self._space = h5s.create_simple(())
+
+    def write(self, obj_id: Any, name: str, text: str) -> None:
+        from h5py import h5a
+        key = name.encode("ascii")
+        data = np.asarray(np.asarray(text, dtype=_STR), dtype=_STR)
+        if h5a.exists(obj_id, key):
+            h5a.delete(obj_id, key)
+        attr = h5a.create(obj_id, key, self._file_type, self._space)
+        try:
+            attr.write(data, mtype=self._memory_type)
+        except BaseException:
+            attr.close()
+            h5a.delete(obj_id, key)
+            raise
+        attr.close()
+
+
+_TEXT_ATTRIBUTES: _TextAttributes | None = None
+
+
+def _set_attr(obj: Any, name: str, value: Any) -> None:
+    """``obj.attrs[name] = value`` — text with an ASCII name through :class:`_TextAttributes`
+    (the same attribute, faster), anything else through h5py."""
+    global _TEXT_ATTRIBUTES
+    if type(value) is str and name.isascii():
+        if _TEXT_ATTRIBUTES is None:
+            _TEXT_ATTRIBUTES = _TextAttributes()
+        with h5py._objects.phil:                  # h5py's lock, as its own attrs path holds
+            _TEXT_ATTRIBUTES.write(obj.id, name, value)
+    else:
+        obj.attrs[name] = value
+
+
 def _attr_value(value: Any) -> Any:
     if isinstance(value, str):
         return value
@@ -116,6 +161,7 @@ class GroupWriter:
         #: without visiting the file
         self.row_bytes: dict[str, int] = {}
         self._growing_ds: list[tuple[str, h5py.Dataset]] = []   # (name, growing dataset)
+        self._scales: dict[str, h5py.Dataset] = {}   # dimension name -> its scale, open
 
     def _count_row(self, name: str, dim: str, ds: h5py.Dataset, scale: bool = False) -> None:
         """Add growing dataset ``ds`` (along ``dim``) to :attr:`row_bytes` — as
@@ -153,6 +199,7 @@ class GroupWriter:
                 dtype = _STR
             ds = self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
         ds.make_scale(name)
+        self._scales[name] = ds
         self._set_attrs(ds, units, description, attrs)
 
     def dimension(self, name: str) -> None:
@@ -163,6 +210,7 @@ class GroupWriter:
         ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=">f4",
                                     chunks=(1 << 16,), track_times=False)
         ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
+        self._scales[name] = ds
         self._growing[name] = []
         self._dim_only.add(name)
         self._count_row(name, name, ds, scale=True)
@@ -181,7 +229,7 @@ class GroupWriter:
         h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
         filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
         ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
-        scales = [self._g[d] for d in dims]
+        scales = [self._scales.get(d) or self._g[d] for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
             dtype = _STR
@@ -198,18 +246,19 @@ class GroupWriter:
             if string:
                 arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
             ds = self._g.create_dataset(name, data=arr, dtype=dtype, track_times=False)
-        for axis, scale in enumerate(scales):
-            ds.dims[axis].attach_scale(scale)
+        for axis, scale in enumerate(scales):       # ds.dims[axis].attach_scale(scale)
+            with h5py._objects.phil:
+                h5py.h5ds.attach_scale(ds.id, scale.id, axis)
         self._set_attrs(ds, units, description, attrs)
 
     @staticmethod
     def _set_attrs(ds: h5py.Dataset, units: str | None, description: str,
                    attrs: Mapping[str, Any] | None) -> None:
         if units is not None:
-            ds.attrs["units"] = units
-        ds.attrs["description"] = description
+            _set_attr(ds, "units", units)
+        _set_attr(ds, "description", description)
         for key, value in (attrs or {}).items():
-            ds.attrs[key] = _attr_value(value)
+            _set_attr(ds, key, _attr_value(value))
 
     def append(self, dim: str, rows: Mapping[str, np.ndarray]) -> None:
         """Append the same number of rows to ``dim`` and every variable along it.
@@ -457,9 +506,9 @@ class DatasetWriter:
     def group(self, name: str, description: str,
               attrs: Mapping[str, Any] | None = None) -> GroupWriter:
         g = self._file.create_group(name, track_order=True)
-        g.attrs["description"] = description
+        _set_attr(g, "description", description)
         for key, value in (attrs or {}).items():
-            g.attrs[key] = _attr_value(value)
+            _set_attr(g, key, _attr_value(value))
         writer = GroupWriter(g)
         self._groups.append(writer)
         return writer
