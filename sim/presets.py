@@ -26,6 +26,7 @@ import stat
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
+from typing import Any
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.paths import file_kind
@@ -95,11 +96,44 @@ def _depth(data) -> int:
     return deepest
 
 
+#: Texts up to this many characters are kept parsed (:func:`parse_toml`), the latest
+#: :data:`_PARSED_MAX` of them: a Monte Carlo run, a study or a benchmark reads the same device
+#: and thermal presets for every run, and parsing them took ~2.5 ms of each (a 1 h run at
+#: 100 Hz takes ~0.1 s). The shipped presets hold ~2–20 kB.
+_PARSED_MAX_CHARS = 1 << 18
+_PARSED_MAX = 64
+_PARSED: dict[str, dict] = {}
+
+
+def _copy(value: Any) -> Any:
+    """A copy of parsed TOML whose tables and arrays are new (the values in them — numbers,
+    strings, booleans, dates — are immutable); nesting is bounded by :data:`MAX_DEPTH`."""
+    if type(value) is dict:
+        return {k: _copy(v) for k, v in value.items()}
+    if type(value) is list:
+        return [_copy(v) for v in value]
+    return value
+
+
 def parse_toml(text: str, source: str) -> dict:
     """Parse TOML text; a syntax error becomes ``source: line L, column C: TOML syntax error``.
     A leading UTF-8 byte-order mark is accepted; tables or arrays nested deeper than
-    :data:`MAX_DEPTH` are refused."""
+    :data:`MAX_DEPTH` are refused. The same text parsed again (:data:`_PARSED_MAX_CHARS`) is
+    a copy of the first parse's tables (the caller may change its own)."""
     text = text.removeprefix("\ufeff")
+    kept = _PARSED.get(text)
+    if kept is not None:
+        return _copy(kept)
+    data = _parse_toml(text, source)
+    if len(text) <= _PARSED_MAX_CHARS:
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)), None)     # the oldest
+        _PARSED[text] = _copy(data)
+    return data
+
+
+def _parse_toml(text: str, source: str) -> dict:
+    """:func:`parse_toml` without the kept texts."""
     try:
         data = tomllib.loads(text)
     except RecursionError:
