@@ -83,6 +83,10 @@ def test_table_increments_are_the_exact_integrals(tmp_path):
     ref_th, ref_v = fine_integrals(traj, (190 + np.arange(31)) / 100.0, 100.0)
     assert np.max(np.abs(mb.dtheta_rad - ref_th)) < 64 * 2.2e-16 * np.max(np.abs(ref_th))
     assert np.max(np.abs(mb.dv_m_per_s - ref_v)) < 64 * 2.2e-16 * np.max(np.abs(ref_v))
+    # the range check's compiled peaks on a table's legs: the NumPy formulas' (test_trajectory)
+    (w, f, at), (wn, fn, atn) = traj.peak_inputs(), traj.peak_inputs_numpy()
+    assert at == atn and w == pytest.approx(wn, rel=1e-14, abs=0)
+    assert f == pytest.approx(fn, rel=1e-14, abs=0)
 
 
 def test_run_from_a_table_scenario(tmp_path):
