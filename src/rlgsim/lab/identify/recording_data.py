@@ -261,7 +261,9 @@ def read_recordings(path: str | os.PathLike, gyros: list[str | None], *,
     p = pathlib.Path(source)
     if not p.exists():
         raise UserInputError(f"{source}: no such file")
-    tree = open_tree(source, load=True)
+    # opened lazily: only the arrays read below come off the disk (one gyro's column, not the
+    # datetime twins of the 7.2 M sample times that loading the tree would compute)
+    tree = open_tree(source)
     out: list[RecordingData] = []
     try:
         raw = []
