@@ -249,6 +249,35 @@ def test_standing_still_samples_are_one_increment():
     assert np.all(mb.dv_m_per_s[start:] == mb.dv_m_per_s[start])
 
 
+def test_positions_are_solve_ivps_steps():
+    """The route's positions are stepped by scipy's DOP853 without solve_ivp's bookkeeping
+    (trajectory._dop853_steps): the very steps and interpolants solve_ivp gives, leg by leg; a
+    standing leg holds its start (what DOP853's steps of a zero rate give, bit for bit)."""
+    from rlgsim.sim.motion.trajectory import _ATOL, _RTOL
+    traj = Trajectory(manoeuvres(), START, until_s=120.0)
+    assert traj._still[0] and traj._position[0][1] is None
+    for j in (1, 2, 3):
+        y0, sol = traj._position[j]
+        rhs = traj_rhs(traj, j)
+        ref = solve_ivp(rhs, (0.0, traj.legs[j].duration_s), y0, method="DOP853", rtol=_RTOL,
+                        atol=_ATOL, dense_output=True).sol
+        assert np.array_equal(sol.ts, ref.ts)
+        for a, b in zip(sol.interpolants, ref.interpolants):
+            assert a.t_old == b.t_old and a.h == b.h
+            assert np.array_equal(a.F, b.F) and np.array_equal(a.y_old, b.y_old)
+    still = solve_ivp(traj_rhs(traj, 0), (0.0, traj.legs[0].duration_s), traj._position[0][0],
+                      method="DOP853", rtol=_RTOL, atol=_ATOL, dense_output=True)
+    assert np.array_equal(still.sol(np.linspace(0.0, traj.legs[0].duration_s, 7)),
+                          np.repeat(traj._position[0][0][:, None], 7, axis=1))
+
+
+def traj_rhs(traj: Trajectory, j: int):
+    """The right-hand side of leg ``j``'s position integration."""
+    from rlgsim.sim.motion._trajectory_kernel import position_rate_at
+    return lambda tau, p: position_rate_at(traj._coef, traj._dcoef, j, tau, p[0], p[2],
+                                           WGS84_E2, WGS84_A)
+
+
 def test_same_numbers_whatever_block_asks():
     """A sample's increments do not depend on which call computes it. (And the range check's
     compiled peaks are the NumPy formulas' on the same grid — sums of a few products in another
