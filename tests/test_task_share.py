@@ -53,3 +53,32 @@ def test_a_tasks_error_is_raised_and_the_worker_closed():
 def test_no_nested_pool_in_a_worker_process():
     with cf.ProcessPoolExecutor(1) as pool:
         assert pool.submit(_nested, 1).result()
+
+
+def test_fit_all_shared_gives_the_sequential_fits():
+    """Paper 001's grouping: IR-LSSVMs of one input set share their tuning in one task; every
+    prediction equals the sequential fit_all's, byte for byte, in spec order."""
+    from rlgsim.estimators.columns import Columns
+    from rlgsim.lab.studies.fitting import fit_all
+    from rlgsim.lab.studies.compensators import CompensatorSpec
+    from rlgsim.sim.config import Ctx
+
+    rng = np.random.default_rng(7)
+    X = Columns({"T": rng.uniform(-10, 40, 60), "U": rng.normal(0, 1, 60)})
+    y = 0.01 * X["T"] + 0.1 * np.sin(X["U"]) + rng.normal(0, 0.02, 60)
+
+    def spec(name, kind, inputs, **params):
+        return CompensatorSpec(name, kind, inputs, params, "", {}, Ctx("t.toml", "c"))
+    ir = dict(tune_cv=3, rescale=False, max_iter=1, cv=3, gammas=[1.0, 100.0],
+              sigma2s=[0.5, 2.0])
+    specs = [spec("ir huber T", "ir_lssvm", ("T",), weight="huber", **ir),
+             spec("poly U", "polynomial", ("U",), degree=2),
+             spec("ir huber T,U", "ir_lssvm", ("T", "U"), weight="huber", **ir),
+             spec("ir hampel T", "ir_lssvm", ("T",), weight="hampel", **ir)]
+    seq = fit_all(specs, X, y, 5, progress=False)
+    shared = fit_all(specs, X, y, 5, progress=False, share=True)
+    assert [f.spec for f in shared] == specs and all(a.spec is b for a, b in zip(shared, specs))
+    for a, b in zip(seq, shared):
+        Xi = X.select(a.spec.inputs)
+        assert a.hyper == b.hyper
+        assert a.model.predict(Xi).tobytes() == b.model.predict(Xi).tobytes()

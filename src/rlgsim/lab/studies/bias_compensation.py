@@ -96,7 +96,8 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     runs, train, Xtr, ytr, random_state = ex.runs, ex.train, ex.X, ex.y, ex.random_state
     t_data = ex.t_data
 
-    fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress)
+    fitted = fit_all(config.compensators, Xtr, ytr, random_state, progress=progress,
+                     share=True)
 
     rows: list[tuple[str, str, float]] = []
     per_test: dict[str, dict[str, dict[str, float]]] = {}

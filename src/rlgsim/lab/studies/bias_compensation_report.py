@@ -25,7 +25,17 @@ from rlgsim.lab.study import Study, StudyResult
 # ------------------------------------------------------------------------------ the report
 def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report of a run (the paper's tables beside ours, truth-based scores, rankings,
-    figures)."""
+    figures). The navigation runs in a worker process meanwhile
+    (:class:`rlgsim.lab.studies.task_share.TaskShare`: the same bytes as here)."""
+    from rlgsim.lab.studies.task_share import TaskShare
+    nav = TaskShare(first_test_navigation, [(study, config, result.details)], background=True)
+    try:
+        return _report(study, config, result, nav)
+    finally:
+        nav.close()
+
+
+def _report(study: Study, config: Config, result: StudyResult, nav_runs) -> Report:
     from rlgsim.sim.writer.dataset import software_version
 
     out: Outcome = result.details
@@ -83,7 +93,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
         run_figures(rep, config, fitted, runs[spec.key].series, predictions[spec.label],
                     per_test[spec.label], ytr, spec.label, multi)
 
-    nav = navigation(study, config, result)
+    nav = nav_runs.results()[0]
     if nav is not None:
         from rlgsim.lab.studies.navigation_section import add_section
         add_section(rep, *nav)

@@ -45,12 +45,11 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             model = make_estimator(spec, random_state)
-            if spec.kind == "ir_lssvm" and not ("gamma" in spec.params and "sigma2" in spec.params):
+            key = _tuning_key(spec)
+            if key is not None:
                 from rlgsim.estimators.lssvm_cv import LSSVMRegressorCV
                 p = spec.params
                 kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
-                key = (spec.inputs, repr(sorted(kw.items())), repr(p.get("tune_cv", 10)),
-                       repr(p.get("tune_scoring", "mse")))
                 if tuned is None or key not in tuned:
                     tuner = LSSVMRegressorCV(cv=p.get("tune_cv", 10),
                                              scoring=p.get("tune_scoring", "mse"),
@@ -86,12 +85,65 @@ def fit(spec: CompensatorSpec, X, y: np.ndarray, random_state: int,
     return Fitted(spec, model, time.perf_counter() - t0, hyper, Xi)
 
 
+def _tuning_key(spec: CompensatorSpec) -> tuple | None:
+    """The key of IR-LSSVM's unweighted tuning that ``spec`` shares (:func:`fit`), or None."""
+    if spec.kind != "ir_lssvm" or ("gamma" in spec.params and "sigma2" in spec.params):
+        return None
+    p = spec.params
+    kw = {k: p[k] for k in ("gammas", "sigma2s") if k in p}
+    return (spec.inputs, repr(sorted(kw.items())), repr(p.get("tune_cv", 10)),
+            repr(p.get("tune_scoring", "mse")))
+
+
+def _fit_group(specs: list[CompensatorSpec], X, y: np.ndarray, random_state: int
+               ) -> list[Fitted]:
+    """Fit ``specs`` in order sharing one tuning cache (a task of :func:`fit_all`)."""
+    tuned: dict = {}
+    return [fit(spec, X, y, random_state, tuned) for spec in specs]
+
+
+def _fit_shared(specs: list[CompensatorSpec], X, y: np.ndarray, random_state: int,
+                bar) -> list[Fitted]:
+    """:func:`fit_all` on two cores: the specs grouped by the IR-LSSVM tuning they share (each
+    other spec alone), the groups shared with one worker process
+    (:class:`rlgsim.lab.studies.task_share.TaskShare`). Every fit is the one :func:`fit_all`
+    makes in sequence: a group's first fit makes the tuning its later ones reuse, as the
+    first spec of that key does there."""
+    import dataclasses
+
+    from rlgsim.lab.studies.task_share import TaskShare
+    groups: dict[tuple, list[int]] = {}
+    for i, spec in enumerate(specs):
+        key = _tuning_key(spec)
+        groups.setdefault(("one", i) if key is None else ("tuned", key), []).append(i)
+    members = list(groups.values())
+    out: list[Any] = [None] * len(specs)
+
+    def landed(g: int, fits: list[Fitted]) -> None:
+        for i, f in zip(members[g], fits):     # the caller's own spec objects back in place
+            out[i] = dataclasses.replace(f, spec=specs[i])
+        bar.update(len(fits))
+    share = TaskShare(_fit_group, [([specs[i] for i in m], X, y, random_state) for m in members])
+    share.results(landed)
+    return out
+
+
 def fit_all(specs, X, y: np.ndarray, random_state: int, *, progress: bool,
-            desc: str = "fitting", prepare=None) -> list[Fitted]:
+            desc: str = "fitting", prepare=None, share: bool = False) -> list[Fitted]:
     """Fit every compensator on the train windows (a progress bar unless ``progress`` is
     false). ``prepare(spec) -> spec`` may change a spec first (e.g. add selected inputs); the
-    IR-LSSVM tuning is shared between the specs of one call (see :func:`fit`)."""
+    IR-LSSVM tuning is shared between the specs of one call (see :func:`fit`). ``share``: the
+    fits run on this process and one worker process (:func:`_fit_shared`; the same fits,
+    in sequence when there is one core, inside a worker, or with a custom compensator, whose
+    class a worker may not be able to import)."""
     from tqdm import tqdm
+    if share and not any(spec.kind == CUSTOM for spec in specs):
+        specs = [prepare(spec) if prepare else spec for spec in specs]
+        bar = tqdm(total=len(specs), desc=desc, unit="model", disable=not progress, leave=False)
+        try:
+            return _fit_shared(specs, X, y, random_state, bar)
+        finally:
+            bar.close()
     fitted: list[Fitted] = []
     tuned: dict = {}
     bar = tqdm(specs, desc=desc, unit="model", disable=not progress, leave=False)

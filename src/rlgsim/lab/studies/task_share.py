@@ -10,7 +10,8 @@ thread counts: another count could change a sum's last bit), so the results are 
 whichever process ran a task — and the same as the serial run.
 
 No worker is made (everything runs here, in order) inside a worker process (a Monte Carlo unit:
-no nested pools), on one core, or for fewer than two tasks. The pool is
+no nested pools), on one core, or for fewer than two tasks (one, unless the caller works
+meanwhile: ``background``). The pool is
 :func:`rlgsim.ground.lifeline.process_pool` with the platform's default start method (``fork``
 on Linux, as paper 000's parallel fits use: the worker starts in milliseconds with every module
 already imported, where a ``forkserver`` worker spends seconds importing them again and
@@ -53,32 +54,41 @@ def _as_caller(fn: Callable, args: tuple, counts: dict[str, int]) -> Any:
 
 class TaskShare:
     """``fn(*args)`` for every ``args`` of ``tasks``, shared with one worker process (module
-    docstring). ``fn`` must be a module-level function and the arguments picklable."""
+    docstring). ``fn`` must be a module-level function and the arguments picklable.
+    ``background``: the caller does work of its own before :meth:`results`, so a single task
+    goes to the worker too (otherwise one task runs here, when its results are asked for)."""
 
-    def __init__(self, fn: Callable, tasks: Sequence[tuple]) -> None:
+    def __init__(self, fn: Callable, tasks: Sequence[tuple], *, background: bool = False
+                 ) -> None:
         self.fn = fn
         self.tasks = [tuple(t) for t in tasks]
         self.pool: cf.ProcessPoolExecutor | None = None
         self.futures: list[cf.Future] = []
-        if (len(self.tasks) >= 2 and _cores() >= 2
+        if (len(self.tasks) >= (1 if background else 2) and _cores() >= 2
                 and multiprocessing.parent_process() is None):
             from rlgsim.ground.lifeline import process_pool
             self.pool = process_pool(1)
             counts = _thread_counts()
             self.futures = [self.pool.submit(_as_caller, fn, t, counts) for t in self.tasks]
 
-    def results(self) -> list[Any]:
-        """Every task's result, in task order; a task's exception is raised here."""
+    def results(self, landed: Callable[[int, Any], None] | None = None) -> list[Any]:
+        """Every task's result, in task order; a task's exception is raised here.
+        ``landed(i, result)``, if given, is called in this process as each result arrives
+        (e.g. a progress bar), in no particular order."""
+        def got(i: int, value: Any) -> Any:
+            if landed is not None:
+                landed(i, value)
+            return value
         if self.pool is None:
-            return [self.fn(*t) for t in self.tasks]
+            return [got(i, self.fn(*t)) for i, t in enumerate(self.tasks)]
         try:
             out: list[Any] = [None] * len(self.tasks)
             last = len(self.tasks)            # this process takes tasks from the back, one
             while last > 0 and self.futures[last - 1].cancel():  # at a time, while the worker
                 last -= 1                                        # has not started them
-                out[last] = self.fn(*self.tasks[last])
+                out[last] = got(last, self.fn(*self.tasks[last]))
             for i in range(last):
-                out[i] = self.futures[i].result()
+                out[i] = got(i, self.futures[i].result())
             return out
         finally:
             self.close()
