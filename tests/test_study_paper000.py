@@ -233,6 +233,34 @@ def test_compensated_gyro_pulses_follow_eq_26_with_cumulative_rounding(run):
             assert abs(want[-1] - raw[:, i].sum()) > 20
 
 
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_compiled_pulse_conversion_equals_the_numpy_formulation_bit_for_bit(two_sided):
+    """The compiled pass (paper000_kernel.convert_block) against the numpy formulation
+    (_Transform.numpy_block) on the same blocks: identical int32 pulses and carries, block
+    after block, with samples before, on and after the probe grid's points and pulses of
+    both signs (the accelerometer's K+/K−); a non-finite model value takes the numpy path."""
+    from rlgsim.lab.studies.paper000_compensation import _Transform
+    rng = np.random.default_rng(7)
+    dt, m = 0.01, 400
+    ptime = 1.0 + np.arange(m) * 0.25 + rng.uniform(0, 0.1, m)   # starts after sample 0
+    ptime[50] = (int(ptime[50] / dt) + 0.5) * dt                  # a sample middle on a point
+    grid = [[rng.normal(0, 50, m)] + ([rng.normal(0, 50, m)] if two_sided else [])
+            for _ in range(3)]
+    args = (ptime, dt, grid, [[3.0, -2.0][:len(g)] for g in grid],
+            [rng.normal(0, 1e3, m) for _ in range(3)], [5.0, -7.0, 0.5],
+            np.array([1e5, 2e5, 3e5]))
+    compiled, reference = _Transform(*args), _Transform(*args)
+    assert compiled.compiled
+    for k0, n in ((0, 3000), (3000, 5000), (8000, 4000)):          # the last runs past the grid
+        pulses = rng.integers(-300, 400, (n, 3)).astype(np.int32)
+        got, want = compiled(k0, pulses), reference.numpy_block(k0, pulses)
+        assert got.dtype == np.int32 and np.array_equal(got, want)
+        assert np.array_equal(compiled.cum, reference.cum)
+        assert np.array_equal(compiled.last, reference.last)
+    grid[1][0][7] = np.nan
+    assert not _Transform(*args).compiled
+
+
 def test_existing_dataset_is_reused_and_a_changed_one_is_not(run):
     import dataclasses
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from rlgsim.lab.studies.paper000_config import AXES
+from rlgsim.lab.studies.paper000_kernel import convert_block, slopes
 from rlgsim.lab.studies.runs import probe_temperatures
 from rlgsim.sim.writer.derived import rewrite_pulses
 
@@ -114,46 +115,67 @@ class _Transform:
 
     ``sf[i]``/``sf_d[i]``: axis i's scale-factor error [ppm] on the probe grid ``ptime`` and
     at T_d — one entry (gyro), or two (accelerometer: K+ for N ≥ 0, K− for N < 0); ``b[i]``,
-    ``b_d[i]``: its bias (pulse units per second / K) likewise. Each axis is one contiguous
-    row and every intermediate is written in place, so a block costs a few passes over its
-    samples; the arithmetic is the equations' in their order (the same numbers as a
-    column-by-column evaluation: products and sums are taken term by term, and the running
-    sum is a sequential ``cumsum`` in either layout)."""
+    ``b_d[i]``: its bias (pulse units per second / K) likewise. Per sample and axis:
+    K(T_d)/K(T) = (1 + 1e-6 s(T_d)) / (1 + 1e-6 s(T)) with s(T) interpolated linearly to the
+    sample's middle, times N, plus K(T_d) (b(T_d) − b(T)) Δt; the running sum over the samples
+    is rounded to whole pulses and differenced. One compiled pass per block
+    (:func:`rlgsim.lab.studies.paper000_kernel.convert_block`: the numpy formulation's numbers,
+    bit for bit, without its full-length temporaries)."""
 
     def __init__(self, ptime, dt, sf, sf_d, b, b_d, k_nom) -> None:
-        self.ptime, self.dt, self.sf, self.sf_d, self.b, self.b_d = ptime, dt, sf, sf_d, b, b_d
-        self.k_nom = k_nom
+        self.ptime = np.ascontiguousarray(ptime, dtype=float)
+        self.dt = dt
+        two = len(sf[0]) == 2
+        self.two_sided = two
+        self.sf_pos = np.ascontiguousarray([s[0] for s in sf], dtype=float)
+        self.sf_neg = np.ascontiguousarray([s[1] for s in sf] if two else self.sf_pos,
+                                           dtype=float)
+        num_p = [1 + 1e-6 * s[0] for s in sf_d]
+        num_n = [1 + 1e-6 * s[1] for s in sf_d] if two else num_p
+        self.num_pos, self.num_neg = np.array(num_p), np.array(num_n)
+        self.kd_pos = np.array([k_nom[i] * num_p[i] for i in range(3)])
+        self.kd_neg = np.array([k_nom[i] * num_n[i] for i in range(3)])
+        self.bias = np.ascontiguousarray(b, dtype=float)
+        self.bias_d = np.array(b_d, dtype=float)
+        self.slopes = [slopes(self.ptime, a) for a in (self.sf_pos, self.sf_neg, self.bias)]
+        self.compiled = all(np.all(np.isfinite(a)) for a in (
+            self.sf_pos, self.sf_neg, self.bias, *self.slopes, self.num_pos, self.num_neg,
+            self.kd_pos, self.kd_neg, self.bias_d))
         self.cum = np.zeros(3)
         self.last = np.zeros(3)
 
-    def _ratio_and_weight(self, i: int, t: np.ndarray, n_i: np.ndarray):
-        """K(T_d)/K(T) per sample and K(T_d) (a scalar, or per sample by the pulse's sign)."""
-        sf, sf_d, k = self.sf[i], self.sf_d[i], self.k_nom[i]
-        den = np.interp(t, self.ptime, sf[0])
-        if len(sf) == 1:
-            num = 1 + 1e-6 * sf_d[0]
-            kd = k * num
-        else:
-            pos = n_i >= 0
-            np.copyto(den, np.interp(t, self.ptime, sf[1]), where=~pos)
-            num_p, num_n = 1 + 1e-6 * sf_d[0], 1 + 1e-6 * sf_d[1]
-            num = np.where(pos, num_p, num_n)
-            kd = np.where(pos, k * num_p, k * num_n)
-        np.multiply(den, 1e-6, out=den)
-        np.add(den, 1, out=den)
-        np.divide(num, den, out=den)
-        return den, kd
-
     def __call__(self, k0: int, pulses: np.ndarray) -> np.ndarray:
+        if not self.compiled:           # non-finite model values: numpy's interp handles them
+            return self.numpy_block(k0, pulses)
+        out = np.empty(pulses.shape, dtype=np.int32)
+        convert_block(np.ascontiguousarray(pulses, dtype=np.int32), int(k0), float(self.dt),
+                      self.ptime, self.sf_pos, self.sf_neg, self.bias, *self.slopes,
+                      self.two_sided, self.num_pos, self.num_neg, self.kd_pos, self.kd_neg,
+                      self.bias_d, self.cum, self.last, out)
+        return out
+
+    def numpy_block(self, k0: int, pulses: np.ndarray) -> np.ndarray:
+        """:meth:`__call__` in numpy, column by column (the compiled pass's reference, and the
+        path for non-finite model values)."""
         n = pulses.shape[0]
         N = pulses.T.astype(float, order="C")              # (axes, samples)
         t = (np.arange(k0, k0 + n) + 0.5) * self.dt
         comp = np.empty_like(N)
         for i in range(3):
-            ratio, kd = self._ratio_and_weight(i, t, N[i])
-            np.multiply(ratio, N[i], out=comp[i])
-            drift = np.interp(t, self.ptime, self.b[i])
-            np.subtract(self.b_d[i], drift, out=drift)
+            den = np.interp(t, self.ptime, self.sf_pos[i])
+            if self.two_sided:
+                neg = N[i] < 0
+                np.copyto(den, np.interp(t, self.ptime, self.sf_neg[i]), where=neg)
+                num = np.where(neg, self.num_neg[i], self.num_pos[i])
+                kd = np.where(neg, self.kd_neg[i], self.kd_pos[i])
+            else:
+                num, kd = self.num_pos[i], self.kd_pos[i]
+            np.multiply(den, 1e-6, out=den)
+            np.add(den, 1, out=den)
+            np.divide(num, den, out=den)
+            np.multiply(den, N[i], out=comp[i])
+            drift = np.interp(t, self.ptime, self.bias[i])
+            np.subtract(self.bias_d[i], drift, out=drift)
             np.multiply(kd, drift, out=drift)
             np.multiply(drift, self.dt, out=drift)
             np.add(comp[i], drift, out=comp[i])
