@@ -24,11 +24,11 @@ The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion.
   (:data:`NODES_HOLDING`) errs by ≲ Δ⁵/4320 |F| (v/R)⁴ ~ 1e-28 |F|. The position at each node
   is the dense output itself.
 * a leg of **constant attitude and velocity that moves**: a whole sample is the exact integral
-  of a **fitted chunk** (:func:`_piece_fitted`): the leg is cut into chunks of T seconds from
+  of a **fitted chunk** (:func:`_refit`, :func:`_fitted_mean`): the leg is cut into chunks of T seconds from
   its start (``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`: min(10 s,
   1e-3 τ), τ the time the integrands' nearest singularity in L or h is away at the leg's
   speed); the body-frame integrands at 6 Chebyshev points of the chunk are interpolated by a
-  quintic (:func:`_chunk_fit`) whose mean over the sample is exact (:func:`_chunk_mean`).
+  quintic (:func:`_chunk_fit`) whose mean over the sample is exact (:func:`_mean_coefficients`).
   Lagrange's remainder with Cauchy's estimate |F⁽⁶⁾| ≤ 6!|F|/τ⁶ bounds the interpolant's error
   by 2(T/4τ)⁶|F| ≈ 5e-22 |F| (≤ 2e-20 |F| a half sample past the chunk's end) —
   docs/trajectories.md. Six evaluations serve a chunk's ~1000 samples instead of two each.
@@ -158,7 +158,7 @@ def _piece_level(coef, dcoef, legs_i, legs_f, dense, j, ta, d, sub, c, quads, le
 def _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth,
                out):  # pragma: no cover - compiled
     """The interpolant of the body-frame integrands (ω_ib^b, f^b) of leg ``j`` (holding its
-    attitude C_b^n = ``c`` and its velocity) over leg time [lo, hi] → ``out`` (7, 6): row 0 the
+    attitude C_b^n = ``c`` and its velocity) over leg time [lo, hi] → ``out`` rows 0-6: row 0 the
     integrands at node :data:`FIT_REF`, rows 1 + k the coefficients of s^k of the degree-5
     polynomial through the deviations from it at the six Chebyshev points s_i = ``fit[0]`` of
     τ = (lo + hi)/2 + s (hi − lo)/2 (``fit[1:]`` the inverse Vandermonde matrix). The
@@ -191,39 +191,55 @@ def _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _chunk_mean(b, s, dd, q):  # pragma: no cover - compiled
-    """Mean of the fitted integrand ``q`` (:func:`_chunk_fit`'s ``b``) over [s − δ, s + δ]
-    (``dd`` = δ²) in the chunk's variable: p(s) + δ² p''(s)/6 + δ⁴ p⁗(s)/120 of the quintic
-    deviation p, exact for it, added to the reference value."""
-    b1, b2, b3, b4, b5 = b[2, q], b[3, q], b[4, q], b[5, q], b[6, q]
-    p = ((((b5 * s + b4) * s + b3) * s + b2) * s + b1) * s + b[1, q]
-    p2 = ((20.0 * b5 * s + 12.0 * b4) * s + 6.0 * b3) * s + 2.0 * b2
-    p4 = 120.0 * b5 * s + 24.0 * b4
-    return b[0, q] + (p + dd * (p2 / 6.0 + dd * p4 / 120.0))
+def _mean_coefficients(b, d):  # pragma: no cover - compiled
+    """Turn ``b`` rows 1-6 (the coefficients of s⁰ … s⁵ of :func:`_chunk_fit`'s quintic p) into
+    those of its mean over [s − δ, s + δ], δ = ``d`` (the mean of (s + x)^k over |x| ≤ δ is
+    Σ_(j even) C(k, j) s^(k−j) δ^j/(j + 1)), exact for the quintic."""
+    d2 = d * d
+    d4 = d2 * d2
+    for q in range(b.shape[1]):
+        c0, c1, c2, c3, c4, c5 = b[1, q], b[2, q], b[3, q], b[4, q], b[5, q], b[6, q]
+        b[1, q] = c0 + c2 * d2 / 3.0 + c4 * d4 / 5.0
+        b[2, q] = c1 + c3 * d2 + c5 * d4
+        b[3, q] = c2 + 2.0 * c4 * d2
+        b[4, q] = c3 + c5 * d2 * 10.0 / 3.0
+
+
+@njit(cache=True, nogil=True)
+def _refit(coef, legs_i, legs_f, dense, j, tau, inv, chunk, c, fit, earth,
+           bfit):  # pragma: no cover - compiled
+    """Fit the chunk of leg ``j`` (holding its attitude C_b^n = ``c`` and velocity) that holds
+    leg time ``tau`` — chunk i of ``chunk[j]`` = T seconds: i T ≤ τ < (i + 1) T, the last one
+    up to the leg's end, a pure function of τ — into ``bfit``: rows 0-6 its mean polynomial
+    for samples of ``inv`` seconds (:func:`_chunk_fit`, :func:`_mean_coefficients`), row 7 the
+    leg, the chunk's start and end, its middle and 2/length."""
+    dur, t_ch = legs_f[j, LF_DUR], chunk[j]
+    n_ch = max(1, int(dur / t_ch))
+    i = min(int(tau / t_ch), n_ch - 1)              # a guess, made exact to the rule
+    while i > 0 and tau < i * t_ch:
+        i -= 1
+    while i < n_ch - 1 and tau >= (i + 1) * t_ch:
+        i += 1
+    lo = i * t_ch
+    hi = dur if i == n_ch - 1 else (i + 1) * t_ch
+    _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth, bfit)
+    _mean_coefficients(bfit, inv / (hi - lo))
+    bfit[7, 0], bfit[7, 1], bfit[7, 2], bfit[7, 3], bfit[7, 4] = (j, lo, hi, 0.5 * (lo + hi),
+                                                                  2.0 / (hi - lo))
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _piece_fitted(coef, legs_i, legs_f, dense, j, ta, inv, chunk, c, fit, earth, bfit, fst,
-                  res):  # pragma: no cover - compiled
-    """∫ω_ib^b, ∫f^b over the whole sample [ta, ta + inv) of leg ``j`` (holding its attitude
-    C_b^n = ``c`` and velocity) → res[0:6]: the exact integral of the fitted chunk holding the
-    sample's middle (:func:`_chunk_fit`; chunks of ``chunk[j]`` seconds from the leg's start,
-    the last one up to its end). ``bfit`` holds the fit of chunk ``fst[1]`` of leg ``fst[0]``
-    (its middle and half length ``fst[2]``, ``fst[3]``), made anew when the chunk changes — the
-    same numbers whichever block asks."""
-    dur = legs_f[j, LF_DUR]
-    tm = ta + 0.5 * inv
-    n_ch = max(1, int(dur / chunk[j]))
-    i_ch = min(int(tm / chunk[j]), n_ch - 1)
-    if fst[0] != j or fst[1] != i_ch:
-        lo = i_ch * chunk[j]
-        hi = dur if i_ch == n_ch - 1 else (i_ch + 1) * chunk[j]
-        _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth, bfit)
-        fst[0], fst[1], fst[2], fst[3] = j, i_ch, 0.5 * (lo + hi), 0.5 * (hi - lo)
-    sm = (tm - fst[2]) / fst[3]
-    dl = 0.5 * inv / fst[3]
+def _fitted_mean(bfit, tau, inv, res):  # pragma: no cover - compiled
+    """∫ω_ib^b, ∫f^b over the whole sample of ``inv`` seconds whose middle is at leg time
+    ``tau`` → res[0:6]: ``inv`` times the fitted chunk's mean polynomial (:func:`_refit`) at
+    the sample's middle, exact for the chunk's quintic. (Two arrays: numba counts the
+    references of every array a call takes, ~5-10 ns each, even inlined — per sample.)"""
+    s = (tau - bfit[7, 3]) * bfit[7, 4]
     for q in range(6):
-        res[q] = inv * _chunk_mean(bfit, sm, dl * dl, q)
+        p = bfit[6, q]
+        for k in range(5, 0, -1):
+            p = p * s + bfit[k, q]
+        res[q] = inv * (bfit[0, q] + p)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -264,8 +280,7 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
     res = np.zeros(6)
     c = np.empty(9)
     c_leg = -1
-    bfit = np.empty((FIT_NODES + 1, 6))
-    fst = np.full(4, -1.0)          # the fitted chunk held in bfit: leg, chunk, middle, half
+    bfit = np.full((FIT_NODES + 2, 6), -1.0)    # the fitted chunk (_refit): none yet
     pos = np.empty((sub + 1, 3))
     frac = np.empty(sub + 1)
     for s in range(sub + 1):
@@ -310,8 +325,11 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
                 dur = legs_f[leg, LF_DUR]
                 if (whole and chunk[leg] >= 4.0 * inv and dur >= 4.0 * inv
                         and ta + inv <= dur):           # a fitted chunk (module docstring)
-                    _piece_fitted(coef, legs_i, legs_f, dense, leg, ta, inv, chunk, c, fit,
-                                  earth, bfit, fst, res)
+                    tm = ta + 0.5 * inv
+                    if not (bfit[7, 0] == leg and bfit[7, 1] <= tm < bfit[7, 2]):
+                        _refit(coef, legs_i, legs_f, dense, leg, tm, inv, chunk, c, fit, earth,
+                               bfit)
+                    _fitted_mean(bfit, tm, inv, res)
                 else:
                     _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, leg, ta, d, sub, frac,
                            quads, earth, w, c, pos, res)
