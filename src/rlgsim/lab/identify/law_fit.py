@@ -202,9 +202,9 @@ def _uhfo_law(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ..
     return uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise
 
 
-def _spikes(rec: RecordingData, device: dict) -> tuple:
-    """Read-out spikes in the powered rate samples, found first so that the noise fit takes the
-    rate with them taken out; returns (SpikeFit, one pulse's angle [arcsec])."""
+def read_out_spikes(rec: RecordingData, device: dict) -> tuple:
+    """Read-out spikes in the powered rate samples, for the noise fit to take out (no twin
+    needed: ``identify`` runs this beside the thermal fit): (SpikeFit, a pulse's angle [″])."""
     from rlgsim.lab.identify.spike_fit import find_spikes
     pulses_per_arcsec = template_pulses_per_arcsec(device)
     per = int(round(rec.sample_rate_hz * rec.step_s))
@@ -259,10 +259,10 @@ def _gls_bias(rec: RecordingData, y: np.ndarray, cands: list[Term], noise: Noise
 
 
 def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...],
-             device: dict) -> LawFit:
+             device: dict, spikes: tuple | None = None) -> LawFit:
     """Fit the bias law, the UHFO law and the noise (module docstring). ``device`` is the
     device template dict, ``nodes_c`` (m, n) the twin's node temperatures on the recording's
-    temperature grid."""
+    grid; ``spikes``: :func:`read_out_spikes` of ``rec`` if found already."""
     gyro = device.get("gyro", {})
     block = (gyro.get("blocks") or [""])[0]
     law = dict(gyro.get("bias", {}))
@@ -277,7 +277,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
 
     uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise = _uhfo_law(rec, nodes_c, node_names, block,
                                                              device, t_ref, win)
-    spikes, quantum = _spikes(rec, device)
+    spikes, quantum = spikes if spikes is not None else read_out_spikes(rec, device)
     T = nodes_c[:, node_column(block, bias_node, node_names)]             # the bias law
     extra, pairs = _bias_extra(rec, nodes_c, node_names, block, law, bias_node, u0)
     y = np.asarray(rec.windows["bias_deg_per_h"], dtype=float)

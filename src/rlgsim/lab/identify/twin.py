@@ -3,16 +3,17 @@ device preset and a scenario that replays the recorded chamber programme on the 
 report of the fit quality (docs/identify.md).
 
 Steps: read and check the recording (:mod:`.recording_data`); fit the thermal multipliers of
-the thermal template (:mod:`.thermal_fit`); drive the fitted network with the recorded air and
-fit the UHFO law, the bias law and the noise on its thermal state (:mod:`.law_fit`), and, where
-the turntable turns, the scale-factor law (:mod:`.scale_factor_fit`); write
+the thermal template (:mod:`.thermal_fit`; the read-out spikes of the gyro samples,
+:mod:`.spike_fit`, are found meanwhile in a thread); drive the fitted network with the recorded
+air and fit the UHFO law, the bias law and the noise on its thermal state (:mod:`.law_fit`),
+and, where the turntable turns, the scale-factor law (:mod:`.scale_factor_fit`); write
 ``thermal.toml``, ``device.toml``, ``replay.toml`` (:mod:`.preset_text`) and the report
 (:mod:`.identify_report`); the texts are :mod:`.twin_text`'s, the templates
 :mod:`.twin_templates`'s; a recording of several gyros with none chosen goes to
-:mod:`.twin_gyros` (one device preset with every gyro's law). Templates: for an rlgsim
-dataset the device and thermal presets it was simulated with (its embedded texts); for a
-recording ``device_template`` is required and ``thermal_template`` defaults to the device
-template's ``thermal_preset``; a several-gyro template gives the chosen gyro's view.
+:mod:`.twin_gyros` (one device preset with every gyro's law). Templates: for an rlgsim dataset
+the device and thermal presets it was simulated with (its embedded texts); for a recording
+``device_template`` is required and ``thermal_template`` defaults to the device template's
+``thermal_preset``; a several-gyro template gives the chosen gyro's view.
 """
 
 from __future__ import annotations
@@ -20,10 +21,13 @@ from __future__ import annotations
 import os
 import time
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
-from rlgsim.lab.identify.law_fit import fit_laws
+from rlgsim.lab.identify._median_kernel import rolling_median
+from rlgsim.lab.identify.law_fit import fit_laws, read_out_spikes
 from rlgsim.lab.identify.recording_data import read_recording, scale_factor_line
 from rlgsim.lab.identify.scale_factor_fit import fit_scale_factor, scale_factor_table
 from rlgsim.lab.identify.thermal_fit import fit_thermal
@@ -89,9 +93,16 @@ def _identify(recording: str | os.PathLike, out_dir: str | os.PathLike, *,
     data = read_recording(source, gyro=chosen.gyro)
     from rlgsim.lab.identify.probe_mapping import map_probes, sidecar_probe_table
     data, probe_lines = map_probes(th_t, data, sidecar_probe_table(source), source)
-    thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
-                          data.probes_c, source=source)
-    laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t)
+    # the spike scan needs no twin: a thread beside the thermal fit (numpy's and the compiled
+    # median's loops release the GIL). Its kernel is loaded here first, so the thread never
+    # holds numba's compiler lock while the fit forks its Jacobian workers
+    rolling_median(np.zeros(1), 31, 5)
+    with ThreadPoolExecutor(max_workers=1) as beside:
+        spikes = beside.submit(read_out_spikes, data, dev_t)    # no twin needed: in parallel
+        thermal = fit_thermal(th_t, data.air_c, data.power, data.step_s, data.probe_names,
+                              data.probes_c, source=source)
+        laws = fit_laws(data, thermal.nodes_c, thermal.network.node_names, dev_t,
+                        spikes=spikes.result())
     sf = fit_scale_factor(data, thermal.nodes_c, thermal.network.node_names, dev_t, laws)
     from rlgsim.lab.identify.outputs import make_folder
     out = make_folder(out_dir)
