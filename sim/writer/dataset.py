@@ -160,14 +160,15 @@ class GroupWriter:
         #: ``sample`` dimension holds none): the run's size estimate (sim/run/run_budget.py)
         #: without visiting the file
         self.row_bytes: dict[str, int] = {}
-        self._growing_ds: list[tuple[str, h5py.Dataset]] = []   # (name, growing dataset)
-        self._scales: dict[str, h5py.Dataset] = {}   # dimension name -> its scale, open
+        #: names of the growing datasets (none is kept open here: an open dataset keeps its
+        #: chunks in HDF5's chunk cache past the writer's close, which moves where they land)
+        self._growing_names: list[str] = []
 
     def _count_row(self, name: str, dim: str, ds: h5py.Dataset, scale: bool = False) -> None:
         """Add growing dataset ``ds`` (along ``dim``) to :attr:`row_bytes` — as
         :func:`rlgsim.sim.run.run_budget._row_bytes` counts it in the file: a scale named
         ``sample`` holds no bytes."""
-        self._growing_ds.append((name, ds))
+        self._growing_names.append(name)
         if scale and name == "sample":
             return
         row = int(ds.dtype.itemsize * int(np.prod(ds.shape[1:], dtype=np.int64)))
@@ -199,7 +200,6 @@ class GroupWriter:
                 dtype = _STR
             ds = self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
         ds.make_scale(name)
-        self._scales[name] = ds
         self._set_attrs(ds, units, description, attrs)
 
     def dimension(self, name: str) -> None:
@@ -210,7 +210,6 @@ class GroupWriter:
         ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=">f4",
                                     chunks=(1 << 16,), track_times=False)
         ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
-        self._scales[name] = ds
         self._growing[name] = []
         self._dim_only.add(name)
         self._count_row(name, name, ds, scale=True)
@@ -229,7 +228,7 @@ class GroupWriter:
         h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
         filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
         ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
-        scales = [self._scales.get(d) or self._g[d] for d in dims]
+        scales = [self._g[d] for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
             dtype = _STR
@@ -499,9 +498,14 @@ class DatasetWriter:
         attributes written later (the format marker at :meth:`commit`) are stored. The
         estimate now counts the rows as they are declared (:attr:`GroupWriter.row_bytes`);
         this read (~0.1 ms) keeps the file's bytes those of the visit."""
-        growing = sorted((g.name, name, ds) for g in self._groups for name, ds in g._growing_ds)
-        for _, _, ds in growing:
-            h5py.h5ds.get_num_scales(ds.id, 0)
+        growing = sorted((g.name, name, g) for g in self._groups for name in g._growing_names)
+        for _, name, g in growing:
+            with h5py._objects.phil:
+                ds = h5py.h5d.open(g._g.id, name.encode("utf-8"))
+                try:
+                    h5py.h5ds.get_num_scales(ds, 0)
+                finally:
+                    ds.close()
 
     def group(self, name: str, description: str,
               attrs: Mapping[str, Any] | None = None) -> GroupWriter:
