@@ -28,7 +28,16 @@ Pairs alternate their order (static first, then trajectory first, …) so a chan
 both alike; the median ratio and its spread are printed beside the target (a verdict only with
 ≥ 5 pairs and the others' load at most 1.5 on 2 cores: ``benchmarks/_machine.py``), with the machine
 line and the load average before and after. ``python benchmarks/bench_sim.py --trajectory``
-runs it too. Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N]``.
+runs it too.
+
+**What bounds it** (``--floor``): the same pairs with the trajectory's kinematics free — the
+route built beforehand and every block's increments, step sums and truth rows computed in a
+first run and handed out again (the IMU stage's ``_kinematics_now`` and ``_truth_rows``
+replaced by a look-up) — so what is left is what a vehicle costs beyond them: the
+``trajectory`` group's 13 float64 a sample through the writer, and the sensor equation per
+sample instead of per thermal step. Its ratio is the ceiling no faster kinematics can pass.
+
+Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor]``.
 """
 
 from __future__ import annotations
@@ -106,11 +115,68 @@ def main(argv: list[str] | None = None) -> int:
                     help="simulated hours of each run (default 4: module docstring)")
     ap.add_argument("--repeat", type=int, default=MIN_PAIRS,
                     help=f"alternating pairs (default {MIN_PAIRS}, the fewest for a verdict)")
+    ap.add_argument("--floor", action="store_true",
+                    help="the trajectory's kinematics free: what bounds the ratio (docstring)")
     args = ap.parse_args(argv)
     static, moving = scenarios(args.hours)
     epochs = int(round(static.duration_s * 100))
     with tempfile.TemporaryDirectory(prefix="rlgsim-bench-traj-") as name:   # ~0.4 GB at 4 h
+        if args.floor:
+            return _floor(args, static, moving, epochs, pathlib.Path(name))
         return _measure(args, static, moving, epochs, pathlib.Path(name))
+
+
+def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
+    """The pairs of :func:`_measure` with the vehicle's kinematics computed beforehand (module
+    docstring: ``--floor``)."""
+    from rlgsim.sim.run.simulate import simulate
+    from rlgsim.sim.sensors.imu import ImuSimulator
+    watch = LoadWatch()
+    print(f"machine: {machine()}")
+    print(f"load average before: {load_text()}", flush=True)
+    kin, rows = ImuSimulator._kinematics_now, ImuSimulator._truth_rows
+    made: dict = {}
+
+    def record(name, f):
+        def g(self, *a):
+            if self._is_vehicle():
+                made[name, a] = made.get((name, a)) or f(self, *a)
+                return made[name, a]
+            return f(self, *a)
+        return g
+    ImuSimulator._kinematics_now = record("k", kin)     # a first run fills ``made``; the
+    ImuSimulator._truth_rows = record("t", rows)        # timed ones only look them up
+    try:
+        simulate(moving, tmp / "warm.h5", progress=False)   # the route stays built (cached)
+        run_once(static, tmp / "warm.h5")
+
+        def timed(sc, out, kind):
+            out.unlink(missing_ok=True)
+            t0, c0 = time.perf_counter(), time.process_time()
+            simulate(sc, out, progress=False)
+            CPU[kind].append(time.process_time() - c0)
+            return time.perf_counter() - t0
+
+        def report(i: int, s: float, m: float) -> None:
+            print(f"  pair {i}: static {s:.2f} s, trajectory with free kinematics {m:.2f} s, "
+                  f"ratio {s / m:.2f}; CPU {CPU['static'][-1]:.2f} / "
+                  f"{CPU['trajectory'][-1]:.2f} s; load {load_text()}", flush=True)
+            watch.sample()
+        ws, wm = alternate(lambda: timed(static, tmp / "s.h5", "static"),
+                           lambda: timed(moving, tmp / "m.h5", "trajectory"),
+                           max(1, args.repeat), report)
+    finally:
+        ImuSimulator._kinematics_now, ImuSimulator._truth_rows = kin, rows
+    ratios = [s / m for s, m in zip(ws, wm)]
+    cpu = [s / m for s, m in zip(CPU["static"], CPU["trajectory"])]
+    print(f"{args.hours:g} h at 100 Hz = {epochs:,} epochs; static {spread(ws, unit=' s')}, "
+          f"trajectory with free kinematics {spread(wm, unit=' s')}")
+    print(f"ceiling of the trajectory / static throughput (kinematics free): {spread(ratios)} "
+          f"(target >= {TARGET:.2f}: {watch.verdict(statistics.median(ratios) >= TARGET, len(ratios))}); "
+          f"CPU: static {spread(CPU['static'], unit=' s')}, trajectory "
+          f"{spread(CPU['trajectory'], unit=' s')}, ratio {spread(cpu)}")
+    print(watch.line())
+    return 0
 
 
 def _measure(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
