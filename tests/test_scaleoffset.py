@@ -222,6 +222,7 @@ def test_the_self_check_passes_here_and_sees_a_wrong_flush_order(monkeypatch):
     from rlgsim.sim.writer._direct_check import direct_path_agrees
     writer = (dataset.GroupWriter, dataset._close_stages)
     assert direct_path_agrees(*writer)
+    assert dataset._DIRECT_OK is not False and dataset._direct_path_ok()   # the process's too
     close = direct.DirectChunks.close
 
     def reversed_close(self):
