@@ -228,12 +228,13 @@ class GroupWriter:
         h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
         filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
         ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
-        scales = [self._g[d] for d in dims]
+        with h5py._objects.phil:                  # the scales, open for this call only
+            scales = [h5py.h5d.open(self._g.id, d.encode("utf-8")) for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
             dtype = _STR
         if dims and dims[0] in self._growing:
-            tail = tuple(len(s) for s in scales[1:])
+            tail = tuple(int(s.shape[0]) for s in scales[1:])
             extra = dict(storage or {})
             chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
             ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
@@ -247,7 +248,7 @@ class GroupWriter:
             ds = self._g.create_dataset(name, data=arr, dtype=dtype, track_times=False)
         for axis, scale in enumerate(scales):       # ds.dims[axis].attach_scale(scale)
             with h5py._objects.phil:
-                h5py.h5ds.attach_scale(ds.id, scale.id, axis)
+                h5py.h5ds.attach_scale(ds.id, scale, axis)
         self._set_attrs(ds, units, description, attrs)
 
     @staticmethod
