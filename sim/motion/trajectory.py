@@ -438,7 +438,9 @@ class Trajectory:
         k0 = round(t0_s * rate_hz)
         if abs(k0 - t0_s * rate_hz) > 1e-6:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
-        dth, dv = np.empty((n, 3)), np.empty((n, 3))
+        # stored axis by axis, (3, n), and handed out as (n, 3) views, as the turntable's:
+        # the IMU stage takes each axis's run of samples (its step sums, the pulses) as it is
+        dth, dv = np.empty((3, n)).T, np.empty((3, n)).T
         runs = np.empty((n, 2), dtype=np.int64)
         sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
         r = _kernel().block_increments(k0, n, float(rate_hz), sub, self._coef, self._dcoef,
