@@ -50,12 +50,13 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
     heading, pitch, roll ``out_e`` (3, k) and the leg's GNSS flag (``flags`` (m,) int8)
     ``out_g`` (k,); ``degrees``: L, λ and the angles in degrees, the heading in [0, 360) (the
     dataset's rows), else radians. In a leg of constant attitude C_b^n, q_b^n and the angles
-    are computed once (the same numbers: its angle channels do not depend on τ)."""
+    (in degrees too) are computed once (the same numbers: its angle channels do not depend on
+    τ)."""
     a_axis, e2 = earth[0], earth[1]
     w = np.empty(32)
     m = legs_i.shape[0]
     c_leg = -1
-    q0 = q1 = q2 = q3 = 0.0
+    q0 = q1 = q2 = q3 = e0 = e1 = e2d = 0.0
     a = 0                                        # leg starts < t[k]
     s_leg, s_cnt, s_tau = -1, 0, 0.0             # the step walk: leg, step starts < τ, τ
     for k in range(t.size):
@@ -73,6 +74,7 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
                     b = mid
         j = min(max(a - 1, 0), m - 1)
         tau = tk - legs_f[j, LF_T0]
+        held = False                             # the angles of the previous sample
         if legs_i[j, LI_GEO] == 1:
             _state_geodetic(coef, dcoef, d2coef, j, tau, w, e2, a_axis)
             p0, p1, p2 = w[W_X + 3], w[W_X + 4], w[W_X + 5]
@@ -80,6 +82,7 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
             q0, q1, q2, q3 = _attitude_quaternion(w)
         else:
             if j == c_leg:                       # constant attitude: the velocity only
+                held = True
                 for ch in range(3, 6):
                     v = coef[j, ch, 5]
                     for i in range(4, -1, -1):
@@ -120,8 +123,10 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
         out_p[2, k] = p2
         if degrees:
             out_p[0, k], out_p[1, k] = p0 * R2D, p1 * R2D
-            out_e[0, k] = (w[W_X] * R2D) % 360.0
-            out_e[1, k], out_e[2, k] = w[W_X + 1] * R2D, w[W_X + 2] * R2D
+            if not held:                         # else the same angles as the last sample's
+                e0, e1, e2d = (w[W_X] * R2D) % 360.0, w[W_X + 1] * R2D, w[W_X + 2] * R2D
         else:
             out_p[0, k], out_p[1, k] = p0, p1
-            out_e[0, k], out_e[1, k], out_e[2, k] = w[W_X], w[W_X + 1], w[W_X + 2]
+            if not held:
+                e0, e1, e2d = w[W_X], w[W_X + 1], w[W_X + 2]
+        out_e[0, k], out_e[1, k], out_e[2, k] = e0, e1, e2d
