@@ -128,3 +128,5 @@ class Outcome:
     units: dict[str, str]
     clock: dict[str, float]                 # wall time per step [s]
     ok: np.ndarray                          # calibration windows that succeeded
+    navigation: Any = None                  # (dataset, introduction) when run beside the
+                                            #   re-calibration (paper000_report.navigation)

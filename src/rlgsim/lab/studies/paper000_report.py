@@ -86,8 +86,16 @@ def navigation(study, cfg: Config, result: StudyResult):
     o: Outcome = result.details
     if not o.comp_tables:
         return None
+    if o.navigation is not None:            # run beside the last re-calibration
+        return o.navigation
+    return navigation_of(o.data_path, o.desired, cfg.desired_c)
+
+
+def navigation_of(data_path, desired: dict[str, dict[str, float]], desired_c: float):
+    """:func:`navigation` of a campaign dataset with its compensated datasets beside it, the
+    models' values ``desired`` at ``desired_c`` [°C] (picklable: run in a worker too)."""
     from rlgsim.lab.studies.navigation_section import paper000_navigation
-    return paper000_navigation(o.data_path, o.desired, cfg.desired_c,
+    return paper000_navigation(data_path, desired, desired_c,
                                {"hho_rvr": "HHO-RVR", "lsm": "LSM"})
 
 

@@ -83,6 +83,13 @@ def _fit_rvr(x: np.ndarray, y: np.ndarray, cfg: Config, seed: int):
     return rvr, time.process_time() - t0
 
 
+def _fit_cost(param: str) -> int:
+    """Rank of a parameter's HHO-RVR fit time, for submitting the longest fits first (so that
+    the workers finish together): on the paper000 campaign an accelerometer parameter's fit
+    took 4.7-7.5 s CPU, a gyro one's 1.7-2.8 s (the order changes no result)."""
+    return 1 if param.startswith("accel") else 0
+
+
 def _fit_lsm(x: np.ndarray, y: np.ndarray, cfg: Config):
     """The polynomial least-squares model of y on x."""
     from rlgsim.estimators.polynomial import PolynomialRegressor
@@ -177,8 +184,8 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0,
                 comp_futs["lsm"] = pool.submit(timed_compensation, data_path,
                                                comp_paths["lsm"], lsms, probes, cfg.desired_c)
             futs = {p: pool.submit(_fit_rvr, xs[p], ys[p], cfg, seeds[p])
-                    for p in PAPER_PARAMETERS}
-            rvrs = {p: f.result() for p, f in futs.items()}
+                    for p in sorted(PAPER_PARAMETERS, key=_fit_cost, reverse=True)}
+            rvrs = {p: futs[p].result() for p in PAPER_PARAMETERS}
         else:
             rvrs = {p: _fit_rvr(xs[p], ys[p], cfg, seeds[p]) for p in PAPER_PARAMETERS}
         fitted: dict[str, tuple] = {p: (rvrs[p][0], lsms[p], rvrs[p][1])
@@ -189,25 +196,26 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0,
                 timed_compensation, data_path, comp_paths["hho_rvr"],
                 {p: fitted[p][0] for p in PAPER_PARAMETERS}, probes, cfg.desired_c)
         result = _scores_and_compensation(cfg, workdir, progress, data_path, raw, ok, xs, ys,
-                                          fitted, comp_futs, comp_paths, probes, clock)
+                                          fitted, comp_futs, comp_paths, probes, clock, pool)
     clock["total"] = time.perf_counter() - t_all
-    rows, pred, fit_scores, truth_scores, avg, avg_truth, comp_tables, resid, resvar, desired \
-        = result
+    rows, pred, fit_scores, truth_scores, avg, avg_truth, comp_tables, resid, resvar, desired, \
+        nav = result
     units = {q.name: q.unit for q in PARAMETERS}
     params = _device_params(data_path)
     return StudyResult(rows=rows, params=params, details=Outcome(
         scenario=scenario, data_path=data_path, reused=reused, raw=raw, xs=xs, ys=ys, pred=pred,
         fitted=fitted, fit_scores=fit_scores, truth_scores=truth_scores, avg=avg,
         avg_truth=avg_truth, resvar=resvar, resid=resid, desired=desired,
-        comp_tables=comp_tables, units=units, clock=clock, ok=ok))
+        comp_tables=comp_tables, units=units, clock=clock, ok=ok, navigation=nav))
 
 
 def _scores_and_compensation(cfg: Config, workdir: pathlib.Path, progress: bool,
                              data_path: pathlib.Path, raw, ok: np.ndarray, xs, ys, fitted,
-                             comp_futs, comp_paths, probes, clock: dict[str, float]):
+                             comp_futs, comp_paths, probes, clock: dict[str, float], pool=None):
     """Table 2 scores of the fitted models, then (``cfg.compensate``) the compensated
     datasets — written by the futures in ``comp_futs`` when given, else here — re-calibrated
-    (Table 3)."""
+    (Table 3). With a worker ``pool``, the report's navigation runs in it as soon as both
+    compensated datasets exist, beside the last re-calibration (else the report runs it)."""
     from rlgsim.estimators.calibration import PAPER_PARAMETERS
     from rlgsim.estimators.metrics import residual_variance
     pred: dict[str, dict[str, np.ndarray]] = {}
@@ -252,6 +260,7 @@ def _scores_and_compensation(cfg: Config, workdir: pathlib.Path, progress: bool,
     resid: dict[str, dict[str, np.ndarray]] = {p: {} for p in PAPER_PARAMETERS}
     resvar: dict[str, dict[str, float]] = {p: {} for p in PAPER_PARAMETERS}
     desired: dict[str, dict[str, float]] = {p: {} for p in PAPER_PARAMETERS}
+    nav_fut = None
     if cfg.compensate:
         # the LSM-compensated data first: it is ready (or nearly) when the fits end
         for c in sorted(COMPENSATORS, key=lambda c: c != "lsm"):
@@ -262,6 +271,11 @@ def _scores_and_compensation(cfg: Config, workdir: pathlib.Path, progress: bool,
             else:
                 compensate_dataset(data_path, comp_paths[c], models, probes, cfg.desired_c)
                 clock[f"compensate pulses ({LABEL[c]})"] = time.perf_counter() - t
+            for p in PAPER_PARAMETERS:
+                desired[p][c] = float(models[p].predict(np.array([[cfg.desired_c]]))[0])
+            if pool is not None and len(desired[PAPER_PARAMETERS[0]]) == len(COMPENSATORS):
+                nav_fut = pool.submit(paper000_report.navigation_of, data_path, desired,
+                                      cfg.desired_c)
             t = time.perf_counter()
             tab = _campaign(comp_paths[c], cfg, progress, f"re-calibration {c}")
             clock[f"re-calibration ({LABEL[c]})"] = time.perf_counter() - t
@@ -269,7 +283,6 @@ def _scores_and_compensation(cfg: Config, workdir: pathlib.Path, progress: bool,
             comp_tables[c] = tab
             cok = np.array([r["status"] == "ok" for r in tab.rows])
             for p in PAPER_PARAMETERS:
-                desired[p][c] = float(models[p].predict(np.array([[cfg.desired_c]]))[0])
                 resid[p][c] = tab.column(p)[cok] - desired[p][c]
                 resvar[p][c] = residual_variance(resid[p][c], np.zeros(int(cok.sum())))
         comp_tables = {c: comp_tables[c] for c in COMPENSATORS}
@@ -286,7 +299,7 @@ def _scores_and_compensation(cfg: Config, workdir: pathlib.Path, progress: bool,
         rows.append(("hho_rvr", "avg_improvement_residual_variance_pct",
                      avg["residual_variance"]))
     return (rows, pred, fit_scores, truth_scores, avg, avg_truth, comp_tables, resid, resvar,
-            desired)
+            desired, nav_fut.result() if nav_fut is not None else None)
 
 
 def _write_predictions(path: pathlib.Path, records: list[dict]) -> None:
