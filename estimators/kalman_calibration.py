@@ -426,6 +426,7 @@ class Linearisation:
     key: tuple                 # what the gains depend on besides the linearisation point
     model: SensorModel | None = None
     phi_fed: np.ndarray | None = None
+    nz: tuple | None = None    # _nonzero_columns(f_dyn), kept for the reruns
 
 
 def _filter_setup(rate_hz, settings):
@@ -552,7 +553,7 @@ def run_filter(nav: NavSolution, dtheta: np.ndarray, dv: np.ndarray, rate_hz: fl
     P_out = P[np.ix_(pos, pos)]
     z = v_meas[mask]
     lin = Linearisation(order=order, n_dyn=nd, f_dyn=f_dyn, mask=mask, gains=gains,
-                        s_inv=s_inv, P=P_out, per_step=per_step, key=())
+                        s_inv=s_inv, P=P_out, per_step=per_step, key=(), nz=(nz_idx, nz_cnt))
     diag = dict(n_measurements=n_meas, nis=float(np.mean(nis)) if n_meas else float("nan"),
                 residual_rms=float(np.sqrt(np.mean(z ** 2))) if z.size else float("nan"),
                 n_steps=n_steps, linearisation=lin)
@@ -584,7 +585,7 @@ def rerun_filter(lin: Linearisation, nav: NavSolution, x0: np.ndarray | None = N
     z_all = np.ascontiguousarray(nav.v[(np.arange(n_steps) + 1) * lin.per_step - 1] / 1e-3)
     mask = lin.mask
     ys = np.empty((lin.gains.shape[0], 3))
-    nz_idx, nz_cnt = _nonzero_columns(lin.f_dyn)
+    nz_idx, nz_cnt = lin.nz if lin.nz is not None else _nonzero_columns(lin.f_dyn)
     j = rerun_loop(lin.f_dyn, nz_idx, nz_cnt, lin.gains, mask, z_all, x, ys)
     z = z_all[mask] * 1e-3
     nis = np.einsum("ki,kij,kj->k", ys, lin.s_inv, ys)
