@@ -41,6 +41,7 @@ import functools
 import importlib.util
 import itertools
 import json
+import math
 import os
 import pathlib
 import sys
@@ -164,14 +165,16 @@ class GroupWriter:
         #: chunks in HDF5's chunk cache past the writer's close, which moves where they land)
         self._growing_names: list[str] = []
 
-    def _count_row(self, name: str, dim: str, ds: h5py.Dataset, scale: bool = False) -> None:
-        """Add growing dataset ``ds`` (along ``dim``) to :attr:`row_bytes` — as
-        :func:`rlgsim.sim.run.run_budget._row_bytes` counts it in the file: a scale named
-        ``sample`` holds no bytes."""
+    def _count_row(self, name: str, dim: str, dtype: Any, tail: tuple[int, ...] = (),
+                   scale: bool = False) -> None:
+        """Add growing dataset ``name`` (along ``dim``; the ``dtype`` and fixed dimensions
+        ``tail`` it was made with) to :attr:`row_bytes` — as
+        :func:`rlgsim.sim.run.run_budget._row_bytes` counts it in the file (the stored type's
+        item size: 8 for a text's reference; a scale named ``sample`` holds no bytes)."""
         self._growing_names.append(name)
         if scale and name == "sample":
             return
-        row = int(ds.dtype.itemsize * int(np.prod(ds.shape[1:], dtype=np.int64)))
+        row = int(np.dtype(dtype).itemsize * math.prod(tail))
         self.row_bytes[dim] = self.row_bytes.get(dim, 0) + row
 
     @property
@@ -192,7 +195,7 @@ class GroupWriter:
             ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
                                         chunks=self._chunks(dtype, ()), track_times=False)
             self._growing[name] = [name]
-            self._count_row(name, name, ds, scale=True)
+            self._count_row(name, name, dtype, scale=True)
         else:
             data = np.asarray(list(values) if not isinstance(values, np.ndarray) else values)
             if data.dtype.kind in "UO":
@@ -212,7 +215,7 @@ class GroupWriter:
         ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
         self._growing[name] = []
         self._dim_only.add(name)
-        self._count_row(name, name, ds, scale=True)
+        self._count_row(name, name, ">f4", scale=True)
 
     def set_attrs(self, attrs: Mapping[str, Any]) -> None:
         """Set attributes of the group itself."""
@@ -240,7 +243,7 @@ class GroupWriter:
             ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
                                         dtype=dtype, chunks=chunks, track_times=False, **extra)
             self._growing[dims[0]].append(name)
-            self._count_row(name, dims[0], ds)
+            self._count_row(name, dims[0], dtype, tail)
         else:
             arr = np.asarray(data)
             if string:
