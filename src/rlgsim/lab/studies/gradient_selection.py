@@ -160,12 +160,17 @@ def navigation(study: Study, config: Config, result: StudyResult):
     return gradient_selection_report.navigation(study, config, result, _selector(config))
 
 
+def _select(config: Config, spec: CompensatorSpec, X, y) -> CompensatorSpec:
+    """:func:`select_inputs` of ``spec`` if it selects, else ``spec``."""
+    sel = config.selections.get(spec.name)
+    return spec if sel is None else select_inputs(spec, sel, X, y)[0]
+
+
 def _selector(config: Config):
-    """prepare(spec, X, y) -> spec: :func:`select_inputs` of the compensators that select."""
-    def prepare(spec: CompensatorSpec, X, y) -> CompensatorSpec:
-        sel = config.selections.get(spec.name)
-        return spec if sel is None else select_inputs(spec, sel, X, y)[0]
-    return prepare
+    """prepare(spec, X, y) -> spec: :func:`select_inputs` of the compensators that select
+    (picklable: the report's navigation runs in a worker process)."""
+    import functools
+    return functools.partial(_select, config)
 
 
 def report(study: Study, config: Config, result: StudyResult) -> Report:

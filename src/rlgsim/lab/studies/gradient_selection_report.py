@@ -32,7 +32,18 @@ def improvement_over_traditional(trad_pct: float, prop_pct: float) -> float:
 def report(study: Study, config: Config, result: StudyResult, prepare=None) -> Report:
     """The report of a run (Table 3, the selection, Tables 4-5 beside the paper, truth-based
     scores, the ranking, figures); ``prepare``: the recipe's gradient selection, for the
-    navigation's drawn units (:func:`navigation`)."""
+    navigation's drawn units (:func:`navigation`). The navigation runs in a worker process
+    meanwhile (:class:`rlgsim.lab.studies.task_share.TaskShare`: the same bytes as here)."""
+    from rlgsim.lab.studies.task_share import TaskShare
+    nav = TaskShare(first_test_navigation, [(study, config, result.details, prepare)],
+                    background=True)
+    try:
+        return _report(study, config, result, nav)
+    finally:
+        nav.close()
+
+
+def _report(study: Study, config: Config, result: StudyResult, nav_runs) -> Report:
     from rlgsim.sim.writer.dataset import software_version
 
     out: Outcome = result.details
@@ -82,7 +93,7 @@ def report(study: Study, config: Config, result: StudyResult, prepare=None) -> R
     _series_attachments(rep, config, runs, predictions)
     figures(rep, config, runs, per_test, predictions, fitted, corr)
     first = runs[config.test[0].key].series
-    nav = navigation(study, config, result, prepare)
+    nav = nav_runs.results()[0]
     if nav is not None:
         from rlgsim.lab.studies.navigation_section import add_section
         add_section(rep, *nav)
