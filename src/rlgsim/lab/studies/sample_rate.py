@@ -55,8 +55,13 @@ def allan_curves(ax, rs, gyro: str | None, window_s: float, curves, **line) -> f
     from rlgsim.estimators import metrics as M
     fast = sample_rate_series(rs, gyro, window_s)
     rate = 1.0 / window_s if fast is None else fast[0]
+    buf = None if fast is None else np.empty((fast[1].size // fast[2], fast[2]))
     for label, pred, style in curves:
-        x = rs.y - pred if fast is None else fast[1] - np.repeat(pred, fast[2])
+        if fast is None:
+            x = rs.y - pred
+        else:           # y − ŷ held over each window: np.repeat's values, without its copy
+            x = np.subtract(fast[1].reshape(buf.shape), np.asarray(pred, float)[:, None],
+                            out=buf).reshape(-1)
         if x.size >= 8 and np.all(np.isfinite(x)):
             ad = M.allan_deviation(x, rate, "octave")
             ax.loglog(ad.tau_s, ad.adev, marker="o", label=label, **line, **style)
