@@ -1,8 +1,8 @@
 """Compiled block of a trajectory (numba): the increments of ``n`` samples (their truth
 states: :mod:`rlgsim.sim.motion._trajectory_truth`).
 
-:meth:`rlgsim.sim.motion.trajectory.Trajectory.increments` hands a whole block to this kernel: the sample grid, its split at
-the leg starts, the standing-still runs, the geodetic positions from the legs' DOP853 dense
+:meth:`rlgsim.sim.motion.trajectory.Trajectory.increments` hands a whole block to this
+kernel: the sample grid, its split at the leg starts, the standing-still runs, the geodetic positions from the legs' DOP853 dense
 output and the quadrature of :mod:`rlgsim.sim.motion._trajectory_kernel` — one compiled loop
 over the samples, no per-sample NumPy temporaries (the NumPy form of the same steps cost ~15×
 the quadrature itself).
@@ -12,7 +12,8 @@ The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion.
 **Quadrature.** Per piece (a sample, or the part of one inside a leg), on sub-intervals of
 ≤ 0.02 s:
 
-* a leg of **constant attitude** (heading, pitch, roll constant: holds, straight accelerations):
+* a leg of **constant attitude** (heading, pitch, roll constant: holds, straight accelerations;
+  a moving hold's whole samples: the next item):
   C_b^n is one matrix, ω_nb^b = 0, v^n = C_b^n v^b(τ) with v^b a polynomial of degree ≤ 5, so
   the integrands are C_n^b times (ω_ie^n + ω_en^n) and v̇^n + (2ω_ie^n + ω_en^n) × v^n + (0, 0, γ),
   summed in ENU and turned into the body once per piece. m-point Gauss–Legendre over Δ errs by
@@ -24,8 +25,8 @@ The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion.
   (:data:`NODES_HOLDING`) errs by ≲ Δ⁵/4320 |F| (v/R)⁴ ~ 1e-28 |F|. The position at each node
   is the dense output itself.
 * a leg of **constant attitude and velocity that moves**: a whole sample is the exact integral
-  of a **fitted chunk** (:func:`_refit`, :func:`_fitted_mean`): the leg is cut into chunks of T seconds from
-  its start (``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`: min(10 s,
+  of a **fitted chunk** (:func:`_refit`, :func:`_fitted_mean`): the leg is cut into chunks of
+  T seconds from its start (``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`: min(10 s,
   1e-3 τ), τ the time the integrands' nearest singularity in L or h is away at the leg's
   speed); the body-frame integrands at 6 Chebyshev points of the chunk are interpolated by a
   quintic (:func:`_chunk_fit`) whose mean over the sample is exact (:func:`_mean_coefficients`).

@@ -40,7 +40,8 @@ h⁹ (4!)⁴/(9 (8!)³) |F⁽⁸⁾| ≈ 5.6e-10 h⁹ |F⁽⁸⁾| (Abramowitz &
 integrands are smooth with time scales set by the angular rates w, |F⁽⁸⁾| ≲ |F| w⁸, so at
 h = 0.02 s and w = 3 rad/s the relative error is ~2e-20 — far below float64's resolution (1.1e-16)
 of the increments. Legs of constant attitude take 3 or 2 nodes (their integrands are
-polynomials of the velocity and slow functions of the position; the bounds are in
+polynomials of the velocity and slow functions of the position), and where they also hold a
+velocity that moves the vehicle, the exact means of fitted 10-s chunks (the bounds are in
 :mod:`rlgsim.sim.motion._trajectory_block`). The increments are thus the exact integrals to
 rounding, as on the turntable.
 
