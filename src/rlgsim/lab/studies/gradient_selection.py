@@ -103,13 +103,50 @@ def select_inputs(spec: CompensatorSpec, sel: Selection, X, y: np.ndarray
 
 
 
+def _start_workers(rows: int, n_jobs) -> None:
+    """:func:`rlgsim.estimators.tuned.start_search_workers`; a failure only loses the head
+    start (the search starts its workers itself)."""
+    from rlgsim.estimators.tuned import start_search_workers
+    try:
+        start_search_workers(rows, n_jobs)
+    except Exception:           # noqa: BLE001 — an optimisation only
+        pass
+
+
+def _start_search_workers(study: Study, config: Config, unit: int):
+    """A started thread that starts the PSO-SVR search's worker processes
+    (:func:`rlgsim.estimators.tuned.start_search_workers`) while the runs are simulated, or
+    None: no ``pso_svr`` compensator, inside a worker process, a recording among the train
+    runs, or fewer train windows than a parallel search needs (estimated from the scenarios'
+    durations; the search decides for itself again)."""
+    import multiprocessing
+    import threading
+
+    from rlgsim.lab.study import scenario_for
+    pso = [c for c in config.compensators if c.kind == "pso_svr"]
+    if not pso or multiprocessing.parent_process() is not None:
+        return None
+    try:
+        rows = sum(max(0.0, scenario_for(study, s.ref, unit=unit, ctx=s.ctx).duration_s
+                       - s.skip_s) / config.window_s for s in config.train)
+    except Exception:           # noqa: BLE001 — a recording: no warm-up, nothing else changes
+        return None
+    thread = threading.Thread(target=_start_workers, args=(int(rows), pso[0].params.get("n_jobs")),
+                              name="rlgsim-search-workers", daemon=True)
+    thread.start()
+    return thread
+
+
 def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
         progress: bool = True) -> StudyResult:
     """Simulate, correlate, select inputs, fit every compensator on the train runs, score on
     every test run."""
     t_start = time.perf_counter()
+    warm = _start_search_workers(study, config, unit)
     ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
                          progress=progress)
+    if warm is not None:
+        warm.join()
     runs, Xtr, ytr, random_state = ex.runs, ex.X, ex.y, ex.random_state
     t_data = ex.t_data
 
