@@ -106,14 +106,22 @@ def compensate_loop(gyro_pulses, accel_pulses, inv_k_g, d_g, inv_e_g, inv_k_pos,
     n = gyro_pulses.shape[0]
     dtheta = np.empty((n, 3))
     dv = np.empty((n, 3))
-    yg = np.empty(3)
-    ya = np.empty(3)
+    # the per-axis constants as scalars (D Δt formed once: the same product every sample);
+    # the three axes written out — with two 3-vectors in memory the pass took 3× as long
+    g0, g1, g2 = inv_k_g[0], inv_k_g[1], inv_k_g[2]
+    bg0, bg1, bg2 = d_g[0] * dt_s, d_g[1] * dt_s, d_g[2] * dt_s
+    p0, p1, p2 = inv_k_pos[0], inv_k_pos[1], inv_k_pos[2]
+    m0, m1, m2 = inv_k_neg[0], inv_k_neg[1], inv_k_neg[2]
+    ba0, ba1, ba2 = d_a[0] * dt_s, d_a[1] * dt_s, d_a[2] * dt_s
     for k in range(n):
-        for j in range(3):
-            yg[j] = gyro_pulses[k, j] * inv_k_g[j] - d_g[j] * dt_s
-            na = accel_pulses[k, j]
-            ya[j] = na * (inv_k_pos[j] if na >= 0 else inv_k_neg[j]) - d_a[j] * dt_s
+        y0 = gyro_pulses[k, 0] * g0 - bg0
+        y1 = gyro_pulses[k, 1] * g1 - bg1
+        y2 = gyro_pulses[k, 2] * g2 - bg2
+        a0, a1, a2 = accel_pulses[k, 0], accel_pulses[k, 1], accel_pulses[k, 2]
+        z0 = a0 * (p0 if a0 >= 0 else m0) - ba0
+        z1 = a1 * (p1 if a1 >= 0 else m1) - ba1
+        z2 = a2 * (p2 if a2 >= 0 else m2) - ba2
         for i in range(3):
-            dtheta[k, i] = inv_e_g[i, 0] * yg[0] + inv_e_g[i, 1] * yg[1] + inv_e_g[i, 2] * yg[2]
-            dv[k, i] = inv_e_a[i, 0] * ya[0] + inv_e_a[i, 1] * ya[1] + inv_e_a[i, 2] * ya[2]
+            dtheta[k, i] = inv_e_g[i, 0] * y0 + inv_e_g[i, 1] * y1 + inv_e_g[i, 2] * y2
+            dv[k, i] = inv_e_a[i, 0] * z0 + inv_e_a[i, 1] * z1 + inv_e_a[i, 2] * z2
     return dtheta, dv

@@ -43,6 +43,13 @@ def test_compensation_inverts_the_pulse_model():
     th2, dv2 = m.compensate(ng, na, 0.01)
     np.testing.assert_allclose(th2, dth, rtol=0, atol=1e-16)
     np.testing.assert_allclose(dv2, dv, rtol=0, atol=1e-15)
+    # the compiled pass is the formula's arithmetic in numpy, term by term, bit for bit
+    y_g = ng * (1.0 / m.k_g) - m.d_g * 0.01
+    k_a = np.where(na >= 0, 1.0 / m.k_a_pos, 1.0 / m.k_a_neg)
+    y_a = na * k_a - m.d_a * 0.01
+    for got, y, e in ((th2, y_g, np.linalg.inv(m.e_g)), (dv2, y_a, np.linalg.inv(m.e_a))):
+        np.testing.assert_array_equal(got, y[:, :1] * e[:, 0] + y[:, 1:2] * e[:, 1]
+                                      + y[:, 2:] * e[:, 2])
     # K_a⁺ and K_a⁻ are really used according to the sign
     assert not np.allclose(m.k_a_pos, m.k_a_neg)
     with pytest.raises(ValueError, match="k_g"):
