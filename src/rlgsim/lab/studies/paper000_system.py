@@ -136,6 +136,8 @@ def run(study, cfg: Config, workdir: pathlib.Path, *, unit: int = 0,
     """Simulate, calibrate, model, compensate, re-calibrate and score (module docstring)."""
     from rlgsim.estimators.calibration import PAPER_PARAMETERS, PARAMETERS
 
+    from rlgsim.estimators._malloc import retain_freed_memory
+    retain_freed_memory()       # the campaigns' window arrays reused, not faulted in each time
     workdir = pathlib.Path(workdir)
     clock: dict[str, float] = {}
     t_all = time.perf_counter()
