@@ -32,25 +32,25 @@ from numba import njit
 
 
 @njit(nogil=True, cache=True)
-def batch_heater_loop(mu, w0, coef, inputs, on, ch, rs, rt, track, kp, ki, aw, pmax, sp0, tg, integ,
-                      W):                                     # pragma: no cover (compiled)
-    """The recurrence (module docstring) of ``B`` sets over ``m`` steps into ``W`` (B, m, n),
-    row ``k`` the modal state after step ``k``.
-
-    ``mu`` (B, n) modal factors; ``w0`` (B, n) initial modal states; the modal forcing
-    ``g_ik = Σ_t coef[b, t, i]·inputs[b, t, k]`` summed in the order of ``t`` (``coef``
-    (B, nt, n), ``inputs`` (B, nt, m)); ``on`` (m,) bool powered; ``ch`` (B, n, H) heater input columns (× P
-    [W]); ``rs``/``rt`` (B, H, n) sensor / tracked-node read-out rows; ``track`` bool;
-    ``kp, ki, aw, pmax, sp0, tg`` (B, H) controller constants; ``integ`` (B, H) integrator
-    states (updated in place)."""
-    B, nt, m = inputs.shape
-    n = mu.shape[1]
+def batch_heater_loop(mu, w0, coef, inputs, src, on, ch, rs, rt, track, kp, ki, aw, pmax, sp0, tg,
+                      integ, W):                              # pragma: no cover (compiled)
+    """The recurrence (module docstring) of ``B`` sets over ``m`` steps into ``W`` (B, m, n), row
+    ``k`` the modal state after step ``k``. ``mu`` (B, n) modal factors; ``w0`` (B, n) initial
+    modal states; the modal forcing ``g_ik = Σ_t coef[b, t, i]·inputs[src[b], t, k]`` summed in
+    the order of ``t`` (``coef`` (B, nt, n); ``inputs`` (U, nt, m) shared by the sets, ``src``
+    (B,) each set's row); ``on`` (m,) bool powered; ``ch`` (B, n, H) heater input columns (× P
+    [W]); ``rs``/``rt`` (B, H, n) sensor / tracked-node read-out rows; ``track`` bool; ``kp,
+    ki, aw, pmax, sp0, tg`` (B, H) controller constants; ``integ`` (B, H) integrator states
+    (updated in place)."""
+    B, nt, n = coef.shape
+    m = inputs.shape[2]
     H = kp.shape[1]
     ts = np.empty(H)
     sp = np.empty(H)
     P = np.empty(H)
     x = np.empty(n)
     for b in range(B):
+        r = src[b]
         for i in range(n):
             x[i] = w0[b, i]
         for k in range(m):
@@ -69,9 +69,9 @@ def batch_heater_loop(mu, w0, coef, inputs, on, ch, rs, rt, track, kp, ki, aw, p
                     else:
                         sp[j] = sp0[b, j]
             for i in range(n):
-                gi = coef[b, 0, i] * inputs[b, 0, k]
+                gi = coef[b, 0, i] * inputs[r, 0, k]
                 for t in range(1, nt):
-                    gi = gi + coef[b, t, i] * inputs[b, t, k]
+                    gi = gi + coef[b, t, i] * inputs[r, t, k]
                 x[i] = mu[b, i] * x[i] + gi
             if powered:
                 for j in range(H):

@@ -30,12 +30,19 @@ def batchable(network: ThermalNetwork) -> bool:
     return bool(network.heaters) and not network.nonlinear_links
 
 
-def _forcing_terms(integ: ThermalIntegrator, s: np.ndarray, u: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """The modal forcing of ``_advance`` with ``air_tau_s = 0`` as ``g_ik = Σ_t coef[t, i]·
-    inputs[t, k]`` summed in the order of ``t``: ``coef`` (nt, n), ``inputs`` (nt, m) — the
-    setpoint, its step, the power, then each boundary and its step."""
+def _forcing_coef(integ: ThermalIntegrator) -> np.ndarray:
+    """The modal forcing's coefficients ``coef`` (nt, n) of ``_advance`` with ``air_tau_s = 0``
+    (``g_ik = Σ_t coef[t, i]·inputs[t, k]``, summed in the order of ``t``): the setpoint, its
+    step, the power, then each boundary and its step."""
     coef = [integ._c_s, integ._c_ds, integ._c_u]
+    for j in range(len(integ.boundaries)):
+        coef += [integ._c_b[j], integ._c_db[j]]
+    return np.array(coef, dtype=float)
+
+
+def _forcing_inputs(integ: ThermalIntegrator, s: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The forcing's inputs (nt, m) in the order of :func:`_forcing_coef`: the setpoint ``s``
+    (m + 1,), its step, the power ``u`` (m,), each boundary's temperature and its step."""
     inputs = [s[:-1], np.diff(s), u]
     if integ.boundaries:
         m = u.size
@@ -43,28 +50,45 @@ def _forcing_terms(integ: ThermalIntegrator, s: np.ndarray, u: np.ndarray
         b = integ.network.boundary_temperatures_c(tk)
         db = np.diff(b, axis=0)
         for j in range(b.shape[1]):
-            coef += [integ._c_b[j], integ._c_db[j]]
             inputs += [b[:-1, j], db[:, j]]
-    return np.array(coef, dtype=float), np.array(inputs, dtype=float)
+    return np.array(inputs, dtype=float)
+
+
+def _shared_inputs(integs: list[ThermalIntegrator], s: np.ndarray, u: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct forcing inputs (U, nt, m) and each set's row ``src`` (B,): the sets of a
+    Jacobian share their boundaries (the same objects, scaled_twin.py), so their inputs are
+    computed once; sets with other boundary objects get their own."""
+    rows: list[np.ndarray] = []
+    keys: list[tuple] = []
+    src = np.empty(len(integs), dtype=np.int64)
+    for b, it in enumerate(integs):
+        key = tuple(id(x) for x in it.boundaries)
+        if key not in keys:
+            keys.append(key)
+            rows.append(_forcing_inputs(it, s, u))
+        src[b] = keys.index(key)
+    return np.stack(rows), src
 
 
 def _stacked(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np.ndarray,
              power: np.ndarray, step_s: float) -> tuple[list, list, dict]:
     """The integrators and initial states of every set, and their coefficients stacked over the
-    sets: ``mu``/``w0`` (B, n), the forcing's ``coef`` (B, nt, n) and ``inputs`` (B, nt, m)
-    (:func:`_forcing_terms`), ``ch`` (B, n, H), ``rs``/``rt`` (B, H, n), the
-    controller constants (B, H), ``integ`` (B, H), ``on`` (m,) bool, ``track`` bool."""
+    sets: ``mu``/``w0`` (B, n), the forcing's ``coef`` (B, nt, n), its distinct ``inputs`` (U,
+    nt, m) and each set's row of them ``src`` (B,) (:func:`_shared_inputs`), ``ch`` (B, n, H),
+    ``rs``/``rt`` (B, H, n), the controller constants (B, H), ``integ`` (B, H), ``on`` (m,)
+    bool, ``track`` bool."""
     integs = [ThermalIntegrator(net, step_s, 0.0) for net, _ in models]
     powered0 = bool(power[0] > 0.5)
     sts = [it.initial_state(float(air_c[0]), powered0) for it in integs]
     s = np.concatenate(([air_c[0]], air_c)).astype(float)
     u = np.asarray(power, dtype=float)
     H = len(integs[0].heaters)
-    terms = [_forcing_terms(it, s, u) for it in integs]
+    inputs, src = _shared_inputs(integs, s, u)
     c = {"mu": np.stack([it._mu for it in integs]),
          "w0": np.stack([np.asarray(st.modal_if_valid(), dtype=float) for st in sts]),
-         "coef": np.stack([f[0] for f in terms]),
-         "inputs": np.stack([f[1] for f in terms]),
+         "coef": np.stack([_forcing_coef(it) for it in integs]),
+         "inputs": inputs, "src": src,
          "ch": np.stack([it._c_h for it in integs]),
          "rs": np.stack([it._r_s for it in integs]),
          "rt": np.stack([it._r_t for it in integs]),
@@ -93,9 +117,10 @@ def _loop_numpy(c: dict) -> np.ndarray:
     mu = c["mu"].reshape(-1)
     g = np.empty((m, B, n))
     for b in range(B):                  # numpy's outer products summed in the order of t
-        gb = np.multiply.outer(c["inputs"][b, 0], c["coef"][b, 0])
+        inp = c["inputs"][c["src"][b]]
+        gb = np.multiply.outer(inp[0], c["coef"][b, 0])
         for t in range(1, c["coef"].shape[1]):
-            gb += np.multiply.outer(c["inputs"][b, t], c["coef"][b, t])
+            gb += np.multiply.outer(inp[t], c["coef"][b, t])
         g[:, b, :] = gb
     g = g.reshape(m, B * n)
     CH = np.zeros((B * n, B * H))
@@ -149,7 +174,8 @@ def _loop_compiled(c: dict) -> np.ndarray:
     from rlgsim.lab.identify._batch_twin_kernel import batch_heater_loop
     B, n = c["mu"].shape
     W = np.empty((B, c["inputs"].shape[2], n))
-    batch_heater_loop(c["mu"], c["w0"], c["coef"], c["inputs"], c["on"], c["ch"], c["rs"], c["rt"], c["track"],
+    batch_heater_loop(c["mu"], c["w0"], c["coef"], c["inputs"], c["src"], c["on"], c["ch"],
+                      c["rs"], c["rt"], c["track"],
                       c["kp"], c["ki"], c["aw"], c["pmax"], c["sp0"], c["tg"], c["integ"], W)
     return W
 
