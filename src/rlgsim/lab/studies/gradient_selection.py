@@ -59,7 +59,7 @@ from rlgsim.lab.studies.gradient_selection_config import (Config, Outcome, Selec
                                                           parse)
 from rlgsim.lab.studies.gradient_selection_report import (  # noqa: F401 (the recipe's figures)
     improvement_over_traditional, table3_figures)
-from rlgsim.lab.studies.runs import load_experiment, worth_showing
+from rlgsim.lab.studies.runs import dataset_for, load_experiment, run_scenario, worth_showing
 from rlgsim.lab.studies.scoring import score_run
 
 
@@ -103,6 +103,53 @@ def select_inputs(spec: CompensatorSpec, sel: Selection, X, y: np.ndarray
 
 
 
+def _simulate(study: Study, spec, workdir: pathlib.Path, unit: int) -> tuple:
+    """(path, reused) of :func:`rlgsim.lab.studies.runs.dataset_for` (a task of
+    :func:`_simulated`: the scenario stays with the caller)."""
+    path, _, reused = dataset_for(study, spec, workdir, unit=unit, progress=False)
+    return path, reused
+
+
+def _start_test_runs(study: Study, config: Config, workdir: pathlib.Path, unit: int):
+    """The test runs' datasets started in a worker process
+    (:class:`rlgsim.lab.studies.task_share.TaskShare`), to be simulated while the train runs
+    are simulated here (:func:`_runs_done`): (share, its specs), or None — inside a worker
+    process, on one core, with a recording among the runs, a dataset label used with two
+    different skips (:func:`rlgsim.lab.studies.runs.load_runs` would report the second as
+    reused), or no test run with a dataset of its own."""
+    from rlgsim.lab.recordings import recording_path
+    from rlgsim.lab.studies.task_share import TaskShare
+    specs = list({s.key: s for s in config.train + config.test}.values())
+    if len({s.label for s in specs}) != len(specs) or any(
+            recording_path(s.ref, study.base_dir, str(study.source)) is not None for s in specs):
+        return None
+    train_labels = {s.label for s in config.train}
+    later = [s for s in specs if s.label not in train_labels]
+    share = TaskShare(_simulate, [(study, s, workdir, unit) for s in later], background=True)
+    return (share, later) if share.pool is not None else None
+
+
+def _runs_done(started, study: Study, config: Config, workdir: pathlib.Path, unit: int,
+               progress: bool) -> dict | None:
+    """``done`` for :func:`load_experiment` (RunSpec.key → dataset_for's answer): the train
+    runs simulated here, then the test runs the worker started (:func:`_start_test_runs`;
+    those it has not begun are simulated here) — the same files and flags as one after the
+    other. None when nothing was started."""
+    if started is None:
+        return None
+    share, later = started
+    try:
+        done = {}
+        for s in config.train:
+            if s.key not in done:                       # once per run, as load_runs does
+                done[s.key] = dataset_for(study, s, workdir, unit=unit, progress=progress)
+        for s, (path, reused) in zip(later, share.results()):
+            done[s.key] = (path, run_scenario(study, s, unit), reused)
+    finally:
+        share.close()
+    return done
+
+
 def _start_workers(rows: int, n_jobs) -> None:
     """:func:`rlgsim.estimators.tuned.start_search_workers`; a failure only loses the head
     start (the search starts its workers itself)."""
@@ -142,13 +189,15 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     """Simulate, correlate, select inputs, fit every compensator on the train runs, score on
     every test run."""
     t_start = time.perf_counter()
+    started = _start_test_runs(study, config, workdir, unit)     # fork before any thread
     warm = _start_search_workers(study, config, unit)
     ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
-                         progress=progress)
+                         progress=progress,
+                         done=_runs_done(started, study, config, workdir, unit, progress))
     if warm is not None:
         warm.join()
     runs, Xtr, ytr, random_state = ex.runs, ex.X, ex.y, ex.random_state
-    t_data = ex.t_data
+    t_data = time.perf_counter() - t_start
 
     listings: dict[str, list[tuple[str, float, bool]]] = {}
 

@@ -83,14 +83,21 @@ def dataset_for(study: Study, spec: RunSpec, workdir: pathlib.Path, *, unit: int
     rec = recording_path(spec.ref, study.base_dir, str(study.source))
     if rec is not None:
         return rec, None, True
+    scenario = run_scenario(study, spec, unit)
+    path, reused = simulated_dataset(scenario, workdir / "data" / f"{spec.label}.h5",
+                                     progress=progress)
+    return path, scenario, reused
+
+
+def run_scenario(study: Study, spec: RunSpec, unit: int):
+    """The scenario :func:`dataset_for` simulates for ``spec`` (not a recording): the study's
+    scenario for the unit with the spec's seed and run seed."""
     scenario = scenario_for(study, spec.ref, unit=unit, ctx=spec.ctx)
     if spec.seed is not None:
         scenario = dataclasses.replace(scenario, seed=spec.seed)
     if spec.run_seed is not None:
         scenario = dataclasses.replace(scenario, run_seed=spec.run_seed)
-    path, reused = simulated_dataset(scenario, workdir / "data" / f"{spec.label}.h5",
-                                     progress=progress)
-    return path, scenario, reused
+    return scenario
 
 
 @dataclass
@@ -184,14 +191,16 @@ class LoadedRun:
 
 
 def load_runs(study: Study, specs: tuple[RunSpec, ...], features: FeatureSpec,
-              workdir: pathlib.Path, *, unit: int, progress: bool
+              workdir: pathlib.Path, *, unit: int, progress: bool, done: dict | None = None
               ) -> dict[tuple[str, float], LoadedRun]:
-    """Simulate (or reuse) and read every run once, keyed by :attr:`RunSpec.key`."""
+    """Simulate (or reuse) and read every run once, keyed by :attr:`RunSpec.key`. ``done``:
+    RunSpec.key → :func:`dataset_for`'s answer for runs already simulated (or found)."""
     out: dict[tuple[str, float], LoadedRun] = {}
     for spec in specs:
         if spec.key in out:
             continue
-        path, scenario, reused = dataset_for(study, spec, workdir, unit=unit, progress=progress)
+        path, scenario, reused = (done[spec.key] if done and spec.key in done else
+                                  dataset_for(study, spec, workdir, unit=unit, progress=progress))
         if scenario is None:                      # a recording: no truth, NaN truth series
             from rlgsim.lab.studies.recording_runs import recording_series
             series = RunSeries(**recording_series(path, features, spec.label, spec.ctx,
@@ -216,12 +225,13 @@ class Experiment:
 
 def load_experiment(study: Study, train: tuple[RunSpec, ...], test: tuple[RunSpec, ...],
                     features: FeatureSpec, workdir: pathlib.Path, *, unit: int,
-                    progress: bool) -> Experiment:
-    """Simulate (or reuse) and read the train and test runs; stack the train windows."""
+                    progress: bool, done: dict | None = None) -> Experiment:
+    """Simulate (or reuse) and read the train and test runs; stack the train windows
+    (``done``: as for :func:`load_runs`)."""
     import time
     t0 = time.perf_counter()
     runs = load_runs(study, train + test, features, pathlib.Path(workdir), unit=unit,
-                     progress=progress)
+                     progress=progress, done=done)
     t_data = time.perf_counter() - t0
     series = [runs[s.key].series for s in train]
     X, y = stack(series)
