@@ -482,12 +482,13 @@ class DatasetWriter:
         self._groups: list[GroupWriter] = []
         # The format marker is written last (commit): until then the file says it is
         # incomplete, so the temporary file of a killed run is never taken for a dataset.
-        self._file.attrs[INCOMPLETE_ATTR] = INCOMPLETE
-        self._file.attrs["software_version"] = software_version()
+        root = self._file["/"]             # File.attrs opens the root group at every use
+        _set_attr(root, INCOMPLETE_ATTR, INCOMPLETE)
+        _set_attr(root, "software_version", software_version())
         # provenance: the versions of the libraries behind the stored numbers (issue 29)
-        self._file.attrs["software_versions"] = _versions_json()
+        _set_attr(root, "software_versions", _versions_json())
         for key, value in attrs.items():
-            self._file.attrs[key] = _attr_value(value)
+            _set_attr(root, key, _attr_value(value))
 
     @property
     def groups(self) -> tuple[GroupWriter, ...]:
