@@ -71,6 +71,15 @@ def make(out: pathlib.Path, scenarios: list[str], studies: list[str]) -> None:
                              f"(exit {done.returncode})")
 
 
+def _scale_names(ds: h5py.Dataset) -> object:
+    """The names of the dimension scales each axis of ``ds`` is attached to; a dimension list
+    HDF5 cannot follow (references into another file) is a value of its own, not a crash."""
+    try:
+        return [[scale.name for scale in dim.values()] for dim in ds.dims]
+    except (RuntimeError, KeyError, ValueError) as err:
+        return f"unreadable dimension list ({type(err).__name__})"
+
+
 def _h5_items(path: pathlib.Path) -> dict[str, object]:
     """Every attribute and array of an HDF5 file, keyed by its path, as comparable values."""
     items: dict[str, object] = {}
@@ -87,8 +96,7 @@ def _h5_items(path: pathlib.Path) -> dict[str, object]:
             attrs(name, obj)
             if isinstance(obj, h5py.Dataset):
                 items[name] = (str(obj.dtype), obj.shape, _comparable(obj[()]))
-                items[f"{name}#dims"] = [[scale.name for scale in dim.values()]
-                                         for dim in obj.dims]
+                items[f"{name}#dims"] = _scale_names(obj)
 
         f.visititems(visit)
     return items

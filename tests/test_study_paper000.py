@@ -209,6 +209,15 @@ def test_compensated_gyro_pulses_follow_eq_26_with_cumulative_rounding(run):
     with h5py.File(data / "paper000_short_u0.h5") as fr, \
             h5py.File(data / "paper000_short_u0_compensated_lsm.h5") as fc:
         assert set(fc) == set(fr)
+        # the copy's variables stay attached to the copy's own dimension scales (an object copy
+        # would leave references into the source file, which h5py's .dims cannot follow)
+        scales = {}
+        for f in (fr, fc):
+            scales[f] = {}
+            f.visititems(lambda name, obj, f=f: scales[f].__setitem__(
+                name, [[sc.name for sc in dim.values()] for dim in obj.dims])
+                if isinstance(obj, h5py.Dataset) else None)
+        assert scales[fc] == scales[fr] and scales[fc]["imu/gyro_pulses"][0]
         raw = fr["imu/gyro_pulses"][:n].astype(float)
         comp = fc["imu/gyro_pulses"][:n]
         assert comp.dtype == np.int32
