@@ -33,6 +33,12 @@ def test_format_value():
     assert format_value(0.0123456) == "0.01235" and format_value(123456.7, 3) == "1.23e+05"
 
 
+def test_csv_cells_of_numpy_floats_are_plain_numbers():
+    import numpy as np
+    t = Table("t", ["a", "b", "c"], [[np.float64(0.1) + np.float64(0.2), 1.5, np.int64(3)]])
+    assert t.csv_text().splitlines()[1] == "0.30000000000000004,1.5,3"
+
+
 def test_table_rejects_ragged_rows():
     with pytest.raises(ValueError, match="row .* has 1 cells, expected 2"):
         Table("t", ["a", "b"], [[1]])

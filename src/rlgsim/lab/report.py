@@ -107,8 +107,10 @@ class Table:
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(self.columns)
         for row in self.rows:
-            writer.writerow(["" if v is None else (repr(v) if isinstance(v, float) else v)
-                             for v in row])
+            # repr of the Python float: the shortest text that reads back to the same double
+            # (NumPy's float64 is a float whose own repr is "np.float64(...)" since NumPy 2)
+            writer.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float)
+                                                   else v) for v in row])
         return buf.getvalue()
 
     def markdown(self, digits: int = 4) -> str:
