@@ -165,14 +165,21 @@ def _position(legs_i, legs_f, dense, j, tau):  # pragma: no cover - compiled
     elif tau > legs_f[j, LF_DUR]:
         tau = legs_f[j, LF_DUR]
     lo, ns = legs_i[j, LI_SEG], legs_i[j, LI_NSEG]
-    a, b = 0, ns                                # first step start >= tau
+    a = first_step_from(dense, lo, 0, ns, tau)
+    return _dense_at(dense, lo + min(max(a - 1, 0), ns - 1), tau)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def first_step_from(dense, lo, a, b, tau):  # pragma: no cover - compiled
+    """The first of a leg's steps ``a`` … ``b − 1`` (rows ``lo + i`` of ``dense``) that starts at or
+    after ``tau`` [s], ``b`` if none does (bisection, as numpy's searchsorted side "left")."""
     while a < b:
         mid = (a + b) // 2
         if dense[lo + mid, 0] < tau:
             a = mid + 1
         else:
             b = mid
-    return _dense_at(dense, lo + min(max(a - 1, 0), ns - 1), tau)
+    return a
 
 
 @njit(cache=True, nogil=True, inline="always")

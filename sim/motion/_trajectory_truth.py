@@ -27,7 +27,8 @@ from numba import njit
 
 from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LF_Y0, LI_GEO, LI_LEVEL,
                                                   LI_NSEG, LI_POS, LI_SEG, POS_FIXED, W_X,
-                                                  _dense_at, _qmul, _state, _state_geodetic)
+                                                  _dense_at, _qmul, _state, _state_geodetic,
+                                                  first_step_from)
 
 #: degrees per radian, as NumPy's ``np.degrees`` multiplies
 R2D = 180.0 / math.pi
@@ -108,13 +109,7 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
                     while s_cnt < ns and dense[lo + s_cnt, 0] < tc:
                         s_cnt += 1
                 else:
-                    s_cnt, b = 0, ns
-                    while s_cnt < b:
-                        mid = (s_cnt + b) // 2
-                        if dense[lo + mid, 0] < tc:
-                            s_cnt = mid + 1
-                        else:
-                            b = mid
+                    s_cnt = first_step_from(dense, lo, 0, ns, tc)
                 s_leg, s_tau = j, tc
                 p0, p1, p2 = _dense_at(dense, lo + min(max(s_cnt - 1, 0), ns - 1), tc)
         out_v[k, 0], out_v[k, 1], out_v[k, 2] = w[12], w[13], w[14]
