@@ -108,16 +108,28 @@ def test_allan_fit_recovers_white_noise_and_random_walk_with_intervals():
         fit_allan(y[:50], f)
 
 
+def _collinear_inputs(rng: np.random.Generator, n: int = 300):
+    """A ramp up and down in temperature T [°C], its rate with noise, and a gradient that nearly
+    repeats the rate (the rate's and the gradient's noise drawn from ``rng`` in that order)."""
+    T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
+    rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
+    grad = rate + 0.05 * rng.standard_normal(n)
+    return T, rate, grad
+
+
+def _collinear_candidates(T: np.ndarray, rate: np.ndarray, grad: np.ndarray) -> list[Term]:
+    """The candidate terms c1, c2, rate and gradient of :func:`_collinear_inputs`."""
+    return [Term("c1", lambda th: T), Term("c2", lambda th: T ** 2),
+            Term("rate", lambda th: rate), Term("gradient", lambda th: grad)]
+
+
 def _collinear_law(seed: int, n: int = 300):
     """A rate term and a gradient that nearly repeats it (a ramp drives both); the truth uses
     the rate only; white noise large enough that the two cannot be told apart."""
     rng = np.random.default_rng(seed)
-    T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
-    rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
-    grad = rate + 0.05 * rng.standard_normal(n)
+    T, rate, grad = _collinear_inputs(rng, n)
     y = 0.02 + 3e-4 * T - 0.01 * rate + 0.004 * rng.standard_normal(n)
-    cands = [Term("c1", lambda th: T), Term("c2", lambda th: T ** 2),
-             Term("rate", lambda th: rate), Term("gradient", lambda th: grad)]
+    cands = _collinear_candidates(T, rate, grad)
     return y, cands, {"c1": T, "c2": T ** 2, "rate": rate, "gradient": grad}
 
 
@@ -169,13 +181,9 @@ def test_combined_effect_of_a_group_without_true_members_covers_at_nominal():
     for seed in range(60):
         rng = np.random.default_rng(300 + seed)
         n = 300
-        T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
-        rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
-        grad = rate + 0.05 * rng.standard_normal(n)
+        T, rate, grad = _collinear_inputs(rng, n)
         y = 0.02 + 3e-4 * T + 0.004 * rng.standard_normal(n)
-        s = select_terms(y, [Term("c1", lambda th, T=T: T), Term("c2", lambda th, T=T: T ** 2),
-                             Term("rate", lambda th, r=rate: r),
-                             Term("gradient", lambda th, g=grad: g)])
+        s = select_terms(y, _collinear_candidates(T, rate, grad))
         for group, (lead, value, se_c, slopes) in s.combined.items():
             zc.append(value / se_c)
             vals, vars_, ws = [], [], []
@@ -212,13 +220,9 @@ def test_prediction_band_widens_along_the_unseparable_direction():
     for seed in range(40):
         rng = np.random.default_rng(100 + seed)
         n = 300
-        T = np.concatenate([np.linspace(-20, 60, n // 2), np.linspace(60, -20, n // 2)])
-        rate = np.gradient(T) + 0.3 * rng.standard_normal(n)
-        grad = rate + 0.05 * rng.standard_normal(n)
+        T, rate, grad = _collinear_inputs(rng, n)
         y = 0.02 + 3e-4 * T - 0.005 * rate - 0.005 * grad + sigma * rng.standard_normal(n)
-        sel = select_terms(y, [Term("c1", lambda th, T=T: T), Term("c2", lambda th, T=T: T ** 2),
-                               Term("rate", lambda th, r=rate: r),
-                               Term("gradient", lambda th, g=grad: g)],
+        sel = select_terms(y, _collinear_candidates(T, rate, grad),
                            noise_cov=sigma ** 2 * np.eye(n))
         T2 = np.linspace(0, 40, 200)
         rate2 = 0.2 + 0.3 * rng.standard_normal(200)
