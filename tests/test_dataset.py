@@ -262,3 +262,38 @@ def test_an_extra_stage_plugs_in_and_stays_chunk_independent(tmp_path, monkeypat
         np.testing.assert_array_equal(da["dtheta"].values, db["dtheta"].values)
         # the calibration sequence turns the table: some increments are large
         assert np.abs(da["dtheta"].values).max() > 0.01
+
+
+def test_low_level_dataset_creation_writes_h5py_create_datasets_bytes():
+    """sim/writer/_new_dataset.py makes the datasets the writer lays out with h5py's low-level
+    calls: the file image must be byte for byte the one ``create_dataset`` makes (growing,
+    scale-offset, fixed numeric and text datasets; in-memory files, a few ms)."""
+    from rlgsim.sim.writer._new_dataset import new_dataset
+
+    text = np.asarray(["a", "bé", ""], dtype=object).view(dataset._STR)
+    made = [("t", dict(shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(64,))),
+            ("p", dict(shape=(0, 3), maxshape=(None, 3), dtype=np.int32, chunks=(4096, 3),
+                       scaleoffset=0)),
+            ("n", dict(shape=(0, 2), maxshape=(None, 2), dtype=np.int8, chunks=(512, 2))),
+            ("d", dict(shape=(0,), maxshape=(None,), dtype=">f4", chunks=(1 << 16,))),
+            ("x", dict(shape=(4,), dtype=np.float64, data=np.arange(4.0) / 3)),
+            ("i", dict(shape=(2, 3), dtype=np.int32, data=np.arange(6, dtype=np.int32)
+                       .reshape(2, 3))),
+            ("s", dict(shape=(3,), dtype=dataset._STR, data=text))]
+
+    def image(low_level: bool) -> bytes:
+        with h5py.File(f"mem-{low_level}.h5", "w", driver="core", backing_store=False,
+                       libver=("earliest", "v110"), track_order=True) as f:
+            g = f.create_group("g", track_order=True)
+            for name, kw in made:
+                if low_level:
+                    new_dataset(g, name, **kw)
+                else:
+                    kw = dict(kw)
+                    if "data" in kw:
+                        kw.pop("shape")
+                    g.create_dataset(name, track_times=False, **kw)
+            f.flush()
+            return f.id.get_file_image()
+
+    assert image(True) == image(False)

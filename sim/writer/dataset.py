@@ -56,6 +56,7 @@ from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, I
                                           VERSION_ATTR, open_dataset)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
 from rlgsim.ground.provenance import versions_json
+from rlgsim.sim.writer._new_dataset import new_dataset, plain_name
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -192,8 +193,8 @@ class GroupWriter:
         """A dimension with its coordinate variable. ``growing=True`` makes it the unlimited
         dimension that :meth:`append` extends (its values arrive with the rows)."""
         if growing:
-            ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
-                                        chunks=self._chunks(dtype, ()), track_times=False)
+            ds = new_dataset(self._g, name, (0,), dtype, maxshape=(None,),
+                             chunks=self._chunks(dtype, ()))
             self._growing[name] = [name]
             self._count_row(name, name, dtype, scale=True)
         else:
@@ -201,7 +202,7 @@ class GroupWriter:
             if data.dtype.kind in "UO":
                 data = np.asarray([str(v) for v in data], dtype=object)
                 dtype = _STR
-            ds = self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
+            ds = self._fixed(name, data, dtype)
         ds.make_scale(name)
         self._set_attrs(ds, units, description, attrs)
 
@@ -210,8 +211,7 @@ class GroupWriter:
         variable"; xarray shows it without an index). For sample-rate axes whose coordinate is
         implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
         it takes the variables only."""
-        ds = self._g.create_dataset(name, shape=(0,), maxshape=(None,), dtype=">f4",
-                                    chunks=(1 << 16,), track_times=False)
+        ds = new_dataset(self._g, name, (0,), ">f4", maxshape=(None,), chunks=(1 << 16,))
         ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
         self._growing[name] = []
         self._dim_only.add(name)
@@ -240,19 +240,39 @@ class GroupWriter:
             tail = tuple(int(s.shape[0]) for s in scales[1:])
             extra = dict(storage or {})
             chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
-            ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
-                                        dtype=dtype, chunks=chunks, track_times=False, **extra)
+            if set(extra) <= {"scaleoffset"} and plain_name(name):
+                ds = new_dataset(self._g, name, (0, *tail), dtype, maxshape=(None, *tail),
+                                 chunks=chunks, scaleoffset=extra.get("scaleoffset"))
+            else:                                   # other filters: h5py's own checks
+                ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
+                                            dtype=dtype, chunks=chunks, track_times=False,
+                                            **extra)
             self._growing[dims[0]].append(name)
             self._count_row(name, dims[0], dtype, tail)
         else:
             arr = np.asarray(data)
             if string:
                 arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
-            ds = self._g.create_dataset(name, data=arr, dtype=dtype, track_times=False)
+            ds = self._fixed(name, arr, dtype)
         for axis, scale in enumerate(scales):       # ds.dims[axis].attach_scale(scale)
             with h5py._objects.phil:
                 h5py.h5ds.attach_scale(ds.id, scale, axis)
         self._set_attrs(ds, units, description, attrs)
+
+    def _fixed(self, name: str, data: np.ndarray, dtype: Any) -> h5py.Dataset:
+        """A dataset holding ``data`` (not growing): ``create_dataset(name, data=data,
+        dtype=dtype, track_times=False)``, through
+        :func:`~rlgsim.sim.writer._new_dataset.new_dataset` for numbers and text (h5py's
+        ``array_for_new_object`` decides what is written: the array as it is, text as an
+        object array of ``str`` viewed with h5py's UTF-8 string dtype)."""
+        kind = data.dtype.kind
+        if plain_name(name) and (kind in "biuf" or (
+                kind == "O" and dtype is _STR and all(type(v) is str for v in data.flat))):
+            arr = np.asarray(data, order="C")
+            if kind == "O":
+                arr = arr.view(dtype=_STR)
+            return new_dataset(self._g, name, arr.shape, dtype, data=arr)
+        return self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
 
     @staticmethod
     def _set_attrs(ds: h5py.Dataset, units: str | None, description: str,
