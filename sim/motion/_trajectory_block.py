@@ -7,7 +7,8 @@ output and the quadrature of :mod:`rlgsim.sim.motion._trajectory_kernel` — one
 over the samples, no per-sample NumPy temporaries (the NumPy form of the same steps cost ~15×
 the quadrature itself).
 
-The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion._trajectory_kernel._position`, the same numbers as scipy's).
+The positions come from the legs' DOP853 dense output (:func:`rlgsim.sim.motion._trajectory_kernel._position`: the
+interpolant of scipy's ``Dop853DenseOutput``, its operations in its order).
 
 **Quadrature.** Per piece (a sample, or the part of one inside a leg), on sub-intervals of
 ≤ 0.02 s:

@@ -19,10 +19,11 @@ ENU):
 
     L̇ = v_N/(R_M + h),   λ̇ = v_E/((R_N + h) cos L),   ḣ = v_U
 
-integrated leg by leg with scipy's DOP853 (8th order, rtol 1e-13, atol 1e-15 rad / 1e-9 m, dense
-output of order 7): a few nanometres over hours, the only numerical integration here. Its
-right-hand side is the compiled ``_trajectory_kernel.position_rate_at`` (the same formulas as
-:meth:`Trajectory._velocity`; a Python call of the NumPy form cost ~1 ms per evaluation).
+integrated leg by leg with DOP853 (8th order, rtol 1e-13, atol 1e-15 rad / 1e-9 m, dense
+output of order 7): a few nanometres over hours, the only numerical integration here. It is
+scipy's method compiled with its right-hand side (sim/motion/_trajectory_route.py: the route's
+~1000 steps in ~3 ms instead of ~0.1 s of Python; scipy's ``solve_ivp`` where a leg nears a
+pole); its right-hand side the formulas of :meth:`Trajectory._velocity`.
 
 **Sensor inputs** (Groves 2013 eqs. 5.44, 5.54; Titterton & Weston 2004 eq. 3.71, written for ENU):
 
@@ -88,6 +89,7 @@ _CHUNK_OF_SCALE = 1e-3
 #: tolerances of the position integration (rad, rad, m)
 _RTOL = 1e-13
 _ATOL = (1e-15, 1e-15, 1e-9)
+_ATOL_ARRAY = np.array(_ATOL)
 _TIME_TOL_S = 1e-6
 #: grid points of a leg evaluated at once by :meth:`Trajectory.peak_inputs` (~2 MB of arrays)
 _PEAK_SLICE = 4096
@@ -213,8 +215,8 @@ class Trajectory:
         att_const = [leg.frame == "body" and not np.any(leg.coef[:3, 1:]) for leg in legs]
         self._level = np.array([0 if not ac else 2 if not np.any(leg.coef[3:, 1:]) else 1
                                 for ac, leg in zip(att_const, legs)], dtype=np.int64)
-        self._position = self._integrate_positions()
-        self._legs_i, self._legs_f, self._dense = _leg_tables(
+        self._position, self._dense = self._integrate_positions()
+        self._legs_i, self._legs_f = _leg_tables(
             self._position, self._geodetic, self._t0, np.array([leg.duration_s for leg in legs]),
             self._level, self._still)
         self._gnss = np.array([leg.gnss for leg in legs], dtype=np.int8)
@@ -293,16 +295,17 @@ class Trajectory:
         return c, w, v_n, vdot_n, x
 
     # ---- position ---------------------------------------------------------------------
-    def _integrate_positions(self) -> list:
+    def _integrate_positions(self) -> tuple[list, np.ndarray]:
         """Leg by leg: the dense solution of (L, λ, h) on leg time, from the previous leg's
-        end (DOP853; see the module docstring)."""
-        from rlgsim.sim.motion._trajectory_kernel import position_rate_at
+        end (DOP853, compiled: sim/motion/_trajectory_route.py; see the module docstring) →
+        (per leg its start and (first row, rows) of the dense table or None, the table (S, 26)
+        of the DOP853 steps' interpolants)."""
+        from rlgsim.sim.motion import _trajectory_route as R
         y = np.array([self.initial.lat_rad, self.initial.lon_rad, self.initial.height_m])
-        out = []
+        out: list = []
+        rows = np.empty((max(64, 8 * len(self.legs)), R.ROW))
+        n_rows = 0
         for j, leg in enumerate(self.legs):
-            def rhs(tau: float, p: np.ndarray, j: int = j) -> tuple[float, float, float]:
-                return position_rate_at(self._coef, self._dcoef, j, tau, p[0], p[2], WGS84_E2,
-                                        WGS84_A)
             if leg.duration_s <= 0.0:
                 out.append((y.copy(), None))
                 continue
@@ -313,36 +316,59 @@ class Trajectory:
             if self._still[j]:          # standing: DOP853's steps of a zero rate hold y exactly
                 out.append((y.copy(), None))
                 continue
-            def polar(tau: float, p: np.ndarray) -> float:
-                return MAX_LATITUDE_RAD - abs(p[0])
-            polar.terminal = True
-            stepped = _dop853_steps(rhs, polar, leg.duration_s, y)
-            if stepped is not None:
-                out.append((y.copy(), stepped[0]))
-                y = stepped[1].copy()
-                continue
-            sol = solve_ivp(rhs, (0.0, leg.duration_s), y, method="DOP853", rtol=_RTOL,
-                            atol=_ATOL, dense_output=True, events=polar)
-            if sol.status == 1:
-                raise ValueError(f"leg {j} ({leg.label}) reaches latitude "
-                                 f"{np.degrees(sol.y[0, -1]):+.4g}° at t = "
-                                 f"{self._t0[j] + sol.t[-1]:.6g} s: the path crosses a pole, "
-                                 f"where the ENU frame is singular (|latitude| < "
-                                 f"{np.degrees(MAX_LATITUDE_RAD):g}°)")
-            if not sol.success:                             # pragma: no cover - smooth inputs
-                raise ValueError(f"leg {j}: position integration failed ({sol.message})")
-            out.append((y.copy(), sol.sol))
-            y = sol.y[:, -1].copy()
-        return out
+            status, rows, n_new, y_end = R.dop853_leg(
+                self._coef, self._dcoef, j, float(leg.duration_s), y, _RTOL, _ATOL_ARRAY,
+                _EARTH, MAX_LATITUDE_RAD, R.TAB_A, R.TAB_B, R.TAB_C, R.TAB_E3, R.TAB_E5,
+                R.TAB_D, R.CONTROL, rows, n_rows)
+            if status != 0:                             # the pole, or a step too small
+                y_end, leg_rows = self._solve_ivp_leg(j, y)
+                n_new = n_rows + len(leg_rows)
+                if n_new > rows.shape[0]:
+                    rows = np.concatenate([rows[:n_rows], np.empty((n_new, R.ROW))])
+                rows[n_rows:n_new] = leg_rows
+            out.append((y.copy(), (n_rows, n_new - n_rows)))
+            n_rows = n_new
+            y = np.array(y_end, dtype=float)
+        return out, np.ascontiguousarray(rows[:n_rows])
+
+    def _solve_ivp_leg(self, j: int, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Leg ``j``'s position by scipy's ``solve_ivp`` (DOP853, its polar event): where the
+        compiled stepper hands it over — the end state and the dense rows, or the one-line
+        error of a path across a pole."""
+        from rlgsim.sim.motion._trajectory_kernel import position_rate_at
+
+        def rhs(tau: float, p: np.ndarray) -> tuple[float, float, float]:
+            return position_rate_at(self._coef, self._dcoef, j, tau, p[0], p[2], WGS84_E2,
+                                    WGS84_A)
+
+        def polar(tau: float, p: np.ndarray) -> float:
+            return MAX_LATITUDE_RAD - abs(p[0])
+        polar.terminal = True
+        leg = self.legs[j]
+        sol = solve_ivp(rhs, (0.0, leg.duration_s), y, method="DOP853", rtol=_RTOL,
+                        atol=_ATOL, dense_output=True, events=polar)
+        if sol.status == 1:
+            raise ValueError(f"leg {j} ({leg.label}) reaches latitude "
+                             f"{np.degrees(sol.y[0, -1]):+.4g}° at t = "
+                             f"{self._t0[j] + sol.t[-1]:.6g} s: the path crosses a pole, "
+                             f"where the ENU frame is singular (|latitude| < "
+                             f"{np.degrees(MAX_LATITUDE_RAD):g}°)")
+        if not sol.success:                             # pragma: no cover - smooth inputs
+            raise ValueError(f"leg {j}: position integration failed ({sol.message})")
+        leg_rows = np.array([np.concatenate([[f.t_old, f.h], np.ravel(f.F), f.y_old])
+                             for f in sol.sol.interpolants], dtype=float)
+        return sol.y[:, -1].copy(), leg_rows.reshape(-1, 26)
 
     def _positions(self, j: int, tau: np.ndarray) -> np.ndarray:
         """(L, λ, h) (3, k) of leg ``j`` at leg times ``tau``."""
-        y0, sol = self._position[j]
+        y0, steps = self._position[j]
         if self._geodetic[j]:
             return self._channels(j, np.asarray(tau, dtype=float))[0][3:]
-        if sol is None or tau.size == 0:
+        if steps is None or tau.size == 0:
             return np.repeat(y0[:, None], tau.size, axis=1)
-        return _dense(sol, np.clip(tau, 0.0, self.legs[j].duration_s))
+        first, count = steps
+        return _dense(self._dense[first:first + count],
+                      np.clip(tau, 0.0, self.legs[j].duration_s))
 
     # ---- evaluations ------------------------------------------------------------------
     def _inputs(self, j: int, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -488,77 +514,44 @@ class Trajectory:
         return best_w, best_f, at
 
 
-def _dop853_steps(rhs, polar, duration_s: float, y: np.ndarray):
-    """``solve_ivp(rhs, (0, duration_s), y, method="DOP853", rtol, atol, dense_output=True,
-    events=polar)`` stepped here without its per-call and per-step bookkeeping (~40 % of a
-    route's build): the same solver (scipy's :class:`~scipy.integrate.DOP853`), the same steps
-    and interpolants in the same order (a step that does not advance is dropped, as
-    solve_ivp drops it), so the same numbers. Returns (the dense solution, the end state), or
-    None where solve_ivp must decide — the event's sign changes (the pole) or the solver fails —
-    and is then called for it (its answer and message as before)."""
-    from scipy.integrate import DOP853, OdeSolution
-    solver = DOP853(rhs, 0.0, y, float(duration_s), rtol=_RTOL, atol=_ATOL)
-    ts, interpolants, y_end = [0.0], [], y
-    g = polar(0.0, y)
-    while True:
-        solver.step()
-        if solver.status == "failed":                   # pragma: no cover - smooth inputs
-            return None
-        g_new = polar(solver.t, solver.y)
-        if (g <= 0 and g_new >= 0) or (g >= 0 and g_new <= 0):   # find_active_events' test
-            return None
-        g = g_new
-        if not (len(ts) > 1 and ts[-1] == solver.t):
-            ts.append(solver.t)
-            interpolants.append(solver.dense_output())
-            y_end = solver.y
-        if solver.status == "finished":
-            return OdeSolution(ts, interpolants), y_end
-
-
-def _dense(sol, tau: np.ndarray) -> np.ndarray:
-    """``sol(tau)`` of an :class:`scipy.integrate.OdeSolution` for sorted ``tau``, one call of
-    each step's interpolant on its run of times (``OdeSolution.__call__`` groups element by
-    element in Python); the same interpolants on the same times, so the same numbers."""
+def _dense(rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """(L, λ, h) (3, k) of a leg's DOP853 dense rows (``dense`` of :func:`_leg_tables`) at leg
+    times ``tau``: the step the first whose end is ≥ τ (scipy's ``OdeSolution``), its
+    interpolant y_old + ((…(F_6 x + F_5)(1 − x) + F_4) x + …) x, x = (τ − t_old)/h (scipy's
+    ``Dop853DenseOutput``, the compiled ``_trajectory_kernel._dense_at``) — NumPy, for the
+    tests and the truth states."""
     tau = np.asarray(tau, dtype=float).reshape(-1)
-    if tau.size < 64 or np.any(tau[1:] < tau[:-1]):
-        return sol(tau)
-    seg = np.searchsorted(sol.ts_sorted, tau, side=sol.side) - 1
-    np.clip(seg, 0, sol.n_segments - 1, out=seg)
-    cut = np.flatnonzero(np.diff(seg)) + 1
-    out = np.empty((sol.interpolants[0].y_old.size, tau.size))
-    for lo, hi in zip(np.r_[0, cut], np.r_[cut, tau.size]):
-        out[:, lo:hi] = sol.interpolants[seg[lo]](tau[lo:hi])
-    return out
+    seg = np.clip(np.searchsorted(rows[:, 0], tau, side="left") - 1, 0, len(rows) - 1)
+    r = rows[seg]
+    x = ((tau - r[:, 0]) / r[:, 1])[:, None]
+    y = np.zeros((tau.size, 3))
+    for i in range(7):
+        c = 2 + 3 * (6 - i)
+        y += r[:, c:c + 3]
+        y *= x if i % 2 == 0 else 1 - x
+    y += r[:, 23:26]
+    return y.T
 
 
 def _leg_tables(position: list, geodetic: np.ndarray, t0: np.ndarray, duration: np.ndarray,
-                level: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The legs and their positions as the compiled kernels take them
-    (:mod:`rlgsim.sim.motion._trajectory_kernel`: ``legs_i``, ``legs_f``, ``dense``): per leg
-    how its position is found (the DOP853 dense output, its own channels, its start), its
-    first dense step and their number, its quadrature level, whether it stands still, whether
-    it is a table of positions; its start, duration and start position; per dense step its
-    ``t_old``, ``h``, the seven rows F and ``y_old`` of scipy's DOP853 interpolant."""
+                level: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The legs as the compiled kernels take them (:mod:`rlgsim.sim.motion._trajectory_kernel`:
+    ``legs_i``, ``legs_f``; the dense table ``dense`` is :meth:`Trajectory._integrate_positions`'s):
+    per leg how its position is found (the DOP853 dense output, its own channels, its start),
+    its first dense step and their number, its quadrature level, whether it stands still,
+    whether it is a table of positions; its start, duration and start position."""
     from rlgsim.sim.motion import _trajectory_kernel as K
     m = len(position)
     legs_i = np.zeros((m, 6), dtype=np.int64)
     legs_f = np.zeros((m, 5))
-    rows: list[np.ndarray] = []
-    for j, (start, sol) in enumerate(position):
-        kind = K.POS_GEODETIC if geodetic[j] else K.POS_FIXED if sol is None else K.POS_DENSE
-        legs_i[j] = (kind, len(rows), 0, level[j], still[j], geodetic[j])
+    for j, (start, steps) in enumerate(position):
+        kind = K.POS_GEODETIC if geodetic[j] else K.POS_FIXED if steps is None else K.POS_DENSE
+        first, count = steps if steps is not None else (0, 0)
+        legs_i[j] = (kind, first, count, level[j], still[j], geodetic[j])
         legs_f[j, :2] = t0[j], duration[j]
         if start is not None:
             legs_f[j, 2:] = start
-        if kind == K.POS_DENSE:
-            if sol.side != "left" or not sol.ascending:      # pragma: no cover - DOP853's
-                raise ValueError("dense output of an unexpected kind")
-            for f in sol.interpolants:
-                rows.append(np.concatenate([[f.t_old, f.h], np.ravel(f.F), f.y_old]))
-            legs_i[j, 2] = len(sol.interpolants)
-    dense = np.array(rows, dtype=float).reshape(-1, 26)
-    return legs_i, legs_f, np.ascontiguousarray(dense)
+    return legs_i, legs_f
 
 
 def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, dense: np.ndarray
