@@ -398,6 +398,22 @@ def test_batched_heater_network_equals_the_integrator():
     for (net, pr), got in zip(models, batch):
         _, ref = twin_response(net, pr, air, power, 5.0)
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
+    # its step coefficients (closed-form φ-functions of one batched eigendecomposition) against
+    # the integrator's (each mode's 5 × 5 exponential), at 5 s and at the fit's 30 s steps
+    # (λh from 2e-3, the series branch of φ₂, to > 1): a few ε of each array's largest entry
+    from rlgsim.lab.identify.batch_twin import _coefficients
+    from rlgsim.sim.thermal.integrator import ThermalIntegrator
+    nets = [net for net, _ in models]
+    for h in (5.0, 30.0):
+        for net, c in zip(nets, _coefficients(nets, h, 25.0, True)):
+            it = ThermalIntegrator(net, h, 0.0)
+            for k in ("_mu", "_c_s", "_c_ds", "_c_u", "_c_b", "_c_db", "_c_h", "_r_s", "_r_t",
+                      "_h_kp", "_h_ki", "_h_aw", "_h_max", "_h_sp", "_h_tg", "_to_nodes_T"):
+                want = getattr(it, k)
+                np.testing.assert_allclose(getattr(c, k), want, rtol=0,
+                                           atol=1e-13 * np.max(np.abs(want)), err_msg=k)
+            np.testing.assert_allclose(c.w0, it.initial_state(25.0, True).modal_if_valid(),
+                                       rtol=1e-13)
 
 
 @pytest.mark.parametrize("preset", ["trplg_001_cabinet", "rlg_imu"])

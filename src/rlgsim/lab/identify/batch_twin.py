@@ -7,10 +7,13 @@ reads its sensor at each grid point); the per-step cost there is Python overhead
 parameter sets cost almost ``B`` times one. Here the same recurrence runs with the modal
 state of every set as one ``(B, n)`` array: one pass over the steps for all columns of the
 Jacobian, compiled (:mod:`rlgsim.lab.identify._batch_twin_kernel`; the NumPy loop
-:func:`_loop_numpy` is its reference). The arithmetic is the integrator's (the same
-coefficients, the same update ``w ← μ·w + g + c_h·P`` with the PI law and anti-windup, the
-power clipped to ``[0, max]``), per set; rounding may differ from the scalar loop in the last
-bits, which is why the Jacobian's base point is evaluated in the same batch.
+:func:`_loop_numpy` is its reference). The arithmetic is the integrator's (its coefficients —
+computed here for all sets from one batched eigendecomposition and the closed-form exponential
+weights, :func:`_coefficients`, equal to the integrator's to a few ε — and the same update
+``w ← μ·w + g + c_h·P`` with the PI law and anti-windup, the power clipped to ``[0, max]``),
+per set; rounding differs from the scalar loop in the last bits, which is why the fit's
+residuals are evaluated by this module too (one set) and the Jacobian's base point in the
+same batch.
 """
 
 from __future__ import annotations
@@ -18,7 +21,6 @@ from __future__ import annotations
 import numpy as np
 
 from rlgsim.sim.thermal.network import ThermalNetwork
-from rlgsim.sim.thermal.integrator import ThermalIntegrator
 from rlgsim.sim.thermal.thermometers import ProbeSet
 
 __all__ = ["batchable", "twin_readings_batch"]
@@ -30,7 +32,7 @@ def batchable(network: ThermalNetwork) -> bool:
     return bool(network.heaters) and not network.nonlinear_links
 
 
-def _forcing_coef(integ: ThermalIntegrator) -> np.ndarray:
+def _forcing_coef(integ: _Coefs) -> np.ndarray:
     """The modal forcing's coefficients ``coef`` (nt, n) of ``_advance`` with ``air_tau_s = 0``
     (``g_ik = Σ_t coef[t, i]·inputs[t, k]``, summed in the order of ``t``): the setpoint, its
     step, the power, then each boundary and its step."""
@@ -40,7 +42,7 @@ def _forcing_coef(integ: ThermalIntegrator) -> np.ndarray:
     return np.array(coef, dtype=float)
 
 
-def _forcing_inputs(integ: ThermalIntegrator, s: np.ndarray, u: np.ndarray) -> np.ndarray:
+def _forcing_inputs(integ: _Coefs, s: np.ndarray, u: np.ndarray) -> np.ndarray:
     """The forcing's inputs (nt, m) in the order of :func:`_forcing_coef`: the setpoint ``s``
     (m + 1,), its step, the power ``u`` (m,), each boundary's temperature and its step."""
     inputs = [s[:-1], np.diff(s), u]
@@ -54,7 +56,7 @@ def _forcing_inputs(integ: ThermalIntegrator, s: np.ndarray, u: np.ndarray) -> n
     return np.array(inputs, dtype=float)
 
 
-def _shared_inputs(integs: list[ThermalIntegrator], s: np.ndarray, u: np.ndarray
+def _shared_inputs(integs: list[_Coefs], s: np.ndarray, u: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """The distinct forcing inputs (U, nt, m) and each set's row ``src`` (B,): the sets of a
     Jacobian share their boundaries (the same objects, scaled_twin.py), so their inputs are
@@ -71,22 +73,101 @@ def _shared_inputs(integs: list[ThermalIntegrator], s: np.ndarray, u: np.ndarray
     return np.stack(rows), src
 
 
+def _phi(lam: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The exact first-order-hold weights of a mode ``dw/dt = −λ·w + f(t)`` over a step ``h``
+    [s]: ``a = ∫₀ʰ e^{−λ(h−t)} dt = (1 − e^{−λh})/λ`` (a constant input) and
+    ``b = ∫₀ʰ e^{−λ(h−t)}·t/h dt = (h − a)/(λh)`` (an input's ramp over the step), i.e.
+    ``a = h·φ₁(−λh)``, ``b = h·φ₂(−λh)`` with φ₁(z) = (eᶻ − 1)/z, φ₂(z) = (eᶻ − 1 − z)/z²
+    (e.g. Hochbruck & Ostermann, *Exponential integrators*, Acta Numerica 2010, §2). The
+    integrator takes the same entries from the exponential of each mode's augmented 5 × 5
+    matrix (:class:`rlgsim.sim.thermal.integrator.ThermalIntegrator`); here they are closed
+    forms, with the Taylor series of φ₂ where ``λh < 1e-2`` (its cancellation; five terms,
+    truncation below (λh)⁵/720 < 2e-13)."""
+    z = lam * h
+    a = -np.expm1(-z) / lam
+    small = z < 1e-2
+    zs = np.where(small, z, 0.0)
+    series = 0.5 - zs / 6.0 + zs ** 2 / 24.0 - zs ** 3 / 120.0 + zs ** 4 / 720.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.where(small, h * series, (h - a) / np.where(small, 1.0, z))
+    return a, b
+
+
+class _Coefs:
+    """One parameter set's step coefficients: the same quantities, named as
+    :class:`~rlgsim.sim.thermal.integrator.ThermalIntegrator` names them (``air_tau_s = 0``,
+    controlled heaters, no nonlinear links, no airflow), from one batched eigendecomposition
+    (:func:`_coefficients`) instead of an integrator per set — the integrator's setup (its
+    5 × 5 exponentials, 17 a network) was most of the batched Jacobian's cost at the fit's
+    30 s steps — and the equilibrium at the first air sample (``T0`` nodes, ``heaters0`` W)."""
+
+    network: ThermalNetwork
+    step_s: float
+    boundaries: tuple
+
+
+def _coefficients(nets: list[ThermalNetwork], step_s: float, air0: float, powered0: bool
+                  ) -> list[_Coefs]:
+    """Step coefficients of each network (:class:`_Coefs`): ``S = C^-½ K C^-½ = V Λ Vᵀ``,
+    ``μ = e^{−λh}``, the forcing weights of the setpoint (chamber air), its ramp, the power
+    and each boundary from :func:`_phi`, the heaters' input columns and sensor rows in the
+    modal basis ``w = Vᵀ C^½ T``, the PI constants (``ki = kp·h/ti``, anti-windup ``h/ti``,
+    the tracked setpoint ``sp − gain·ref`` and its gain) — the integrator's formulae."""
+    h = float(step_s)
+    C = np.stack([np.asarray(n.capacitance_j_per_k, dtype=float) for n in nets])
+    d = 1.0 / np.sqrt(C)
+    K = np.stack([n.stiffness_w_per_k() for n in nets])
+    S = d[:, :, None] * K * d[:, None, :]
+    S = 0.5 * (S + np.swapaxes(S, 1, 2))
+    lam, V = np.linalg.eigh(S)
+    if np.any(lam <= 0):
+        raise ValueError("the network's stiffness is not positive definite")
+    a, b = _phi(lam, h)
+    out = []
+    for k, net in enumerate(nets):
+        c = _Coefs()
+        c.network, c.step_s, c.boundaries = net, h, tuple(net.boundaries)
+        Vk, dk = V[k], d[k]
+        beta = Vk.T @ (dk * net.ambient_conductance_w_per_k)
+        pi = Vk.T @ (dk * net.power_w)
+        beta_b = (net.boundary_conductance_w_per_k * dk[None, :]) @ Vk
+        c._mu = np.exp(-lam[k] * h)
+        c._c_s, c._c_ds, c._c_u = beta * a[k], beta * b[k], pi * a[k]
+        c._c_b, c._c_db = beta_b * a[k][None, :], beta_b * b[k][None, :]
+        nodes_map = dk[:, None] * Vk
+        c._to_nodes_T = np.ascontiguousarray(nodes_map.T)
+        hs = net.heaters
+        c._c_h = np.column_stack([Vk.T[:, q.node] * dk[q.node] * a[k] for q in hs])
+        c._r_s = np.array([nodes_map[q.sensor] for q in hs])
+        c._r_t = np.array([nodes_map[max(q.track_node, 0)] for q in hs])
+        c._h_kp = np.array([q.kp_w_per_k for q in hs])
+        c._h_ki = np.array([q.kp_w_per_k * h / q.ti_s for q in hs])
+        c._h_aw = np.array([h / q.ti_s for q in hs])
+        c._h_max = np.array([q.max_power_w for q in hs])
+        c._h_sp = np.array([q.setpoint_c - (q.track_gain * q.track_reference_c
+                                            if q.track_node >= 0 else 0.0) for q in hs])
+        c._h_tg = np.array([q.track_gain if q.track_node >= 0 else 0.0 for q in hs])
+        c.T0 = net.steady_state(air0, powered0)
+        c.heaters0 = np.asarray(net.steady_heater_power_w(air0, powered0), dtype=float)
+        c.w0 = (Vk.T * np.sqrt(C[k])[None, :]) @ c.T0
+        out.append(c)
+    return out
+
+
 def _stacked(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np.ndarray,
-             power: np.ndarray, step_s: float) -> tuple[list, list, dict]:
-    """The integrators and initial states of every set, and their coefficients stacked over the
+             power: np.ndarray, step_s: float) -> tuple[list, dict]:
+    """The coefficients of every set (:func:`_coefficients`) and the same stacked over the
     sets: ``mu``/``w0`` (B, n), the forcing's ``coef`` (B, nt, n), its distinct ``inputs`` (U,
     nt, m) and each set's row of them ``src`` (B,) (:func:`_shared_inputs`), ``ch`` (B, n, H),
     ``rs``/``rt`` (B, H, n), the controller constants (B, H), ``integ`` (B, H), ``on`` (m,)
     bool, ``track`` bool."""
-    integs = [ThermalIntegrator(net, step_s, 0.0) for net, _ in models]
     powered0 = bool(power[0] > 0.5)
-    sts = [it.initial_state(float(air_c[0]), powered0) for it in integs]
+    integs = _coefficients([net for net, _ in models], step_s, float(air_c[0]), powered0)
     s = np.concatenate(([air_c[0]], air_c)).astype(float)
     u = np.asarray(power, dtype=float)
-    H = len(integs[0].heaters)
     inputs, src = _shared_inputs(integs, s, u)
     c = {"mu": np.stack([it._mu for it in integs]),
-         "w0": np.stack([np.asarray(st.modal_if_valid(), dtype=float) for st in sts]),
+         "w0": np.stack([it.w0 for it in integs]),
          "coef": np.stack([_forcing_coef(it) for it in integs]),
          "inputs": inputs, "src": src,
          "ch": np.stack([it._c_h for it in integs]),
@@ -98,11 +179,10 @@ def _stacked(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np.ndarray,
          "pmax": np.stack([it._h_max for it in integs]),
          "sp0": np.stack([it._h_sp for it in integs]),
          "tg": np.stack([it._h_tg for it in integs]),
-         "integ": np.stack([np.asarray(st.heaters if st.heaters is not None else np.zeros(H),
-                                       dtype=float) for st in sts]),
+         "integ": np.stack([it.heaters0 for it in integs]),
          "on": u > 0}
     c["track"] = bool(np.any(c["tg"] != 0.0))
-    return integs, sts, c
+    return integs, c
 
 
 def _loop_numpy(c: dict) -> np.ndarray:
@@ -189,7 +269,7 @@ def twin_readings_batch(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np
     power (m,) held over each step, from the equilibrium at ``air_c[0]``. ``compiled``: the
     numba kernel (default) or the NumPy reference loop."""
     from rlgsim.sim.thermal._probe_kernel import read_block
-    integs, sts, c = _stacked(models, air_c, power, step_s)
+    integs, c = _stacked(models, air_c, power, step_s)
     W = _loop_compiled(c) if compiled else _loop_numpy(c)
     out = []
     for b, ((net, probes), it) in enumerate(zip(models, integs)):
@@ -200,7 +280,7 @@ def twin_readings_batch(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np
         P = probes.n_probes
         reading, new_state = np.zeros((probed.shape[0], P)), np.empty((2, P))
         read_block(probed, np.arange(P, dtype=np.int64),
-                   probes.initial_state(np.asarray(sts[b])[1:]), a, cl, probes._lagged(),
+                   probes.initial_state(it.T0), a, cl, probes._lagged(),
                    np.zeros(P), np.zeros(P), reading, new_state)
         out.append(reading)
     return out

@@ -13,7 +13,7 @@ network is the template's with its arrays scaled, instead of a copied dict valid
 assembled by :meth:`ThermalNetwork.from_config` (1.3 ms a network, some 4,300 networks in the
 20 h identification of ``benchmarks/bench_identify.py``). The products are rounded in another
 order than the builder's, so a network agrees with a full build to the last bits, not bit for
-bit: the fit's single evaluations and its result still use full builds.
+bit: the fit's residuals and Jacobians use these networks, its result full builds.
 """
 
 from __future__ import annotations

@@ -24,12 +24,13 @@ from rlgsim.sim.thermal.thermometers import ProbeSet
 #: log-multiplier bounds: a factor of 10 either way of the design
 _BOUND = math.log(10.0)
 #: most residuals used per fit (probes × time, decimated in time beyond this)
-MAX_RESIDUALS = 30_000
+MAX_RESIDUALS = 10_000
 #: most integration steps per evaluation during the fit (a coarser grid beyond this)
 MAX_FIT_STEPS = 15_000
 #: the same for a network integrated step by step (a controlled heater): its evaluations cost
-#: several times a linear network's, and its fit runs on the coarser grid (module docstring)
-MAX_FIT_STEPS_STEPWISE = 7_500
+#: several times a linear network's, and its fit runs on the coarser grid (29 s steps for a
+#: 20 h recording; thermal_fit's docstring gives what that costs in accuracy)
+MAX_FIT_STEPS_STEPWISE = 2_500
 #: evaluate the finite-difference Jacobian of a heater network in one batch
 #: (:mod:`rlgsim.lab.identify.batch_twin`); False: scipy's column by column
 BATCH_JACOBIAN = True
@@ -112,8 +113,8 @@ class _Problem:
         cols = np.array([pr0.names.index(n) for n in probe_names])
         m_full = air_c.size
         # the fit integrates on a coarser grid (every `coarse` recorded steps): the air is
-        # smooth and the first-order hold stays exact to the millikelvin; the final twin is on
-        # the full grid
+        # smooth and its first-order hold stays within mK of the full grid's (thermal_fit's
+        # docstring); the final twin is on the full grid
         batched = BATCH_JACOBIAN and batchable(net0)
         most = MAX_FIT_STEPS_STEPWISE if batchable(net0) else MAX_FIT_STEPS
         coarse = max(1, int(math.ceil(m_full / most)))
@@ -161,6 +162,12 @@ class _Problem:
         return nodes, read[:, self.cols], net, pr, d
 
     def residual_for(self, names: list[str]):
+        """The residual vector as a function of the log-multipliers of ``names``: for a heater
+        network through the batched integration the Jacobian uses (:meth:`residuals_part`, one
+        set; the same arithmetic as the Jacobian's points), otherwise a full build."""
+        if self.batched:
+            return lambda x: self.residuals_part(names, [np.asarray(x, dtype=float)])[0]
+
         def fun(x: np.ndarray) -> np.ndarray:
             _, read, *_ = self.model(dict(zip(names, np.exp(x))))
             r = np.where(self.mask, read[self.rows] - self.obs0, 0.0)
