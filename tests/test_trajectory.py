@@ -199,7 +199,9 @@ def test_constant_attitude_legs_are_exact_integrals(rate_hz, t0, n):
     reference, at 100 Hz and across 1-s and 2-s samples."""
     traj = Trajectory(constant_attitude_legs(), START, until_s=50.0)
     assert list(traj._level) == [1, 2, 1, 2, 2]          # and the hold to the end
-    assert list(traj._chunk) == [0.0, 10.0, 0.0, 0.0, 0.0]   # the rest stand still
+    assert list(traj._chunk[[1, 3, 4]]) == [10.0, 0.0, 0.0]  # the rest stand still; the
+    assert 0.04 <= min(traj._chunk[[0, 2]]) <= max(traj._chunk[[0, 2]]) <= 1.0  # speed-up
+    # and the stop take Chebyshev chunks of ≥ 4 samples (sim/motion/_trajectory_cheb.py)
     assert_exact_integrals(traj, t0, n, rate_hz)
 
 
@@ -291,9 +293,11 @@ def test_same_numbers_whatever_block_asks():
     assert at == atn and w == pytest.approx(wn, rel=1e-14, abs=0)
     assert f == pytest.approx(fn, rel=1e-14, abs=0)
     whole = traj.increments(0.0, 12000, 100.0)
-    part = traj.increments(29.0, 1700, 100.0)
-    assert np.array_equal(whole.dtheta_rad[2900:4600], part.dtheta_rad)
-    assert np.array_equal(whole.dv_m_per_s[2900:4600], part.dv_m_per_s)
+    for t0, n in ((29.0, 1700), (41.37, 300)):  # from inside the Chebyshev chunks of the
+        part = traj.increments(t0, n, 100.0)     # speed-up and of the smooth turn
+        k = round(t0 * 100)
+        assert np.array_equal(whole.dtheta_rad[k:k + n], part.dtheta_rad)
+        assert np.array_equal(whole.dv_m_per_s[k:k + n], part.dv_m_per_s)
 
 
 def test_attitude_convention_and_quaternion():

@@ -50,6 +50,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rlgsim.sim.motion._trajectory_cheb import NODES as CHEB_NODES
+from rlgsim.sim.motion._trajectory_cheb import cheb_mean, cheb_refit
 from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL,
                                                   _earth_terms, _position, _position_rate,
                                                   _state, _state_geodetic)
@@ -263,7 +265,7 @@ def _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, j, ta, d, sub, frac, quad
 
 @njit(cache=True, nogil=True)
 def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dense, quads,
-                     earth, chunk, fit, out_w, out_f, runs):  # pragma: no cover - compiled
+                     earth, chunk, fit, dct, out_w, out_f, runs):  # pragma: no cover - compiled
     """Δθ → ``out_w``, Δv → ``out_f`` (n, 3) of samples k0 … k0 + n − 1 at ``rate`` [Hz].
 
     Sample i covers [(k0 + i)/f, (k0 + i + 1)/f); a leg start strictly inside it splits it into
@@ -273,9 +275,11 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
     :mod:`rlgsim.sim.motion._trajectory_kernel` lays them out; ``quads`` (3, 2, 4) the
     Gauss–Legendre nodes and weights of each quadrature level (:data:`POINTS` of them, the rest
     padding); ``sub`` sub-intervals per piece; ``chunk`` (m,) the fitted chunks' length [s] of
-    each leg holding its attitude and velocity while moving (0: none; module docstring), ``fit``
-    (7, 6) the Chebyshev points and inverse Vandermonde matrix of :func:`_chunk_fit`. The
-    runs (lo, hi) of ≥ 2 samples standing still in one leg go to ``runs`` (r, 2); returns r."""
+    each leg holding its attitude and velocity while moving and of each turning or
+    accelerating one (0: none; module docstring), ``fit`` (7, 6) the Chebyshev points and
+    inverse Vandermonde matrix of :func:`_chunk_fit`, ``dct`` the Chebyshev chunks'
+    (:mod:`rlgsim.sim.motion._trajectory_cheb`). The runs (lo, hi) of ≥ 2 samples standing
+    still in one leg go to ``runs`` (r, 2); returns r."""
     m = legs_i.shape[0]
     inv = 1.0 / rate
     w = np.empty(32)
@@ -283,20 +287,15 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
     c = np.empty(9)
     c_leg = -1
     bfit = np.full((FIT_NODES + 2, 6), -1.0)    # the fitted chunk (_refit): none yet
+    cfit = np.full((CHEB_NODES + 1, 6), -1.0)   # the Chebyshev chunk (cheb_refit): none yet
     pos = np.empty((sub + 1, 3))
-    frac = np.empty(sub + 1)
-    for s in range(sub + 1):
-        frac[s] = s / sub
+    frac = np.arange(sub + 1) / sub
     cuts = np.empty(m + 2)
     ci = 0                          # next leg start not yet passed
     leg = 0
-    have_prev = False
-    prev_still = False
-    prev_leg = -1
-    n_runs = 0
-    run_lo = 0
-    run_len = 0
-    last_sample = -1
+    have_prev = prev_still = False
+    prev_leg = last_sample = -1
+    n_runs = run_lo = run_len = 0
     for i in range(n):
         a_i = (float(k0) + float(i)) / rate
         b_i = (float(k0) + float(i + 1)) / rate
@@ -328,10 +327,17 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
                 if (whole and chunk[leg] >= 4.0 * inv and dur >= 4.0 * inv
                         and ta + inv <= dur):           # a fitted chunk (module docstring)
                     tm = ta + 0.5 * inv
-                    if not (bfit[7, 0] == leg and bfit[7, 1] <= tm < bfit[7, 2]):
-                        _refit(coef, legs_i, legs_f, dense, leg, tm, inv, chunk, c, fit, earth,
-                               bfit)
-                    _fitted_mean(bfit, tm, inv, res)
+                    if legs_i[leg, LI_LEVEL] != 2:      # turning or accelerating
+                        if not (cfit[CHEB_NODES, 0] == leg
+                                and cfit[CHEB_NODES, 1] <= tm < cfit[CHEB_NODES, 2]):
+                            cheb_refit(coef, dcoef, legs_i, legs_f, dense, leg, tm, inv, chunk,
+                                       dct, earth, w, cfit)
+                        cheb_mean(cfit, tm, inv, quads, res)
+                    else:
+                        if not (bfit[7, 0] == leg and bfit[7, 1] <= tm < bfit[7, 2]):
+                            _refit(coef, legs_i, legs_f, dense, leg, tm, inv, chunk, c, fit,
+                                   earth, bfit)
+                        _fitted_mean(bfit, tm, inv, res)
                 else:
                     _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, leg, ta, d, sub, frac,
                            quads, earth, w, c, pos, res)
@@ -357,37 +363,3 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
         runs[n_runs, 0], runs[n_runs, 1] = run_lo, last_sample + 1
         n_runs += 1
     return n_runs
-
-
-@njit(cache=True, nogil=True)
-def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s,
-                out):  # pragma: no cover - compiled
-    """Largest |ω_ib^b| and |f^b| component and the time of the largest rate → ``out`` (3,),
-    on each leg's grid of :meth:`rlgsim.sim.motion.trajectory.Trajectory.peak_inputs` (m =
-    max(2, ⌈duration/``step_s``⌉ + 1) points k·duration/(m − 1), the last one the duration):
-    the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest."""
-    a_axis, e2 = earth[0], earth[1]
-    w = np.empty(32)
-    best_w = best_f = at = 0.0
-    for j in range(legs_i.shape[0]):
-        dur = legs_f[j, LF_DUR]
-        m = max(2, int(np.ceil(dur / step_s)) + 1)
-        step = dur / (m - 1)
-        for k in range(m):
-            tau = dur if k == m - 1 else float(k) * step
-            if legs_i[j, LI_GEO] == 1:
-                _state_geodetic(coef, dcoef, d2coef, j, tau, w, e2, a_axis)
-                lat, hgt = w[18], w[19]
-            else:
-                _state(coef, dcoef, j, tau, w)
-                lat, lon, hgt = _position(legs_i, legs_f, dense, j, tau)
-            i0, i1, i2, e0, e1, e2f, gam = _earth_terms(lat, hgt, w[12], w[13], w[14], earth)
-            fn0, fn1, fn2 = w[15] + e0, w[16] + e1, w[17] + e2f + gam
-            mw = mf = 0.0
-            for r in range(3):
-                mw = max(mw, abs(w[9 + r] + w[r] * i0 + w[3 + r] * i1 + w[6 + r] * i2))
-                mf = max(mf, abs(w[r] * fn0 + w[3 + r] * fn1 + w[6 + r] * fn2))
-            if mw > best_w:
-                best_w, at = mw, legs_f[j, LF_T0] + tau
-            best_f = max(best_f, mf)
-    out[0], out[1], out[2] = best_w, best_f, at

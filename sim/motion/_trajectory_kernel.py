@@ -1,5 +1,6 @@
 """Compiled formulas of a trajectory at one time (numba): the legs' states, the position from
-the DOP853 dense output, the Earth's terms; the block loops that use them are in
+the DOP853 dense output, the Earth's terms, and the range check's peaks over a route
+(:func:`peak_inputs`); the block loops that use them are in
 :mod:`rlgsim.sim.motion._trajectory_block`.
 
 The formulas are those of the module docstring of :mod:`rlgsim.sim.motion.trajectory` (and of
@@ -236,3 +237,37 @@ def position_rate_at(coef, dcoef, j, tau, lat, hgt, e2, a_axis):  # pragma: no c
     w = np.empty(32)
     _state(coef, dcoef, j, tau, w)
     return _position_rate(lat, hgt, w[12], w[13], w[14], e2, a_axis)
+
+
+@njit(cache=True, nogil=True)
+def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s,
+                out):  # pragma: no cover - compiled
+    """Largest |ω_ib^b| and |f^b| component and the time of the largest rate → ``out`` (3,),
+    on each leg's grid of :meth:`rlgsim.sim.motion.trajectory.Trajectory.peak_inputs` (m =
+    max(2, ⌈duration/``step_s``⌉ + 1) points k·duration/(m − 1), the last one the duration):
+    the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest."""
+    a_axis, e2 = earth[0], earth[1]
+    w = np.empty(32)
+    best_w = best_f = at = 0.0
+    for j in range(legs_i.shape[0]):
+        dur = legs_f[j, LF_DUR]
+        m = max(2, int(np.ceil(dur / step_s)) + 1)
+        step = dur / (m - 1)
+        for k in range(m):
+            tau = dur if k == m - 1 else float(k) * step
+            if legs_i[j, LI_GEO] == 1:
+                _state_geodetic(coef, dcoef, d2coef, j, tau, w, e2, a_axis)
+                lat, hgt = w[18], w[19]
+            else:
+                _state(coef, dcoef, j, tau, w)
+                lat, lon, hgt = _position(legs_i, legs_f, dense, j, tau)
+            i0, i1, i2, e0, e1, e2f, gam = _earth_terms(lat, hgt, w[12], w[13], w[14], earth)
+            fn0, fn1, fn2 = w[15] + e0, w[16] + e1, w[17] + e2f + gam
+            mw = mf = 0.0
+            for r in range(3):
+                mw = max(mw, abs(w[9 + r] + w[r] * i0 + w[3 + r] * i1 + w[6 + r] * i2))
+                mf = max(mf, abs(w[r] * fn0 + w[3 + r] * fn1 + w[6 + r] * fn2))
+            if mw > best_w:
+                best_w, at = mw, legs_f[j, LF_T0] + tau
+            best_f = max(best_f, mf)
+    out[0], out[1], out[2] = best_w, best_f, at

@@ -105,6 +105,12 @@ def _kernel():
     return _trajectory_block
 
 
+def _cheb():
+    """The Chebyshev chunks of the turning and accelerating legs (their compiled kernels)."""
+    from rlgsim.sim.motion import _trajectory_cheb
+    return _trajectory_cheb
+
+
 @dataclass(frozen=True)
 class InitialState:
     """Where a trajectory starts: geodetic latitude and longitude [rad], height above the
@@ -472,7 +478,8 @@ class Trajectory:
         sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
         r = _kernel().block_increments(k0, n, float(rate_hz), sub, self._coef, self._dcoef,
                                        self._d2coef, self._legs_i, self._legs_f, self._dense,
-                                       _QUADS, _EARTH, self._chunk, _FIT, dth, dv, runs)
+                                       _QUADS, _EARTH, self._chunk, _FIT, _cheb().DCT, dth, dv,
+                                       runs)
         constant = tuple((int(lo), int(hi)) for lo, hi in runs[:r])
         block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, constant)
         if angles:
@@ -483,11 +490,12 @@ class Trajectory:
     def peak_inputs(self, step_s: float = 0.5) -> tuple[float, float, float]:
         """Largest |ω_ib^b| component [rad/s] and |f^b| component [m/s²] over the run, on a
         grid of ``step_s`` plus the leg ends, and the time of the largest rate — by the
-        compiled kernel (sim/motion/_trajectory_block.py: the grid of :meth:`peak_inputs_numpy`,
+        compiled kernel (sim/motion/_trajectory_kernel.py: the grid of :meth:`peak_inputs_numpy`,
         the integrands' compiled formulas; ~2 ms for 4 h of route instead of ~50 ms)."""
+        from rlgsim.sim.motion._trajectory_kernel import peak_inputs
         out = np.empty(3)
-        _kernel().peak_inputs(self._coef, self._dcoef, self._d2coef, self._legs_i,
-                              self._legs_f, self._dense, _EARTH, float(step_s), out)
+        peak_inputs(self._coef, self._dcoef, self._d2coef, self._legs_i, self._legs_f,
+                    self._dense, _EARTH, float(step_s), out)
         return float(out[0]), float(out[1]), float(out[2])
 
     def peak_inputs_numpy(self, step_s: float = 0.5) -> tuple[float, float, float]:
@@ -561,10 +569,18 @@ def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, den
     min(:data:`_CHUNK_MAX_S`, :data:`_CHUNK_OF_SCALE` · τ), τ = (a(1 − e²) + min(h, 0)) cos L_max
     / |v| the time the integrands' nearest singularity in L or h is away at its speed — tan L
     at the pole, 1/(R + h) at the Earth's centre (L_max the largest |L| at its steps' starts and
-    end, plus the most one step can add); 0 for any other leg."""
+    end, plus the most one step can add); a turning or accelerating one (body frame, its
+    position the dense output) its Chebyshev chunks' min(CHUNK_MAX_S, RHO_FRACTION · ρ)
+    (sim/motion/_trajectory_cheb.py: ρ the radius on which its channels move by little); 0 for
+    any other leg."""
     from rlgsim.sim.motion import _trajectory_kernel as K
+    cheb = _cheb()
     out = np.zeros(len(legs_i))
-    for j, (kind, first, steps, level, still, _) in enumerate(legs_i):
+    for j, (kind, first, steps, level, still, geo) in enumerate(legs_i):
+        if level != 2 and not still and not geo and kind == K.POS_DENSE and steps > 0:
+            rho = cheb.chunk_radius(coef[j], float(legs_f[j, K.LF_DUR]))
+            out[j] = min(cheb.CHUNK_MAX_S, cheb.RHO_FRACTION * rho)
+            continue
         speed = float(np.linalg.norm(coef[j, 3:, 0]))
         if level != 2 or still or kind != K.POS_DENSE or steps == 0 or speed == 0.0:
             continue

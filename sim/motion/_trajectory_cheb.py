@@ -1,0 +1,160 @@
+"""Compiled Chebyshev chunks of a trajectory's turning and accelerating legs (numba): a whole
+sample's increments as the integral of a degree-11 interpolant of the integrands.
+
+On a leg whose attitude turns (quadrature level 0, body frame) or whose velocity changes at a
+constant attitude (level 1), the 4- or 3-point Gauss–Legendre quadrature of
+:mod:`rlgsim.sim.motion._trajectory_block` evaluates the integrands 4-6 times a sample (~850
+and ~380 ns at 100 Hz). Here the leg is cut into chunks of T seconds from its start
+(``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`); the body-frame
+integrands (ω_ib^b, f^b) at the N = :data:`NODES` Chebyshev points of the chunk widened by
+half a sample each side (the position from the DOP853 dense output) give the Chebyshev series
+of their interpolant p of degree N − 1 (a discrete cosine transform, ``DCT``); a sample whose
+middle lies in the chunk is then ``inv`` times the mean of p over it by 4-point
+Gauss–Legendre, each node's p by Clenshaw's recurrence (Mason & Handscomb 2003, *Chebyshev
+Polynomials*, §2.4.5, §6.3) — 12 evaluations of the integrands per chunk instead of 4-6 per
+sample. Why by hand: NumPy's ``chebval`` is not callable from compiled code, and the chunk
+must be a pure function of the sample's time (the same numbers whatever block holds it).
+
+**Error.** Interpolation at the N Chebyshev points of an interval of length L errs by
+≤ 2 (L/4)^N max|F^(N)|/N! (Mason & Handscomb Thm 6.5), and Cauchy's estimate on a disc of
+radius ρ, |F^(N)| ≤ N! M_ρ/ρ^N, gives ≤ 2 M_ρ (L/4ρ)^N. ρ is the radius on which every channel
+of the leg moves by little — each angle by ≤ 0.5 rad (so |sin|, |cos| ≤ cosh 0.5) and each body
+velocity by ≤ half its largest value (Σ_(k ≥ 1) max|c^(k)| ρ^k/k! below those bounds,
+:func:`chunk_radius`) — so M_ρ is a few times max|F|. With T = :data:`RHO_FRACTION` ρ and
+L ≤ 1.25 T (a chunk holds ≥ 4 samples), 2 (L/4ρ)^N ≤ 2 · 0.031^12 ≈ 2e-18: below float64's
+rounding of the increments. The 4-point Gauss–Legendre rule on the degree-11 p errs by
+(2δ)^9 (4!)^4/(9 (8!)^3) max|p^(8)| ≤ 5.6e-10 (2δ)^9 · 8! M_ρ/(2ρ/L)^8 ≤ 1e-17 M_ρ (δ ≤ ¼ the
+sample's half-width in the chunk's variable; ~1e-22 at 100 Hz, δ ≈ 0.04-0.08). The position
+enters through the Earth's terms only (time scale R/v ≥ hours). Rounding: the node values'
+few ulps pass through the interpolant with its Lebesgue constant (≈ 2.5 at N = 12) and
+Clenshaw's sum, so a sample errs by a few ulps of the chunk's largest integrand (the
+quadrature's by a few of its own): on the 2-h land route the two differ by ≤ 6 ulps of each
+leg's largest increment, and both meet the 10-point reference of tests/test_trajectory.py.
+Cost at 100 Hz: ~160 ns a sample of a turn (was ~850), ~170 of an acceleration (was ~380).
+
+No ``fastmath``: the same operations in the same order for a sample whatever block holds it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rlgsim.sim.motion._trajectory_kernel import LF_DUR, _earth_terms, _position, _state
+
+#: Chebyshev points of a chunk (the interpolant's degree + 1), the chunk length as a fraction
+#: of the analytic radius ρ and its cap [s] (module docstring)
+NODES = 12
+RHO_FRACTION = 0.1
+CHUNK_MAX_S = 1.0
+#: the chunk's Chebyshev points x_i = cos(π(i + ½)/N) (row 0) and the transform from the
+#: values at them to the series' coefficients a_k = (2 − [k = 0])/N Σ_i F_i T_k(x_i) (rows 1…N)
+_X = np.polynomial.chebyshev.chebpts1(NODES)[::-1].copy()
+DCT = np.vstack([_X[None, :],
+                 np.polynomial.chebyshev.chebvander(_X, NODES - 1).T
+                 * np.where(np.arange(NODES) == 0, 1.0, 2.0)[:, None] / NODES])
+
+
+@njit(cache=True, nogil=True)
+def cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w,
+             out):  # pragma: no cover - compiled
+    """The interpolant of leg ``j``'s integrands on its chunk [lo, hi] (leg time) widened by
+    half a sample of ``inv`` seconds each side (within the leg) → ``out`` (N + 1, 6): rows
+    0 … N − 1 its Chebyshev coefficients (module docstring), row N (j, lo, hi, the widened
+    interval's middle and 2/length, δ = the half-width in s of a sample)."""
+    a = max(lo - 0.5 * inv, 0.0)                    # every sample whose middle is in the
+    b = min(hi + 0.5 * inv, legs_f[j, LF_DUR])      # chunk lies in [a, b]: no extrapolation
+    mid, half = 0.5 * (a + b), 0.5 * (b - a)
+    vals = np.empty((NODES, 6))
+    for i in range(NODES):
+        tau = mid + half * dct[0, i]
+        _state(coef, dcoef, j, tau, w)
+        lat, lon, hgt = _position(legs_i, legs_f, dense, j, tau)
+        i0, i1, i2, e0, e1, e2f, gam = _earth_terms(lat, hgt, w[12], w[13], w[14], earth)
+        fn0, fn1, fn2 = w[15] + e0, w[16] + e1, w[17] + e2f + gam
+        for r in range(3):
+            vals[i, r] = w[9 + r] + (w[r] * i0 + w[3 + r] * i1 + w[6 + r] * i2)
+            vals[i, 3 + r] = w[r] * fn0 + w[3 + r] * fn1 + w[6 + r] * fn2
+    for q in range(6):
+        for k in range(NODES):
+            acc = 0.0
+            for i in range(NODES):
+                acc += dct[1 + k, i] * vals[i, q]
+            out[k, q] = acc
+    out[NODES, 0], out[NODES, 1], out[NODES, 2] = j, lo, hi
+    out[NODES, 3], out[NODES, 4], out[NODES, 5] = mid, 1.0 / half, 0.5 * inv / half
+
+
+@njit(cache=True, nogil=True)
+def cheb_refit(coef, dcoef, legs_i, legs_f, dense, j, tau, inv, chunk, dct, earth, w,
+               out):  # pragma: no cover - compiled
+    """Fit the chunk of leg ``j`` holding leg time ``tau`` (chunk i: i T ≤ τ < (i + 1) T, the
+    last one to the leg's end; a pure function of τ) into ``out`` (:func:`cheb_fit`)."""
+    dur, t_ch = legs_f[j, LF_DUR], chunk[j]
+    n_ch = max(1, int(dur / t_ch))
+    i = min(int(tau / t_ch), n_ch - 1)
+    while i > 0 and tau < i * t_ch:
+        i -= 1
+    while i < n_ch - 1 and tau >= (i + 1) * t_ch:
+        i += 1
+    lo = i * t_ch
+    hi = dur if i == n_ch - 1 else (i + 1) * t_ch
+    cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w, out)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cheb_mean(cfit, tau, inv, quads, res):  # pragma: no cover - compiled
+    """∫ω_ib^b, ∫f^b over the whole sample of ``inv`` seconds whose middle is at leg time
+    ``tau`` → res[0:6]: the chunk's interpolant integrated over the sample by 4-point
+    Gauss–Legendre (``quads[0]``; module docstring), each node's value by Clenshaw's
+    recurrence."""
+    s = (tau - cfit[NODES, 3]) * cfit[NODES, 4]
+    delta = cfit[NODES, 5]
+    x0 = s + delta * quads[0, 0, 0]             # the four nodes' recurrences side by side
+    x1 = s + delta * quads[0, 0, 1]             # (independent chains: the same operations
+    x2 = s + delta * quads[0, 0, 2]             # per node as one at a time)
+    x3 = s + delta * quads[0, 0, 3]
+    for q in range(6):
+        a0 = a1 = a2 = a3 = 0.0                 # b_(k+1) of each node
+        c0 = c1 = c2 = c3 = 0.0                 # b_(k+2)
+        for k in range(NODES - 1, 0, -1):
+            ck = cfit[k, q]
+            a0, c0 = ck + 2.0 * x0 * a0 - c0, a0
+            a1, c1 = ck + 2.0 * x1 * a1 - c1, a1
+            a2, c2 = ck + 2.0 * x2 * a2 - c2, a2
+            a3, c3 = ck + 2.0 * x3 * a3 - c3, a3
+        c00 = cfit[0, q]
+        acc = quads[0, 1, 0] * (c00 + x0 * a0 - c0)
+        acc += quads[0, 1, 1] * (c00 + x1 * a1 - c1)
+        acc += quads[0, 1, 2] * (c00 + x2 * a2 - c2)
+        acc += quads[0, 1, 3] * (c00 + x3 * a3 - c3)
+        res[q] = 0.5 * inv * acc
+
+
+#: the radii tried by :func:`chunk_radius` [s]: 5 % apart (the largest one that passes is taken)
+_RHO_GRID = np.geomspace(1e-4, 1e6, 461)
+
+
+def chunk_radius(c: np.ndarray, duration: float) -> float:
+    """ρ [s] of a leg's channel polynomials ``c`` (6, 6: heading, pitch, roll [rad], body
+    velocity [m/s]; coefficients of τ⁰ … τ⁵) on [0, ``duration``] (module docstring): the
+    largest radius of :data:`_RHO_GRID` with Σ_(k ≥ 1) max|c^(k)| ρ^k/k! ≤ 0.5 rad for each
+    angle and ≤ half the largest |value| for each velocity (the maxima on 257 points of the
+    leg); inf when nothing moves."""
+    deg = c.shape[1]
+    tau = np.linspace(0.0, duration, 257)
+    powers = tau[:, None] ** np.arange(deg)                  # (257, deg)
+    # the k-th derivative's coefficients / k!: c_m C(m, k) at τ^(m−k)
+    peaks = np.zeros((6, deg - 1))
+    for k in range(1, deg):
+        binom = np.array([math.comb(m, k) for m in range(k, deg)], dtype=float)
+        peaks[:, k - 1] = np.max(np.abs(powers[:, :deg - k] @ (c[:, k:] * binom).T), axis=0)
+    values = np.max(np.abs(powers @ c.T), axis=0)
+    limits = np.r_[np.full(3, 0.5), 0.5 * values[3:]]
+    growth = peaks @ (_RHO_GRID[None, :] ** np.arange(1, deg)[:, None])   # (6, grid)
+    ok = np.all(growth <= limits[:, None], axis=0)
+    if ok[-1]:
+        return math.inf
+    return float(_RHO_GRID[np.argmin(ok) - 1]) if ok[0] else 0.0
