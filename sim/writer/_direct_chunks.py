@@ -34,6 +34,7 @@ from collections import deque
 import h5py
 import numpy as np
 
+from rlgsim.sim.writer._new_dataset import write_rows
 from rlgsim.sim.writer._scaleoffset import Codec, codec_of, encode
 
 
@@ -90,8 +91,7 @@ class DirectChunks:
         first = 0
         if not self.started:
             # HDF5 creates the chunk index at the dataset's first write
-            self.ds.write_direct(np.ascontiguousarray(data[:self.rows]),
-                                 dest_sel=np.s_[row:row + self.rows])
+            write_rows(self.ds, np.ascontiguousarray(data[:self.rows]), row)
             self.started = True
             first = 1
             if self.capacity:

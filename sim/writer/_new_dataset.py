@@ -1,4 +1,4 @@
-"""Datasets made with h5py's low-level calls: the file :meth:`h5py.Group.create_dataset` makes.
+"""Datasets made and written with h5py's low-level calls: the file h5py's high level makes.
 
 The simulator lays out ~75 datasets per run (coordinates, parameters, growing series) before
 its first block; through ``create_dataset`` each costs ~0.1 ms, ~60 % of it h5py's argument
@@ -7,6 +7,8 @@ calls with the same property values — h5py's ``make_new_dset`` (h5py/_hl/datas
 reference, and the tests compare the files' bytes (tests/test_dataset.py) — with each property
 list built once per process. Only what the writer uses is covered (chunked growing datasets,
 the scale-offset filter, fixed numeric and text data); anything else goes through h5py.
+
+:func:`write_rows` writes rows the way ``Dataset.write_direct`` does, with the same H5Dwrite.
 """
 
 from __future__ import annotations
@@ -66,3 +68,18 @@ def plain_name(name: str) -> bool:
     """Whether h5py would create ``name`` in the group itself (no path, no intermediate
     groups): the only names :func:`new_dataset` takes."""
     return bool(name) and "/" not in name
+
+
+def write_rows(ds: h5py.Dataset, data: np.ndarray, row: int) -> None:
+    """``ds.write_direct(data, dest_sel=np.s_[row:row + len(data)])`` — the same H5Dwrite (a
+    memory space of ``data``'s shape, the file space's hyperslab of those rows over the whole
+    trailing dimensions, default transfer properties) without h5py's selection objects (~20
+    µs a call instead of ~45; a run makes one per growing dataset at its commit). ``data``
+    C-contiguous, ``ds`` already extended over the rows."""
+    from h5py import h5s
+    k = data.shape[0]
+    with h5py._objects.phil:
+        dsid = ds.id
+        fspace = dsid.get_space()
+        fspace.select_hyperslab((row,) + (0,) * (data.ndim - 1), (k,) + data.shape[1:])
+        dsid.write(h5s.create_simple(data.shape), fspace, data)

@@ -56,7 +56,7 @@ from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, I
                                           VERSION_ATTR, open_dataset)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
 from rlgsim.ground.provenance import versions_json
-from rlgsim.sim.writer._new_dataset import new_dataset, plain_name
+from rlgsim.sim.writer._new_dataset import new_dataset, plain_name, write_rows
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -375,7 +375,7 @@ class _ChunkStage:
         else:
             if self.direct is not None:
                 self.direct.make_room()      # what HDF5 evicts to cache this partial chunk
-            self.ds.write_direct(data, dest_sel=np.s_[self.written:self.written + k])
+            write_rows(self.ds, data, self.written)
         self.written += k
 
     def append(self, arr: np.ndarray) -> None:
