@@ -266,7 +266,8 @@ def _piece(coef, dcoef, d2coef, legs_i, legs_f, dense, j, ta, d, sub, frac, quad
 @njit(cache=True, nogil=True)
 def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dense, quads,
                      earth, chunk, fit, dct, out_w, out_f, runs):  # pragma: no cover - compiled
-    """Δθ → ``out_w``, Δv → ``out_f`` (n, 3) of samples k0 … k0 + n − 1 at ``rate`` [Hz].
+    """Δθ → ``out_w``, Δv → ``out_f`` (3, n: axis by axis) of samples k0 … k0 + n − 1 at
+    ``rate`` [Hz].
 
     Sample i covers [(k0 + i)/f, (k0 + i + 1)/f); a leg start strictly inside it splits it into
     pieces summed in time order (a whole sample lasts exactly 1/f). A piece standing still
@@ -357,8 +358,8 @@ def block_increments(k0, n, rate, sub, coef, dcoef, d2coef, legs_i, legs_f, dens
                 run_lo, run_len = i, 1
             have_prev = True
             prev_still, prev_leg, last_sample = is_still, leg, i
-        out_w[i, 0], out_w[i, 1], out_w[i, 2] = acc0, acc1, acc2
-        out_f[i, 0], out_f[i, 1], out_f[i, 2] = acc3, acc4, acc5
+        out_w[0, i], out_w[1, i], out_w[2, i] = acc0, acc1, acc2
+        out_f[0, i], out_f[1, i], out_f[2, i] = acc3, acc4, acc5
     if have_prev and prev_still and run_len > 1:
         runs[n_runs, 0], runs[n_runs, 1] = run_lo, last_sample + 1
         n_runs += 1

@@ -473,13 +473,15 @@ class Trajectory:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
         # stored axis by axis, (3, n), and handed out as (n, 3) views, as the turntable's:
         # the IMU stage takes each axis's run of samples (its step sums, the pulses) as it is
-        dth, dv = np.empty((3, n)).T, np.empty((3, n)).T
+        # (C-contiguous (3, n) to the kernel: one compiled specialisation whatever n)
+        dth_t, dv_t = np.empty((3, n)), np.empty((3, n))
+        dth, dv = dth_t.T, dv_t.T
         runs = np.empty((n, 2), dtype=np.int64)
         sub = max(1, int(np.ceil((1.0 / rate_hz) / MAX_SUBINTERVAL_S - 1e-9)))
         r = _kernel().block_increments(k0, n, float(rate_hz), sub, self._coef, self._dcoef,
                                        self._d2coef, self._legs_i, self._legs_f, self._dense,
-                                       _QUADS, _EARTH, self._chunk, _FIT, _cheb().DCT, dth, dv,
-                                       runs)
+                                       _QUADS, _EARTH, self._chunk, _FIT, _cheb().DCT, dth_t,
+                                       dv_t, runs)
         constant = tuple((int(lo), int(hi)) for lo, hi in runs[:r])
         block = MotionBlock(dth, dv, None, None, None, k0, rate_hz, constant)
         if angles:
