@@ -50,7 +50,7 @@ CONTROL = np.array([_rk.SAFETY, _rk.MIN_FACTOR, _rk.MAX_FACTOR,
 ROW = 2 + 3 * _dc.INTERPOLATOR_POWER + 3
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _rhs(coef, dcoef, j, tau, y0, y1, y2, w, e2, a_axis, out, row):  # pragma: no cover
     """(L̇, λ̇, ḣ) of leg ``j`` at leg time ``tau`` and position (y0, y1, y2) → out[row]."""
     _state(coef, dcoef, j, tau, w)
@@ -85,7 +85,7 @@ def _first_step(coef, dcoef, j, t_bound, y, f0, rtol, atol, w, e2, a_axis, k,
     return min(100.0 * h0, h1, t_bound)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _stage_input(k, a, s, h, y, out):  # pragma: no cover - compiled
     """y + (Σ_(i<s) a_i k_i)·h → out (3,), the sum in stage order."""
     for c in range(3):
