@@ -137,24 +137,28 @@ def cheb_mean(cfit, tau, inv, quads, res):  # pragma: no cover - compiled
 _RHO_GRID = np.geomspace(1e-4, 1e6, 461)
 
 
-def chunk_radius(c: np.ndarray, duration: float) -> float:
-    """ρ [s] of a leg's channel polynomials ``c`` (6, 6: heading, pitch, roll [rad], body
-    velocity [m/s]; coefficients of τ⁰ … τ⁵) on [0, ``duration``] (module docstring): the
+def chunk_radii(coef: np.ndarray, duration: np.ndarray) -> np.ndarray:
+    """ρ [s] (m,) of legs' channel polynomials ``coef`` (m, 6, 6: heading, pitch, roll [rad],
+    body velocity [m/s]; coefficients of τ⁰ … τ⁵) on [0, ``duration``] (module docstring): the
     largest radius of :data:`_RHO_GRID` with Σ_(k ≥ 1) max|c^(k)| ρ^k/k! ≤ 0.5 rad for each
-    angle and ≤ half the largest |value| for each velocity (the maxima on 257 points of the
-    leg); inf when nothing moves."""
-    deg = c.shape[1]
-    tau = np.linspace(0.0, duration, 257)
-    powers = tau[:, None] ** np.arange(deg)                  # (257, deg)
-    # the k-th derivative's coefficients / k!: c_m C(m, k) at τ^(m−k)
-    peaks = np.zeros((6, deg - 1))
-    for k in range(1, deg):
-        binom = np.array([math.comb(m, k) for m in range(k, deg)], dtype=float)
-        peaks[:, k - 1] = np.max(np.abs(powers[:, :deg - k] @ (c[:, k:] * binom).T), axis=0)
-    values = np.max(np.abs(powers @ c.T), axis=0)
-    limits = np.r_[np.full(3, 0.5), 0.5 * values[3:]]
-    growth = peaks @ (_RHO_GRID[None, :] ** np.arange(1, deg)[:, None])   # (6, grid)
-    ok = np.all(growth <= limits[:, None], axis=0)
-    if ok[-1]:
-        return math.inf
-    return float(_RHO_GRID[np.argmin(ok) - 1]) if ok[0] else 0.0
+    angle and ≤ half the largest |value| for each velocity (the maxima on 65 points of the
+    leg); inf when nothing moves, 0 when not even the smallest passes."""
+    m, deg = coef.shape[0], coef.shape[2]
+    if m == 0:
+        return np.zeros(0)
+    tau = np.linspace(0.0, 1.0, 65)[None, :] * np.asarray(duration, dtype=float)[:, None]
+    powers = np.ones((m, tau.shape[1], deg))                         # τ^n (m, 65, deg)
+    for n in range(1, deg):
+        powers[:, :, n] = powers[:, :, n - 1] * tau
+    peaks = np.zeros((m, 6, deg - 1))
+    for k in range(1, deg):          # the k-th derivative / k!: c_n C(n, k) τ^(n − k)
+        binom = np.array([math.comb(n, k) for n in range(k, deg)], dtype=float)
+        d = powers[:, :, :deg - k] @ (coef[:, :, k:] * binom).transpose(0, 2, 1)
+        peaks[:, :, k - 1] = np.max(np.abs(d), axis=1)
+    values = np.max(np.abs(powers @ coef.transpose(0, 2, 1)), axis=1)     # (m, 6)
+    limits = np.concatenate([np.full((m, 3), 0.5), 0.5 * values[:, 3:]], axis=1)
+    growth = peaks @ (_RHO_GRID[None, :] ** np.arange(1, deg)[:, None])    # (m, 6, grid)
+    ok = np.all(growth <= limits[:, :, None], axis=1)                      # (m, grid)
+    first_bad = np.argmin(ok, axis=1)
+    return np.where(ok[:, -1], np.inf,
+                    np.where(ok[:, 0], _RHO_GRID[np.maximum(first_bad - 1, 0)], 0.0))

@@ -210,17 +210,18 @@ class Trajectory:
                                             * np.arange(1, self._dcoef.shape[2]))
         #: 1 where a leg's channels 3-5 are the geodetic position (a table), 0: body velocity
         self._geodetic = np.array([leg.frame == "geodetic" for leg in legs], dtype=np.int64)
+        body = self._geodetic == 0
+        moves = self._coef[:, :, 1:] != 0                  # (m, 6, 5): a channel's τ terms
         #: legs in which the vehicle stands still (body frame, no rates, no velocity): every
         #: whole sample inside one has the same increments, bit for bit (its channels are
         #: their constant terms exactly and its position the leg's start)
-        self._still = np.array([leg.frame == "body" and not np.any(leg.coef[:, 1:])
-                                and not np.any(leg.coef[3:, 0]) for leg in legs],
-                               dtype=np.int64)
+        self._still = (body & ~moves.any(axis=(1, 2))
+                       & ~(self._coef[:, 3:, 0] != 0).any(axis=1)).astype(np.int64)
         #: the quadrature of each leg (sim/motion/_trajectory_block.py): 1 constant attitude,
         #: 2 constant attitude and velocity, 0 any other (and a table of positions)
-        att_const = [leg.frame == "body" and not np.any(leg.coef[:3, 1:]) for leg in legs]
-        self._level = np.array([0 if not ac else 2 if not np.any(leg.coef[3:, 1:]) else 1
-                                for ac, leg in zip(att_const, legs)], dtype=np.int64)
+        att_const = body & ~moves[:, :3].any(axis=(1, 2))
+        self._level = np.where(att_const, np.where(moves[:, 3:].any(axis=(1, 2)), 1, 2),
+                               0).astype(np.int64)
         self._position, self._dense = self._integrate_positions()
         self._legs_i, self._legs_f = _leg_tables(
             self._position, self._geodetic, self._t0, np.array([leg.duration_s for leg in legs]),
@@ -578,11 +579,12 @@ def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, den
     from rlgsim.sim.motion import _trajectory_kernel as K
     cheb = _cheb()
     out = np.zeros(len(legs_i))
-    for j, (kind, first, steps, level, still, geo) in enumerate(legs_i):
-        if level != 2 and not still and not geo and kind == K.POS_DENSE and steps > 0:
-            rho = cheb.chunk_radius(coef[j], float(legs_f[j, K.LF_DUR]))
-            out[j] = min(cheb.CHUNK_MAX_S, cheb.RHO_FRACTION * rho)
-            continue
+    turning = np.flatnonzero((legs_i[:, K.LI_LEVEL] != 2) & (legs_i[:, K.LI_STILL] == 0)
+                             & (legs_i[:, K.LI_GEO] == 0) & (legs_i[:, K.LI_POS] == K.POS_DENSE)
+                             & (legs_i[:, K.LI_NSEG] > 0))
+    out[turning] = np.minimum(cheb.CHUNK_MAX_S, cheb.RHO_FRACTION * cheb.chunk_radii(
+        coef[turning], legs_f[turning, K.LF_DUR]))
+    for j, (kind, first, steps, level, still, _) in enumerate(legs_i):
         speed = float(np.linalg.norm(coef[j, 3:, 0]))
         if level != 2 or still or kind != K.POS_DENSE or steps == 0 or speed == 0.0:
             continue
