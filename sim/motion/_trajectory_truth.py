@@ -51,8 +51,8 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
     heading, pitch, roll ``out_e`` (3, k) and the leg's GNSS flag (``flags`` (m,) int8)
     ``out_g`` (k,); ``degrees``: L, λ and the angles in degrees, the heading in [0, 360) (the
     dataset's rows), else radians. In a leg of constant attitude C_b^n, q_b^n and the angles
-    (in degrees too) are computed once (the same numbers: its angle channels do not depend on
-    τ)."""
+    (in degrees too) are computed once, and so is v^n where the body velocity is constant too
+    (the same numbers: those channels' Horner sums are their constant terms whatever τ ≥ 0)."""
     a_axis, e2 = earth[0], earth[1]
     w = np.empty(32)
     m = legs_i.shape[0]
@@ -82,7 +82,9 @@ def states_at(t, coef, dcoef, d2coef, legs_i, legs_f, dense, earth, flags, degre
             c_leg = -1
             q0, q1, q2, q3 = _attitude_quaternion(w)
         else:
-            if j == c_leg:                       # constant attitude: the velocity only
+            if j == c_leg and legs_i[j, LI_LEVEL] == 2:
+                held = True                      # constant attitude and velocity: both held
+            elif j == c_leg:                     # constant attitude: the velocity only
                 held = True
                 for ch in range(3, 6):
                     v = coef[j, ch, 5]
