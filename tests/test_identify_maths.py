@@ -447,9 +447,11 @@ def test_compiled_batch_kernel_equals_its_numpy_reference(preset):
 def test_stacked_subset_screen_equals_the_one_by_one_screen():
     """The best-subset search's stacked collinearity screen accepts exactly the subsets that
     term_averaging.conditioned accepts one at a time, on random candidate sets with nearly
-    collinear columns and an exact repeat (singular subsets, which fail a stacked inverse)."""
+    collinear columns and an exact repeat (singular subsets, which fail a stacked inverse);
+    and the subsets' stacked residual sums of squares equal lstsq's one at a time."""
     import itertools
     from rlgsim.estimators.identify.subset_conditioning import passing
+    from rlgsim.estimators.identify.subset_fits import subset_ssr
     from rlgsim.estimators.identify.term_averaging import conditioned, corr_matrix
     rng = np.random.default_rng(17)
     refused = 0
@@ -463,6 +465,17 @@ def test_stacked_subset_screen_equals_the_one_by_one_screen():
             want = [c for c in itertools.combinations(cols, size) if conditioned(R, c)]
             assert passing(R, list(cols), size) == want
             refused += len(list(itertools.combinations(cols, size))) - len(want)
+        # the subsets' residual sums of squares (Frisch–Waugh–Lovell, subset_fits) against
+        # lstsq's, every subset of 3 and 5 — the refused and the singular ones (the exact
+        # repeat: lstsq's fallback) too — on top of an intercept and two shared columns: the
+        # solved ones have a Gram condition number ≤ 1e6, so ≲ 1e6·ε relative
+        y = base @ rng.normal(size=3) + rng.normal(size=200)
+        shared = np.column_stack([np.ones(200), rng.normal(size=(200, 2))])
+        for size in (3, 5):
+            combos = list(itertools.combinations(cols, size))
+            want = [float(np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2))
+                    for X in (np.column_stack([shared] + [cols[c] for c in co]) for co in combos)]
+            np.testing.assert_allclose(subset_ssr(y, shared, cols, combos), want, rtol=1e-9)
     assert refused > 0                      # the screen did refuse some
 
 

@@ -68,6 +68,8 @@ from typing import Sequence
 
 import numpy as np
 
+from rlgsim.estimators.identify.subset_fits import subset_ssr
+
 
 #: programme features that separate a candidate from the others (for the refusal lines)
 _SEPARATES = {"rate": "ramps at several rates", "uhfo": "UHFO changes at steady temperature",
@@ -159,22 +161,19 @@ def conditioned(R: dict, combo: Sequence[str]) -> bool:
 
 
 def _subset_weights(y: np.ndarray, base: np.ndarray, lin_names: Sequence[str], lcols: dict,
-                    R: dict, c_hat: float, max_linear: int
+                    R: dict, c_hat: float, max_linear: int, subsets=None
                     ) -> tuple[list[tuple[str, ...]], np.ndarray]:
     """Every well-conditioned linear subset (up to ``max_linear`` of ``lin_names``) on top of
     ``base``, with its QAIC weight ``w ∝ exp(−QAIC/2)``; the subsets carrying all but 1e-4 of
     the weight (at most 1000, at least one), most weighty first: (subsets, renormalised
-    weights)."""
-    n = y.size
-    fits = []
+    weights). ``subsets(R, names, size)``: those of a size (default: :func:`conditioned`)."""
+    n, fits = y.size, []
     for size in range(0, min(max_linear, len(lin_names)) + 1):
-        for combo in itertools.combinations(lin_names, size):
-            if not conditioned(R, combo):
-                continue
-            X = np.column_stack([base] + [lcols[c] for c in combo])
-            beta = np.linalg.lstsq(X, y, rcond=None)[0]
-            ssr = max(float(np.sum((y - X @ beta) ** 2)), 1e-300)
-            fits.append((n * np.log(ssr / n) / c_hat + X.shape[1] * AVERAGING_PENALTY, combo))
+        combos = (list(subsets(R, list(lin_names), size)) if subsets is not None else
+                  [c for c in itertools.combinations(lin_names, size) if conditioned(R, c)])
+        ssr = np.maximum(subset_ssr(y, base, lcols, combos), 1e-300)   # a size at once
+        fits += [(n * np.log(v / n) / c_hat + (base.shape[1] + size) * AVERAGING_PENALTY, c)
+                 for v, c in zip(ssr.tolist(), combos)]
     q = np.array([f[0] for f in fits])
     w = np.exp(-(q - q.min()) / 2.0)
     w /= w.sum()
@@ -266,16 +265,17 @@ def _group_reason(group: list[str], pairs: dict, averaged: dict, lead: str, valu
 
 def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
               lin_names: Sequence[str], lcols: dict, chosen_lin: Sequence[str], max_linear: int,
-              batches: int, gls: bool = False) -> tuple:
+              batches: int, gls: bool = False, subsets=None) -> tuple:
     """Selection uncertainty of the linear subset (module docstring): (averaged, unseparable
     groups with their reasons, ĉ, averaged models, combined effects, stand-ins, the full model
-    of the prediction band)."""
+    of the prediction band). ``subsets``: as for :func:`_subset_weights`."""
     R = corr_matrix(lcols, lin_names, base[:, 0])
     Xb = np.column_stack([base] + [lcols[c] for c in chosen_lin])
     _, _, r_best = _ols(y, Xb, batches, gls)
     c_hat = _overdispersion(r_best, batches, gls, Xb.shape[1])
     models = []
-    for combo, wi in zip(*_subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear)):
+    for combo, wi in zip(*_subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear,
+                                          subsets)):
         X = np.column_stack([base] + [lcols[c] for c in combo])
         beta, cov, _ = _ols(y, X, batches, gls)
         models.append((tuple(base_names), tuple(combo), beta, cov, float(wi)))

@@ -50,6 +50,7 @@ from scipy.optimize import least_squares
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit
 from rlgsim.estimators.identify.subset_conditioning import passing
+from rlgsim.estimators.identify.subset_fits import subset_ssr
 from rlgsim.estimators.identify.term_averaging import (averaging, corr_matrix, vif_of,
                                                       without_intercept)
 from rlgsim.estimators.identify.whitening import whitener
@@ -200,15 +201,15 @@ def _best_subset(y: np.ndarray, base: np.ndarray, names: list[str], lcols: dict,
     """Lowest-BIC subset of the linear candidates ``names`` (up to ``max_linear``, every
     well-conditioned one) on top of ``base``; appends the best of each size to ``steps``."""
     best = (_bic(y, base, k_extra), [])
+    n = y.size
     for size in range(1, min(max_linear, len(names)) + 1):
-        best_k = None
-        for combo in passing(R, names, size):          # the well-conditioned ones
-            X = np.column_stack([base] + [lcols[c] for c in combo])
-            b = _bic(y, X, k_extra)
-            if best_k is None or b < best_k[0]:
-                best_k = (b, list(combo))
-        if best_k is None:
+        combos = passing(R, names, size)               # the well-conditioned ones
+        if not combos:
             continue
+        ssr = np.maximum(subset_ssr(y, base, lcols, combos), 1e-300)   # all at once
+        bics = n * np.log(ssr / n) + (base.shape[1] + size + k_extra) * np.log(n)
+        i = int(np.argmin(bics))                       # the first of equal ones, as before
+        best_k = (float(bics[i]), list(combos[i]))
         steps.append((" + ".join(best_k[1]), float(best_k[0])))
         if best_k[0] < best[0]:
             best = best_k
@@ -385,7 +386,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen])
     averaged, groups, c_hat, models, combined, standins, full_model = averaging(
         y, base, ["intercept", *fixed_names, *nl_chosen], [t.name for t in lin], lcols,
-        lin_chosen, max_linear, batches, gls)
+        lin_chosen, max_linear, batches, gls, subsets=passing)
     for name in nl_chosen:                     # held at the choice: its own refined values
         averaged[name] = (float(res.x[names.index(name)]), float(res.se[names.index(name)]), 1.0)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),
