@@ -1,5 +1,5 @@
 """Compiled Chebyshev chunks of a trajectory's turning and accelerating legs (numba): a whole
-sample's increments as the integral of a degree-11 interpolant of the integrands.
+sample's increments as the exact mean of a degree-11 interpolant of the integrands.
 
 On a leg whose attitude turns (quadrature level 0, body frame) or whose velocity changes at a
 constant attitude (level 1), the 4- or 3-point Gauss–Legendre quadrature of
@@ -8,29 +8,35 @@ and ~380 ns at 100 Hz). Here the leg is cut into chunks of T seconds from its st
 (``chunk``, set by :func:`rlgsim.sim.motion.trajectory._chunk_lengths`); the body-frame
 integrands (ω_ib^b, f^b) at the N = :data:`NODES` Chebyshev points of the chunk widened by
 half a sample each side (the position from the DOP853 dense output) give the Chebyshev series
-of their interpolant p of degree N − 1 (a discrete cosine transform, ``DCT``); a sample whose
-middle lies in the chunk is then ``inv`` times the mean of p over it by 4-point
-Gauss–Legendre, each node's p by Clenshaw's recurrence (Mason & Handscomb 2003, *Chebyshev
-Polynomials*, §2.4.5, §6.3) — 12 evaluations of the integrands per chunk instead of 4-6 per
-sample. Why by hand: NumPy's ``chebval`` is not callable from compiled code, and the chunk
-must be a pure function of the sample's time (the same numbers whatever block holds it).
+of their interpolant p of degree N − 1 (a discrete cosine transform, ``DCT``), and the series
+of its mean over a sample,
+
+    mean_[s−δ, s+δ] p = Σ_(j ≥ 0) δ^(2j)/(2j + 1)! · p^(2j)(s)      (Taylor; exact for p),
+
+δ a sample's half-width in the chunk's variable s ∈ [−1, 1], the derivatives' series by the
+standard recurrence (Mason & Handscomb 2003, *Chebyshev Polynomials*, §2.4.5, §6.3). A sample
+whose middle lies in the chunk is ``inv`` times that series at its middle, by Clenshaw's
+recurrence: 12 evaluations of the integrands per chunk and one short sum per sample instead
+of 4-6 evaluations per sample. Why by hand: NumPy's ``chebval``/``chebder`` are not callable
+from compiled code, and the chunk must be a pure function of the sample's time (the same
+numbers whatever block holds it).
 
 **Error.** Interpolation at the N Chebyshev points of an interval of length L errs by
 ≤ 2 (L/4)^N max|F^(N)|/N! (Mason & Handscomb Thm 6.5), and Cauchy's estimate on a disc of
 radius ρ, |F^(N)| ≤ N! M_ρ/ρ^N, gives ≤ 2 M_ρ (L/4ρ)^N. ρ is the radius on which every channel
 of the leg moves by little — each angle by ≤ 0.5 rad (so |sin|, |cos| ≤ cosh 0.5) and each body
 velocity by ≤ half its largest value (Σ_(k ≥ 1) max|c^(k)| ρ^k/k! below those bounds,
-:func:`chunk_radius`) — so M_ρ is a few times max|F|. With T = :data:`RHO_FRACTION` ρ and
+:func:`chunk_radii`) — so M_ρ is a few times max|F|. With T = :data:`RHO_FRACTION` ρ and
 L ≤ 1.25 T (a chunk holds ≥ 4 samples), 2 (L/4ρ)^N ≤ 2 · 0.031^12 ≈ 2e-18: below float64's
-rounding of the increments. The 4-point Gauss–Legendre rule on the degree-11 p errs by
-(2δ)^9 (4!)^4/(9 (8!)^3) max|p^(8)| ≤ 5.6e-10 (2δ)^9 · 8! M_ρ/(2ρ/L)^8 ≤ 1e-17 M_ρ (δ ≤ ¼ the
-sample's half-width in the chunk's variable; ~1e-22 at 100 Hz, δ ≈ 0.04-0.08). The position
-enters through the Earth's terms only (time scale R/v ≥ hours). Rounding: the node values'
-few ulps pass through the interpolant with its Lebesgue constant (≈ 2.5 at N = 12) and
-Clenshaw's sum, so a sample errs by a few ulps of the chunk's largest integrand (the
-quadrature's by a few of its own): on the 2-h land route the two differ by ≤ 6 ulps of each
-leg's largest increment, and both meet the 10-point reference of tests/test_trajectory.py.
-Cost at 100 Hz: ~160 ns a sample of a turn (was ~850), ~170 of an acceleration (was ~380).
+rounding of the increments; the widening keeps every sample inside the interpolated interval
+(no extrapolation, where |T_N| grows fast). The mean is exact for p. The position enters
+through the Earth's terms only (time scale R/v ≥ hours). Rounding: the node values' few ulps
+pass through the interpolant with its Lebesgue constant (≈ 2.5 at N = 12) and averaging does
+not amplify them, so a sample errs by a few ulps of the chunk's largest integrand (the
+quadrature's by a few of its own): on the 2-h land route the two differ by ≤ 14 and 17 ulps
+of the route's largest Δθ and Δv component (≤ 6 of each leg's largest), and both meet the
+10-point reference of tests/test_trajectory.py. Cost at 100 Hz: ~95 ns a sample of a turn
+(was ~850), ~105 of an acceleration (was ~380).
 
 No ``fastmath``: the same operations in the same order for a sample whatever block holds it.
 """
@@ -57,13 +63,29 @@ DCT = np.vstack([_X[None, :],
                  * np.where(np.arange(NODES) == 0, 1.0, 2.0)[:, None] / NODES])
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _derivative(c, out):  # pragma: no cover - compiled
+    """The Chebyshev series of the derivative of the series ``c`` (N terms) → ``out`` (its
+    first N − 1 terms, the last zero): d_(k−1) = d_(k+1) + 2k c_k, d_0 halved (Mason &
+    Handscomb §2.4.5)."""
+    n = c.shape[0]
+    out[n - 1] = 0.0
+    nxt = 0.0                                    # d_(k+1)
+    cur = 0.0                                    # d_k
+    for k in range(n - 1, 0, -1):
+        d = nxt + 2.0 * k * c[k]
+        out[k - 1] = d
+        nxt, cur = cur, d
+    out[0] *= 0.5
+
+
 @njit(cache=True, nogil=True)
 def cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w,
              out):  # pragma: no cover - compiled
-    """The interpolant of leg ``j``'s integrands on its chunk [lo, hi] (leg time) widened by
-    half a sample of ``inv`` seconds each side (within the leg) → ``out`` (N + 1, 6): rows
-    0 … N − 1 its Chebyshev coefficients (module docstring), row N (j, lo, hi, the widened
-    interval's middle and 2/length, δ = the half-width in s of a sample)."""
+    """The mean series of leg ``j``'s chunk [lo, hi] (leg time) → ``out`` (N + 1, 6): rows
+    0 … N − 1 the Chebyshev coefficients of the mean over a sample of ``inv`` seconds of the
+    integrands' interpolant on the chunk widened by half a sample each side (within the leg;
+    module docstring), row N (j, lo, hi, the widened interval's middle and 2/length, δ)."""
     a = max(lo - 0.5 * inv, 0.0)                    # every sample whose middle is in the
     b = min(hi + 0.5 * inv, legs_f[j, LF_DUR])      # chunk lies in [a, b]: no extrapolation
     mid, half = 0.5 * (a + b), 0.5 * (b - a)
@@ -77,12 +99,24 @@ def cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w,
         for r in range(3):
             vals[i, r] = w[9 + r] + (w[r] * i0 + w[3 + r] * i1 + w[6 + r] * i2)
             vals[i, 3 + r] = w[r] * fn0 + w[3 + r] * fn1 + w[6 + r] * fn2
+    delta = 0.5 * inv / half                    # a sample's half-width in s
+    d2 = delta * delta
+    a = np.empty(NODES)
+    d = np.empty(NODES)
     for q in range(6):
         for k in range(NODES):
             acc = 0.0
             for i in range(NODES):
                 acc += dct[1 + k, i] * vals[i, q]
+            a[k] = acc
             out[k, q] = acc
+        scale = 1.0                              # δ^(2j)/(2j + 1)!
+        for jj in range(1, NODES // 2):
+            _derivative(a, d)
+            _derivative(d, a)
+            scale *= d2 / ((2 * jj) * (2 * jj + 1))
+            for k in range(NODES - 2 * jj):
+                out[k, q] += scale * a[k]
     out[NODES, 0], out[NODES, 1], out[NODES, 2] = j, lo, hi
     out[NODES, 3], out[NODES, 4], out[NODES, 5] = mid, 1.0 / half, 0.5 * inv / half
 
@@ -107,30 +141,15 @@ def cheb_refit(coef, dcoef, legs_i, legs_f, dense, j, tau, inv, chunk, dct, eart
 @njit(cache=True, nogil=True, inline="always")
 def cheb_mean(cfit, tau, inv, quads, res):  # pragma: no cover - compiled
     """∫ω_ib^b, ∫f^b over the whole sample of ``inv`` seconds whose middle is at leg time
-    ``tau`` → res[0:6]: the chunk's interpolant integrated over the sample by 4-point
-    Gauss–Legendre (``quads[0]``; module docstring), each node's value by Clenshaw's
-    recurrence."""
+    ``tau`` → res[0:6]: ``inv`` times the chunk's mean series at the sample's middle
+    (Clenshaw's recurrence)."""
     s = (tau - cfit[NODES, 3]) * cfit[NODES, 4]
-    delta = cfit[NODES, 5]
-    x0 = s + delta * quads[0, 0, 0]             # the four nodes' recurrences side by side
-    x1 = s + delta * quads[0, 0, 1]             # (independent chains: the same operations
-    x2 = s + delta * quads[0, 0, 2]             # per node as one at a time)
-    x3 = s + delta * quads[0, 0, 3]
+    s2 = 2.0 * s
     for q in range(6):
-        a0 = a1 = a2 = a3 = 0.0                 # b_(k+1) of each node
-        c0 = c1 = c2 = c3 = 0.0                 # b_(k+2)
+        b1 = b2 = 0.0
         for k in range(NODES - 1, 0, -1):
-            ck = cfit[k, q]
-            a0, c0 = ck + 2.0 * x0 * a0 - c0, a0
-            a1, c1 = ck + 2.0 * x1 * a1 - c1, a1
-            a2, c2 = ck + 2.0 * x2 * a2 - c2, a2
-            a3, c3 = ck + 2.0 * x3 * a3 - c3, a3
-        c00 = cfit[0, q]
-        acc = quads[0, 1, 0] * (c00 + x0 * a0 - c0)
-        acc += quads[0, 1, 1] * (c00 + x1 * a1 - c1)
-        acc += quads[0, 1, 2] * (c00 + x2 * a2 - c2)
-        acc += quads[0, 1, 3] * (c00 + x3 * a3 - c3)
-        res[q] = 0.5 * inv * acc
+            b1, b2 = cfit[k, q] + s2 * b1 - b2, b1
+        res[q] = inv * (cfit[0, q] + s * b1 - b2)
 
 
 #: the radii tried by :func:`chunk_radius` [s]: 5 % apart (the largest one that passes is taken)
