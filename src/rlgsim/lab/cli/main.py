@@ -17,6 +17,7 @@ traceback.
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import math
 import os
@@ -131,11 +132,37 @@ def format_error(exc: UserInputError) -> str:
 _stop_signal: list[int] = []
 
 
+#: Seconds after which a SIGTERM that landed inside the import machinery is raised again.
+_IMPORT_RETRY_S = 0.05
+
+
+def _inside_import(frame) -> bool:
+    """Whether the interrupted main thread is running importlib's own code (a module being
+    imported, or the module locks' bookkeeping) anywhere on its stack."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib._bootstrap"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _terminated(signum, frame):
     """SIGTERM: stop, deleting the temporary file of a run being written. The SystemExit raised
     here can be lost when the signal lands inside a finaliser (``__del__``), so a run also polls
-    :func:`_stop_requested` before every block."""
-    _stop_signal.append(signum)
+    :func:`_stop_requested` before every block.
+
+    Not inside an import: an exception raised in importlib's module-lock bookkeeping can leave a
+    module's lock held, and a worker thread importing that module (the IMU's normal-deviate
+    worker loads numba lazily) then waits forever while the run's clean-up joins it. There the
+    signal is simulated again in the main thread a moment later (``_thread.interrupt_main``,
+    which does nothing once the CLI has put the previous handler back)."""
+    if signum not in _stop_signal:
+        _stop_signal.append(signum)
+    if _inside_import(frame):
+        retry = threading.Timer(_IMPORT_RETRY_S, _thread.interrupt_main, args=(signum,))
+        retry.daemon = True
+        retry.start()
+        return
     raise SystemExit(128 + signum)
 
 
