@@ -9,9 +9,9 @@ at 100 Hz for ``--hours`` (default 4) in a bay/chamber held at 20 °C, written t
 * trajectory — the same, riding the shipped ``vehicle_land_cold`` route from its start (city
   driving: corners, stops, accelerations, then the motorway; 2 h, its segments repeated as
   often as ``--hours`` needs, so a longer run keeps the route's mix of driving and standing
-  instead of parking after 2 h), its increments by the compiled Gauss–Legendre quadrature
-  (sim/motion/_trajectory_block.py) and its ``trajectory`` truth group (13 float64 states per
-  sample) written too.
+  instead of parking after 2 h), its increments by the compiled kernels
+  (sim/motion/_trajectory_block.py: Gauss–Legendre, the fitted quintic and Chebyshev chunks)
+  and its ``trajectory`` truth group (13 float64 states per sample) written too.
 
 **Throughput, not set-up.** A run has fixed costs apart from its epochs: laying out the file
 (~70 datasets with their dimension scales and attributes), the memory check, closing the file
