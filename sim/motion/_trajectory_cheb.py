@@ -33,9 +33,11 @@ rounding of the increments; the widening keeps every sample inside the interpola
 through the Earth's terms only (time scale R/v ≥ hours). Rounding: the node values' few ulps
 pass through the interpolant with its Lebesgue constant (≈ 2.5 at N = 12) and averaging does
 not amplify them, so a sample errs by a few ulps of the chunk's largest integrand (the
-quadrature's by a few of its own): on the 2-h land route the two differ by ≤ 14 and 17 ulps
-of the route's largest Δθ and Δv component (≤ 6 of each leg's largest), and both meet the
-10-point reference of tests/test_trajectory.py. Cost at 100 Hz: ~95 ns a sample of a turn
+quadrature's by a few of its own): on the shipped land and aircraft routes and gnss-ins-sim's
+demo files the two differ by ≤ 19 ulps of each leg's largest Δθ or Δv component, and at the
+land and aircraft routes' worst samples meet
+the 10-point reference of tests/test_trajectory.py within 14 / 36 ulps of it (the quadrature:
+5 / 29; the reference's own rounding is of that size; the tests allow 64). Cost at 100 Hz: ~95 ns a sample of a turn
 (was ~850), ~105 of an acceleration (was ~380).
 
 No ``fastmath``: the same operations in the same order for a sample whatever block holds it.
