@@ -17,11 +17,11 @@ import time
 from _machine import own_cpu, spread
 
 #: issue 28's speed target for a 20 h recording at 100 Hz, and the figure before this round
-#: (docs/identify.md: the quiet figure of 26–27 Nov 2026, after the compiled Jacobian and the
-#: faster law fit, which had taken it from 59–69 s wall)
+#: (docs/identify.md: the quiet figure of 27 Nov 2026 02:23 UTC, after two byte-identical
+#: rounds, which had taken it from 59–69 s wall)
 TARGET_100HZ_S = 10.0
-BEFORE_100HZ = ("17.4 s wall median (17.3–20.1 s, 3 runs), 21.5 s CPU of all processes, quiet "
-                "(59–69 s wall, 63–68 s CPU the round before)")
+BEFORE_100HZ = ("15.8 s wall median (15.3–19.8 s, 5 runs), 20.5 s CPU of all processes, quiet "
+                "(17.4 s and 59–69 s wall the two rounds before)")
 
 
 def timing_run(work: pathlib.Path, programme: list[dict], rate_hz: float = 10.0,

@@ -448,10 +448,11 @@ def test_stacked_subset_screen_equals_the_one_by_one_screen():
     """The best-subset search's stacked collinearity screen accepts exactly the subsets that
     term_averaging.conditioned accepts one at a time, on random candidate sets with nearly
     collinear columns and an exact repeat (singular subsets, which fail a stacked inverse);
-    and the subsets' stacked residual sums of squares equal lstsq's one at a time."""
+    and the subsets' (and single added columns') stacked residual sums of squares equal
+    lstsq's one at a time."""
     import itertools
     from rlgsim.estimators.identify.subset_conditioning import passing
-    from rlgsim.estimators.identify.subset_fits import subset_ssr
+    from rlgsim.estimators.identify.subset_fits import added_column_ssr, subset_ssr
     from rlgsim.estimators.identify.term_averaging import conditioned, corr_matrix
     rng = np.random.default_rng(17)
     refused = 0
@@ -476,6 +477,12 @@ def test_stacked_subset_screen_equals_the_one_by_one_screen():
             want = [float(np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2))
                     for X in (np.column_stack([shared] + [cols[c] for c in co]) for co in combos)]
             np.testing.assert_allclose(subset_ssr(y, shared, cols, combos), want, rtol=1e-9)
+        # one added column at a time (a nonlinear term's grid), one of them in the shared
+        # columns' span (lstsq's fallback): ≲ ε·ỹᵀỹ/SSR relative
+        grid = np.column_stack([*cols.values(), shared @ np.array([1.0, 2.0, -1.0])])
+        want = [float(np.sum((y - X @ np.linalg.lstsq(X, y, rcond=None)[0]) ** 2))
+                for X in (np.column_stack([shared, c]) for c in grid.T)]
+        np.testing.assert_allclose(added_column_ssr(y, shared, grid), want, rtol=1e-9)
     assert refused > 0                      # the screen did refuse some
 
 

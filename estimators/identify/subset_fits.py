@@ -27,7 +27,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["subset_ssr"]
+__all__ = ["subset_ssr", "added_column_ssr"]
 
 #: largest condition number of a subset's Gram matrix solved here (beyond: lstsq)
 MAX_COND = 1e6
@@ -74,4 +74,25 @@ def subset_ssr(y: np.ndarray, base: np.ndarray, lcols: dict, combos: Sequence[Se
         out[ok] = yy - np.einsum("bj,bj->b", g[ok], sol)
     for b in np.flatnonzero(~ok):                      # ill-conditioned: lstsq itself
         out[b] = _lstsq_ssr(y, np.column_stack([base] + [lcols[c] for c in combos[b]]))
+    return out
+
+
+def added_column_ssr(y: np.ndarray, base: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Residual sum of squares of the least-squares fit of ``y`` (n,) on ``[base, C[:, j]]``
+    for each column ``j`` of ``C`` (n, G) — a nonlinear term's grid of starts: with the base
+    projected out (module docstring), ``ỹᵀỹ − (c̃ᵀỹ)²/(c̃ᵀc̃)``; a column the base explains
+    (``c̃`` below 1e-6 of its length) by ``lstsq`` itself."""
+    y = np.asarray(y, dtype=float)
+    base = np.asarray(base, dtype=float).reshape(y.size, -1)
+    C = np.asarray(C, dtype=float).reshape(y.size, -1)
+    A = np.column_stack([y, C])
+    At = A - base @ np.linalg.lstsq(base, A, rcond=None)[0]
+    yt, Ct = At[:, 0], At[:, 1:]
+    cc = np.einsum("ij,ij->j", Ct, Ct)
+    weak = cc <= 1e-12 * np.einsum("ij,ij->j", C, C)
+    out = np.empty(C.shape[1])
+    ok = ~weak
+    out[ok] = float(yt @ yt) - (Ct[:, ok].T @ yt) ** 2 / cc[ok]
+    for j in np.flatnonzero(weak):
+        out[j] = _lstsq_ssr(y, np.column_stack([base, C[:, j]]))
     return out

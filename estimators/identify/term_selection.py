@@ -38,6 +38,11 @@ offsets of detected mode hops (:mod:`rlgsim.lab.identify.hop_fit`) — are part 
 beside the intercept: not selected, not counted in the BIC's comparison (every subset carries
 them), refined jointly with the chosen terms (parameters named as the fixed terms) and held in
 every averaged model (inclusion 1).
+
+Why this file is long: the selection (subsets, nonlinear terms), its joint refinement and the
+selected law's record with its predictions are one procedure read together; the subsets' fits
+(:mod:`.subset_fits`), their screen (:mod:`.subset_conditioning`) and the averaging
+(:mod:`.term_averaging`) are apart.
 """
 
 from __future__ import annotations
@@ -50,7 +55,7 @@ from scipy.optimize import least_squares
 
 from rlgsim.estimators.identify.lsq_stats import LsqFit, fit
 from rlgsim.estimators.identify.subset_conditioning import passing
-from rlgsim.estimators.identify.subset_fits import subset_ssr
+from rlgsim.estimators.identify.subset_fits import added_column_ssr, subset_ssr
 from rlgsim.estimators.identify.term_averaging import (averaging, corr_matrix, vif_of,
                                                       without_intercept)
 from rlgsim.estimators.identify.whitening import whitener
@@ -70,6 +75,8 @@ class Term:
     grid: Sequence[np.ndarray] = field(default_factory=lambda: [np.zeros(0)])
     lower: Sequence[float] = ()
     upper: Sequence[float] = ()
+    #: the feature at several thetas at once, (n, len(thetas)) (None: one at a time)
+    columns: Callable[[list[np.ndarray]], np.ndarray] | None = None
 
     @property
     def k(self) -> int:
@@ -219,18 +226,23 @@ def _best_subset(y: np.ndarray, base: np.ndarray, names: list[str], lcols: dict,
 def _best_nonlinear(y: np.ndarray, base: np.ndarray, nonlin: list[Term], nl_chosen: list[str],
                     k_now: int) -> tuple[float, Term, np.ndarray] | None:
     """The nonlinear candidate (not yet chosen) and grid start of lowest BIC added to
-    ``base``: (BIC, term, theta), or None when no grid point gives a usable column."""
-    best = None
+    ``base``: (BIC, term, theta), or None when no grid point gives a usable column. A term's
+    grid at once (its ``columns``; the fits: :func:`added_column_ssr`)."""
+    best, n = None, y.size
     for t in nonlin:
         if t.name in nl_chosen:
             continue
-        for th in t.grid:
-            col = np.asarray(t.feature(np.asarray(th, dtype=float)), dtype=float)
-            if not np.all(np.isfinite(col)) or np.ptp(col) == 0:
-                continue
-            b = _bic(y, np.column_stack([base, col]), k_now + t.k)
-            if best is None or b < best[0]:
-                best = (b, t, np.asarray(th, dtype=float))
+        grid = [np.asarray(th, dtype=float) for th in t.grid]
+        C = (t.columns(grid) if t.columns is not None
+             else np.column_stack([np.asarray(t.feature(th), dtype=float) for th in grid]))
+        good = np.flatnonzero(np.all(np.isfinite(C), axis=0) & (np.ptp(C, axis=0) != 0))
+        if not good.size:
+            continue
+        ssr = np.maximum(added_column_ssr(y, base, C[:, good]), 1e-300)
+        b = n * np.log(ssr / n) + (base.shape[1] + 1 + k_now + t.k) * np.log(n)
+        j = int(np.argmin(b))                 # the first of equal ones, in grid order
+        if best is None or b[j] < best[0]:
+            best = (float(b[j]), t, grid[good[j]])
     return best
 
 
@@ -350,7 +362,9 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     if gls:
         lcols = {k: white(v) for k, v in lcols.items()}
         candidates = [Term(t.name, (lambda th, f=t.feature: white(f(th))), t.theta_names,
-                           t.grid, t.lower, t.upper) for t in candidates]
+                           t.grid, t.lower, t.upper, (lambda ths, f=t.feature: white(
+                               np.column_stack([np.asarray(f(th), dtype=float) for th in ths]))))
+                      for t in candidates]
         lin = [next(c for c in candidates if c.name == t.name) for t in lin]
     nonlin = [t for t in candidates if t.k]
     lin = _distinct(lin, lcols, ones)

@@ -317,23 +317,26 @@ def _noise(rec: RecordingData, per_step: np.ndarray, spikes=None,
     their samples (a spike of s pulses adds s·quantum·f °/h to one sample: white at short τ,
     it would pass for angle random walk), Q fixed by the counter's ``quantum_arcsec``
     (:func:`~rlgsim.estimators.identify.allan_noise.fit_allan`)."""
-    f = rec.sample_rate_hz
+    f, rate = rec.sample_rate_hz, rec.rate_deg_per_h
     per = int(round(f * rec.step_s))
-    rate = rec.rate_deg_per_h
-    if spikes is not None and spikes.times_s and quantum_arcsec is not None:
-        rate = rate.copy()
-        for t, size in zip(spikes.times_s, spikes.sizes):
-            i = int(round(t * f)) - 1
-            if 0 <= i < rate.size:
-                rate[i] -= size * quantum_arcsec * f
     n_steps = min(per_step.size, rate.size // per)
-    powered = np.repeat(rec.power[:n_steps] > 0.5, per)
-    resid = rate[:n_steps * per] - np.repeat(per_step[:n_steps], per)
+    # the law held over each step's samples: (steps, samples) less a column, no repeated copy
+    resid = (rate[:n_steps * per].reshape(n_steps, per) - per_step[:n_steps, None]).reshape(-1)
+    if spikes is not None and spikes.times_s and quantum_arcsec is not None:
+        out: dict[int, float] = {}               # each spike out of its sample first:
+        for t, size in zip(spikes.times_s, spikes.sizes):   # (rate − spike) − law, as before
+            i = int(round(t * f)) - 1
+            if 0 <= i < resid.size:
+                out[i] = out.get(i, rate[i]) - size * quantum_arcsec * f
+        for i, v in out.items():
+            resid[i] = v - per_step[i // per]
     if rec.motion is not None:          # turntable: the table at rest only, less its Earth rate
         resid = resid - rec.motion.input_deg_per_h[:n_steps * per]
-        powered = powered & ~rec.motion.moving[:n_steps * per]
-    resid = resid[powered]
-    resid = resid[np.isfinite(resid)]            # dropout samples (a gap joins its two sides)
+        resid = resid[np.repeat(rec.power[:n_steps] > 0.5, per)
+                      & ~rec.motion.moving[:n_steps * per]]
+    else:                               # powered steps: whole rows of the (steps, samples) view
+        resid = resid.reshape(n_steps, per)[rec.power[:n_steps] > 0.5].reshape(-1)
+    resid = resid if np.isfinite(resid).all() else resid[np.isfinite(resid)]   # dropouts
     try:
         return fit_allan(resid, f, quantum_arcsec=quantum_arcsec)
     except ValueError:
