@@ -51,11 +51,13 @@ ROW = 2 + 3 * _dc.INTERPOLATOR_POWER + 3
 
 
 @njit(cache=True, nogil=True)
-def _rhs(coef, dcoef, j, tau, y0, y1, y2, w, e2, a_axis, out, row):  # pragma: no cover
-    """(L̇, λ̇, ḣ) of leg ``j`` at leg time ``tau`` and position (y0, y1, y2) → out[row]."""
+def _rhs(coef, dcoef, j, tau, y0, y1, y2, w, e2, a_axis, out):  # pragma: no cover
+    """(L̇, λ̇, ḣ) of leg ``j`` at leg time ``tau`` and position (y0, y1, y2) → ``out`` (3,)
+    (a row of the stages: one compiled specialisation, where a literal row index made one
+    per literal)."""
     _state(coef, dcoef, j, tau, w)
     r0, r1, r2 = _position_rate(y0, y2, w[12], w[13], w[14], e2, a_axis)
-    out[row, 0], out[row, 1], out[row, 2] = r0, r1, r2
+    out[0], out[1], out[2] = r0, r1, r2
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -67,7 +69,8 @@ def _rms(x0, x1, x2):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True)
 def _first_step(coef, dcoef, j, t_bound, y, f0, rtol, atol, w, e2, a_axis, k,
                 order):  # pragma: no cover - compiled
-    """scipy's ``select_initial_step`` (Hairer et al. §II.4) from leg time 0 (``k`` scratch)."""
+    """scipy's ``select_initial_step`` (Hairer et al. §II.4) from leg time 0 (``k`` (3,)
+    scratch)."""
     s0 = atol[0] + abs(y[0]) * rtol
     s1 = atol[1] + abs(y[1]) * rtol
     s2 = atol[2] + abs(y[2]) * rtol
@@ -76,8 +79,8 @@ def _first_step(coef, dcoef, j, t_bound, y, f0, rtol, atol, w, e2, a_axis, k,
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
     h0 = min(h0, t_bound)
     _rhs(coef, dcoef, j, h0, y[0] + h0 * f0[0], y[1] + h0 * f0[1], y[2] + h0 * f0[2], w, e2,
-         a_axis, k, 0)
-    d2 = _rms((k[0, 0] - f0[0]) / s0, (k[0, 1] - f0[1]) / s1, (k[0, 2] - f0[2]) / s2) / h0
+         a_axis, k)
+    d2 = _rms((k[0] - f0[0]) / s0, (k[1] - f0[1]) / s1, (k[2] - f0[2]) / s2) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
@@ -102,13 +105,13 @@ def _rk_step(coef, dcoef, j, t, y, h, k, w, e2, a_axis, y_new, tmp, tab_a, tab_b
     the 8th-order solution into ``y_new``, f(t + h, y_new) into k[12] (scipy's rk_step)."""
     for s in range(1, N_STAGES):
         _stage_input(k, tab_a[s], s, h, y, tmp)
-        _rhs(coef, dcoef, j, t + tab_c[s] * h, tmp[0], tmp[1], tmp[2], w, e2, a_axis, k, s)
+        _rhs(coef, dcoef, j, t + tab_c[s] * h, tmp[0], tmp[1], tmp[2], w, e2, a_axis, k[s])
     for c in range(3):
         acc = 0.0
         for i in range(N_STAGES):
             acc += k[i, c] * tab_b[i]
         y_new[c] = y[c] + h * acc
-    _rhs(coef, dcoef, j, t + h, y_new[0], y_new[1], y_new[2], w, e2, a_axis, k, N_STAGES)
+    _rhs(coef, dcoef, j, t + h, y_new[0], y_new[1], y_new[2], w, e2, a_axis, k[N_STAGES])
 
 
 @njit(cache=True, nogil=True)
@@ -138,7 +141,7 @@ def _dense_row(coef, dcoef, j, t_old, h, y_old, y, f_new, k, w, e2, a_axis, tmp,
     (t_old, h, F_0 … F_6, y_old)."""
     for s in range(N_STAGES + 1, tab_a.shape[0]):
         _stage_input(k, tab_a[s], s, h, y_old, tmp)
-        _rhs(coef, dcoef, j, t_old + tab_c[s] * h, tmp[0], tmp[1], tmp[2], w, e2, a_axis, k, s)
+        _rhs(coef, dcoef, j, t_old + tab_c[s] * h, tmp[0], tmp[1], tmp[2], w, e2, a_axis, k[s])
     row[0], row[1] = t_old, h
     for c in range(3):
         dy = y[c] - y_old[c]
@@ -174,10 +177,9 @@ def dop853_leg(coef, dcoef, j, t_bound, y0, rtol, atol, earth, max_lat, tab_a, t
     tmp = np.empty(3)
     scale = np.empty(3)
     f = np.empty(3)
-    _rhs(coef, dcoef, j, 0.0, y[0], y[1], y[2], w, e2, a_axis, k, 0)
-    f[:] = k[0]
-    h_abs = _first_step(coef, dcoef, j, t_bound, y, f, rtol, atol, w, e2, a_axis,
-                        np.empty((1, 3)), order)
+    _rhs(coef, dcoef, j, 0.0, y[0], y[1], y[2], w, e2, a_axis, f)
+    h_abs = _first_step(coef, dcoef, j, t_bound, y, f, rtol, atol, w, e2, a_axis, np.empty(3),
+                        order)
     g = max_lat - abs(y[0])
     t = 0.0
     while t != t_bound:
