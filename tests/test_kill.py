@@ -145,24 +145,37 @@ def test_kill_study(tmp_path):
 
 
 def test_kill_montecarlo(tmp_path):
+    """The CLI process killed once a unit is finished (its workers left to their lifeline):
+    none survives, no table is written; the next run to the same folder runs only the units
+    left, and its tables are the bytes of an uninterrupted campaign; the folder refuses another
+    study. (One kill for what were two tests, this one and test_montecarlo.py's killed
+    campaign, which killed the whole process group instead: the suite's time, issue 30.)"""
     from rlgsim.lab.montecarlo import finished_units
     study = tmp_path / "study"
     study.mkdir()
     (study / "tiny_cycle.toml").write_text(tiny_cycle(40))
     (study / "tiny.toml").write_text(TINY_STUDY)
+    n = 3                   # two workers: killed after one unit, at least one is left to resume
+    args = ["montecarlo", str(study / "tiny.toml"), "--units", str(n), "--workers", "2", "-q"]
+    _run(*args, "-o", "ref", cwd=tmp_path)
     out = tmp_path / "mc"
-    n = 2
-    kids = kill_when(["montecarlo", str(study / "tiny.toml"), "--units", str(n), "--workers",
-                      "2", "-o", str(out), "-q"], tmp_path,
-                     lambda me: len(finished_units(out)) >= 1)
+    kids = kill_when([*args, "-o", str(out)], tmp_path, lambda me: len(finished_units(out)) >= 1)
     assert_no_survivors(kids)
     assert not (out / "results.csv").exists()
     done = finished_units(out)
+    assert 1 <= len(done) < n, f"not killed mid-way: {sorted(done)}"
     before = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
-    _run("montecarlo", str(study / "tiny.toml"), "--units", str(n), "--workers", "2", "-o",
-         str(out), "-q", cwd=tmp_path)
+    _run(*args, "-o", str(out), cwd=tmp_path)
     after = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
     assert before == after, "finished units were recomputed"
     units = (out / "units.csv").read_text().splitlines()
     assert [line.split(",")[:2] for line in units[1:]] == [[str(u), "ok"] for u in range(n)]
+    for name in ("results.csv", "units.csv"):
+        assert (out / name).read_bytes() == (tmp_path / "ref" / name).read_bytes(), name
     assert temporaries(out) == []
+    other = study / "other.toml"                      # the same folder refuses another study
+    other.write_text(TINY_STUDY.replace("device_seed = 5", "device_seed = 6"))
+    r = subprocess.run(_cmd("montecarlo", str(other), "--units", str(n), "-o", str(out), "-q"),
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "different campaign" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

@@ -1,6 +1,6 @@
 """``rlgsim montecarlo`` end to end: the shipped demo study (on a short cycle) on 1 worker,
-2 workers and a Dask LocalCluster gives the same bytes; a campaign killed with SIGKILL resumes without recomputing
-finished units; a failing unit is recorded; the drawn thermal network of a unit is keyed by
+2 workers and a Dask LocalCluster gives the same bytes (a campaign killed with SIGKILL resumes
+without recomputing finished units: tests/test_kill.py); a failing unit is recorded; the drawn thermal network of a unit is keyed by
 (device_seed, unit); user mistakes are one line with exit code 2."""
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ import dataclasses
 import io
 import os
 import pathlib
-import signal
 import subprocess
 import sys
 import time
@@ -20,7 +19,6 @@ import numpy as np
 import pytest
 
 from rlgsim.lab.cli.main import main
-from rlgsim.lab.montecarlo import finished_units
 from scenario_helpers import TINY_SCENARIO, TINY_STUDY
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -102,44 +100,6 @@ def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_pat
     report = (tmp_path / "w1" / "report.md").read_text()
     assert "Distribution per compensator" in report and "Worst units" in report
     assert (tmp_path / "w1" / "spread_stability_after.png").stat().st_size > 1000
-
-
-def test_killed_campaign_resumes_without_recomputing(tmp_path):
-    study = _tiny_study(tmp_path / "study")
-    n = 4                           # killed after two units, so two are left to resume
-    ref = _cli(str(study), "--units", str(n), "--workers", "2", "-o", "ref", "--quiet",
-               cwd=tmp_path)
-    assert ref.returncode == 0, ref.stderr
-    out = tmp_path / "killed"
-    proc = subprocess.Popen(_cli_cmd(str(study), "--units", str(n), "--workers", "1",
-                                     "-o", str(out), "--quiet"),
-                            cwd=tmp_path, env=_env(), start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 120
-        while len(finished_units(out)) < 2 and time.monotonic() < deadline \
-                and proc.poll() is None:
-            time.sleep(0.02)
-    finally:
-        os.killpg(proc.pid, signal.SIGKILL)        # the CLI and its worker processes
-        proc.wait(timeout=30)
-    done = finished_units(out)
-    assert 2 <= len(done) < n, f"not killed mid-way: {sorted(done)}"
-    assert not (out / "results.csv").exists()
-    before = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
-    again = _cli(str(study), "--units", str(n), "--workers", "2", "-o", str(out), "--quiet",
-                 cwd=tmp_path)
-    assert again.returncode == 0, again.stderr
-    after = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
-    assert before == after, "finished units were recomputed"
-    assert (out / "results.csv").read_bytes() == (tmp_path / "ref" / "results.csv").read_bytes()
-    assert (out / "units.csv").read_bytes() == (tmp_path / "ref" / "units.csv").read_bytes()
-    # the same folder refuses another study
-    other = study.with_name("other.toml")
-    other.write_text(TINY_STUDY.replace("device_seed = 5", "device_seed = 6"))
-    r = _cli(str(other), "--units", str(n), "-o", str(out), "--quiet", cwd=tmp_path)
-    assert r.returncode == 2 and "different campaign" in r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
 
 
 def test_a_failing_unit_is_recorded_and_the_others_finish(tmp_path):
