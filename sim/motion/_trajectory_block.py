@@ -34,6 +34,9 @@ interpolant of scipy's ``Dop853DenseOutput``, its operations in its order).
   Lagrange's remainder with Cauchy's estimate |F⁽⁶⁾| ≤ 6!|F|/τ⁶ bounds the interpolant's error
   by 2(T/4τ)⁶|F| ≈ 5e-22 |F| (≤ 2e-20 |F| a half sample past the chunk's end) —
   docs/trajectories.md. Six evaluations serve a chunk's ~1000 samples instead of two each.
+* a body-frame leg that turns or accelerates, where a chunk holds ≥ 4 samples: a whole sample
+  is the exact mean of a **Chebyshev chunk**'s degree-11 interpolant
+  (:mod:`rlgsim.sim.motion._trajectory_cheb`: bounds and rounding there);
 * every other leg: 4-point Gauss–Legendre with the cubic Hermite position of
   :mod:`rlgsim.sim.motion._trajectory_kernel` (its error bounds there), operation for
   operation as that module's quadrature was written.
@@ -55,6 +58,11 @@ from rlgsim.sim.motion._trajectory_cheb import cheb_mean, cheb_refit
 from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL,
                                                   _earth_terms, _position, _position_rate,
                                                   _state, _state_geodetic)
+
+#: numba's on-disk cache keys each kernel on its own file only, yet the kernels here compile
+#: in helpers of _trajectory_kernel and _trajectory_cheb: a change to those must edit this
+#: line too, or a checkout with a warm cache keeps running the old helpers
+HELPERS_REVISION = "2026-11-27: the Chebyshev chunks' mean series (_trajectory_cheb, 4c98d2a)"
 
 #: Gauss–Legendre points per sub-interval of a leg whose attitude turns (with the Hermite
 #: position), of one of constant attitude whose velocity changes, and of one holding its

@@ -41,6 +41,8 @@ the 10-point reference of tests/test_trajectory.py within 14 / 36 ulps of it (th
 (was ~850), ~105 of an acceleration (was ~380).
 
 No ``fastmath``: the same operations in the same order for a sample whatever block holds it.
+numba's cache keys :func:`~rlgsim.sim.motion._trajectory_block.block_increments` on its own
+file: a change here must also edit that file's ``HELPERS_REVISION``.
 """
 
 from __future__ import annotations
