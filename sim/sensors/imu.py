@@ -81,13 +81,11 @@ COMPILED_MIN_EPOCHS = 5_000_000
 #: median wall; each block's normals hold 1.4 MB).
 PREFETCH_BLOCKS = 2
 
-#: How many blocks ahead the kinematics are computed (increments, their step sums, the table's
-#: angles; a vehicle's truth rows: ~9 MB a block at 100 Hz), in their own two worker threads — a
-#: vehicle's increments in one, its truth rows in the other (the compiled kernels release the
-#: GIL) — from before the file is laid out (:meth:`ImuSimulator.start`): they need nothing of
-#: the file or of the thermal state. A turntable's too (~1.5 ms of the main thread's ~4.4 ms a
-#: block on paper000_ramp at 100 Hz, taken off it; the same numbers). Two, not more: each block
-#: held ahead is memory (tests/test_trajectory_memory.py).
+#: How many blocks ahead a vehicle's kinematics are computed (increments, their step sums and
+#: the truth rows: ~9 MB a block at 100 Hz), in their own two worker threads — a block's
+#: increments in one, its truth rows in the other (the compiled kernels release the GIL) — from
+#: before the file is laid out (:meth:`ImuSimulator.start`): they need nothing of the file or of
+#: the thermal state. Two, not more: each block held ahead is memory (tests/test_trajectory_memory.py).
 MOTION_AHEAD = 2
 
 
@@ -203,9 +201,8 @@ class ImuSimulator:
         """Adopt the run's ``motion``; a vehicle's kinematics (:meth:`_kinematics_now`) of the
         first :data:`MOTION_AHEAD` blocks then start in two worker threads at once — while the
         caller lays out the file — and stay that many blocks ahead of :meth:`block` (the same
-        numbers whichever thread computes them; :meth:`close` stops them; a turntable's from
-        its second block: :meth:`_kinematics`); so do the first blocks' normals
-        (:meth:`_queue_first`)."""
+        numbers whichever thread computes them; :meth:`close` stops them); so do the first
+        blocks' normals (:meth:`_queue_first`)."""
         self.motion = motion
         if self.prefetch and self.n_steps is not None and self._is_vehicle():
             self._queue_motion(0)
@@ -231,7 +228,7 @@ class ImuSimulator:
         return getattr(self.motion, "kind", "") == "trajectory"
 
     def _queue_motion(self, k_taken: int) -> None:
-        """Queue the kinematics of the blocks after thermal step ``k_taken`` (the
+        """Queue a vehicle's kinematics of the blocks after thermal step ``k_taken`` (the
         block layout of :func:`rlgsim.sim.run.simulate.simulate`: :data:`BLOCK_S` each, the
         last one shorter) until :data:`MOTION_AHEAD` are queued or the run ends."""
         per_block = int(round(BLOCK_S / self.step_s))
@@ -250,18 +247,11 @@ class ImuSimulator:
             self._motion_next = k0 + m
 
     def _kinematics(self, b: int, k0: int, m: int, n: int) -> dict[str, Any]:
-        """:meth:`_kinematics_now` of the block — from the worker thread when it
-        queued the block (then the next block is queued). A turntable's first block is
-        computed here and the next ones queued after it: by then this thread has taken the
-        block's normals, so a compiled kernel's first import (numba, in the normals' worker)
-        is over — two threads importing numba at once, with a SIGTERM landing in one, could
-        leave an import lock held (tests/test_dataset.py's killed run hung)."""
+        """:meth:`_kinematics_now` of the block — a vehicle's from the worker thread when it
+        queued the block (then the next block is queued)."""
         ahead = self._motion_ahead.pop((k0, m, n), None)
         if ahead is None:
-            out = self._kinematics_now(k0, m, n)
-            if self.prefetch and self.n_steps is not None and not self._is_vehicle():
-                self._queue_motion(k0 + m)
-            return out
+            return self._kinematics_now(k0, m, n)
         out = ahead[0].result()
         if ahead[1] is not None:
             out["motion"].rows = ahead[1].result()
