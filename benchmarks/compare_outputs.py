@@ -20,7 +20,7 @@ missing and exits 1 if any does, 0 if none:
   h5py/HDF5 releases may differ in their layout bytes; the content is what a build decides.
 * **Tables** (CSV, Markdown), **exported models** (JSON, C, TOML): by text, except what a run's
   duration decides — a CSV column or row naming a time (``time``, ``wall``, ``elapsed``,
-  ``cpu``), a Markdown table whose header names one, and the report's provenance lines that
+  ``cpu``), a Markdown table whose header or caption names one, and the report's provenance lines that
   state the run time. Figures (PNG) are not compared: their bytes carry matplotlib's metadata.
 
 Written by hand: no library compares two HDF5 files by content with named exceptions
@@ -121,19 +121,27 @@ def _csv_rows(text: str) -> list[list[str]]:
             if not (row and TIMING.search(" ".join(row[:2])))]
 
 
+#: A Markdown table's caption (the text line above it) that says the table is a run's timing.
+TIMING_CAPTION = re.compile(r"wall time|running time|elapsed|cpu time", re.IGNORECASE)
+
+
 def _md_tables(text: str) -> list[str]:
-    """The Markdown tables' rows, a table whose header names a time left out."""
+    """The Markdown tables' rows, a table whose header names a time, or whose caption names a
+    wall/CPU time (paper000's "Wall time" table of steps: header ``step | s``), left out."""
     rows: list[str] = []
     in_table = skip = False
+    caption = ""
     for line in text.splitlines():
         if line.startswith("|"):
             if not in_table:
-                skip = bool(TIMING.search(line))
+                skip = bool(TIMING.search(line) or TIMING_CAPTION.search(caption))
             if not skip and not re.search(r"running time|wall|elapsed", line, re.IGNORECASE):
                 rows.append(line)
             in_table = True
         else:
             in_table = False
+            if line.strip():
+                caption = line
     return rows
 
 

@@ -32,8 +32,9 @@ def _write(folder: pathlib.Path, source: str, wall_s: str, value: float = 1.5,
         temperature.dims[0].attach_scale(time)
         f.create_dataset("timeline/label", data=np.array([label], dtype=h5py.string_dtype()))
     (folder / "scores.csv").write_text(f"method,rmse_deg_per_h,wall_s\nLS,0.0123,{wall_s}\n")
-    (folder / "report.md").write_text(f"| method | rmse |\n|---|---|\n| LS | 0.0123 |\n\n"
-                                      f"| step | wall time |\n|---|---|\n| fit | {wall_s} |\n")
+    (folder / "report.md").write_text(f"**Scores**\n\n| method | rmse |\n|---|---|\n| LS | 0.0123 |\n\n"
+                                      f"| step | wall time |\n|---|---|\n| fit | {wall_s} |\n\n"
+                                      f"**Wall time**\n\n| step | s |\n|---|---|\n| fit | {wall_s} |\n")
     return folder
 
 
@@ -57,6 +58,13 @@ def test_a_changed_table_cell_and_a_missing_file_are_found(tmp_path):
     (b / "scores.csv").write_text("method,rmse_deg_per_h,wall_s\nLS,0.0124,1\n")
     (b / "report.md").unlink()
     assert compare_outputs.compare(a, b) == 2
+
+
+def test_a_changed_cell_of_a_captioned_markdown_table_is_found(tmp_path):
+    a = _write(tmp_path / "a", "/x.toml", "1")
+    b = _write(tmp_path / "b", "/x.toml", "1")
+    (b / "report.md").write_text((b / "report.md").read_text().replace("0.0123", "0.0124"))
+    assert compare_outputs.compare(a, b) == 1
 
 
 def test_an_empty_folder_is_one_line_and_status_2(tmp_path, capsys):
