@@ -57,12 +57,12 @@ from rlgsim.sim.motion._trajectory_cheb import NODES as CHEB_NODES
 from rlgsim.sim.motion._trajectory_cheb import cheb_mean, cheb_refit
 from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVEL, LI_STILL,
                                                   _earth_terms, _position, _position_rate,
-                                                  _state, _state_geodetic)
+                                                  _state, _state_geodetic, chunk_bounds)
 
 #: numba's on-disk cache keys each kernel on its own file only, yet the kernels here compile
 #: in helpers of _trajectory_kernel and _trajectory_cheb: a change to those must edit this
 #: line too, or a checkout with a warm cache keeps running the old helpers
-HELPERS_REVISION = "2026-11-27: the Chebyshev chunks' mean series (_trajectory_cheb, 4c98d2a)"
+HELPERS_REVISION = "2026-11-27: chunk_bounds shared by both chunk refits (_trajectory_kernel)"
 
 #: Gauss–Legendre points per sub-interval of a leg whose attitude turns (with the Hermite
 #: position), of one of constant attitude whose velocity changes, and of one holding its
@@ -225,15 +225,7 @@ def _refit(coef, legs_i, legs_f, dense, j, tau, inv, chunk, c, fit, earth,
     up to the leg's end, a pure function of τ — into ``bfit``: rows 0-6 its mean polynomial
     for samples of ``inv`` seconds (:func:`_chunk_fit`, :func:`_mean_coefficients`), row 7 the
     leg, the chunk's start and end, its middle and 2/length."""
-    dur, t_ch = legs_f[j, LF_DUR], chunk[j]
-    n_ch = max(1, int(dur / t_ch))
-    i = min(int(tau / t_ch), n_ch - 1)              # a guess, made exact to the rule
-    while i > 0 and tau < i * t_ch:
-        i -= 1
-    while i < n_ch - 1 and tau >= (i + 1) * t_ch:
-        i += 1
-    lo = i * t_ch
-    hi = dur if i == n_ch - 1 else (i + 1) * t_ch
+    lo, hi = chunk_bounds(legs_f[j, LF_DUR], chunk[j], tau)
     _chunk_fit(coef, legs_i, legs_f, dense, j, lo, hi, c, fit, earth, bfit)
     _mean_coefficients(bfit, inv / (hi - lo))
     bfit[7, 0], bfit[7, 1], bfit[7, 2], bfit[7, 3], bfit[7, 4] = (j, lo, hi, 0.5 * (lo + hi),

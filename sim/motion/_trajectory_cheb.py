@@ -52,7 +52,8 @@ import math
 import numpy as np
 from numba import njit
 
-from rlgsim.sim.motion._trajectory_kernel import LF_DUR, _earth_terms, _position, _state
+from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, _earth_terms, _position, _state,
+                                                  chunk_bounds)
 
 #: Chebyshev points of a chunk (the interpolant's degree + 1), the chunk length as a fraction
 #: of the analytic radius ρ and its cap [s] (module docstring)
@@ -130,15 +131,7 @@ def cheb_refit(coef, dcoef, legs_i, legs_f, dense, j, tau, inv, chunk, dct, eart
                out):  # pragma: no cover - compiled
     """Fit the chunk of leg ``j`` holding leg time ``tau`` (chunk i: i T ≤ τ < (i + 1) T, the
     last one to the leg's end; a pure function of τ) into ``out`` (:func:`cheb_fit`)."""
-    dur, t_ch = legs_f[j, LF_DUR], chunk[j]
-    n_ch = max(1, int(dur / t_ch))
-    i = min(int(tau / t_ch), n_ch - 1)
-    while i > 0 and tau < i * t_ch:
-        i -= 1
-    while i < n_ch - 1 and tau >= (i + 1) * t_ch:
-        i += 1
-    lo = i * t_ch
-    hi = dur if i == n_ch - 1 else (i + 1) * t_ch
+    lo, hi = chunk_bounds(legs_f[j, LF_DUR], chunk[j], tau)
     cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w, out)
 
 

@@ -188,6 +188,20 @@ def first_step_from(dense, lo, a, b, tau):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
+def chunk_bounds(dur, t_ch, tau):  # pragma: no cover - compiled
+    """Start and end [s of leg time] of the fitted chunk that holds leg time ``tau`` on a leg of
+    ``dur`` seconds cut into chunks of ``t_ch``: chunk i holds i T ≤ τ < (i + 1) T, the last one
+    runs to the leg's end — a pure function of τ (the division's guess made exact to the rule)."""
+    n_ch = max(1, int(dur / t_ch))
+    i = min(int(tau / t_ch), n_ch - 1)
+    while i > 0 and tau < i * t_ch:
+        i -= 1
+    while i < n_ch - 1 and tau >= (i + 1) * t_ch:
+        i += 1
+    return i * t_ch, (dur if i == n_ch - 1 else (i + 1) * t_ch)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _dense_at(dense, s, tau):  # pragma: no cover - compiled
     """(L, λ, h) of DOP853 step ``s`` of ``dense`` at leg time ``tau`` (:func:`_position`)."""
     x = (tau - dense[s, 0]) / dense[s, 1]
