@@ -424,9 +424,9 @@ class Linearisation:
     P: np.ndarray              # (n_x, n_x) covariance after the last step (filter order)
     per_step: int
     key: tuple                 # what the gains depend on besides the linearisation point
+    nz: tuple                  # _nonzero_columns(f_dyn), kept for the reruns
     model: SensorModel | None = None
     phi_fed: np.ndarray | None = None
-    nz: tuple | None = None    # _nonzero_columns(f_dyn), kept for the reruns
 
 
 def _filter_setup(rate_hz, settings):
@@ -585,7 +585,7 @@ def rerun_filter(lin: Linearisation, nav: NavSolution, x0: np.ndarray | None = N
     z_all = np.ascontiguousarray(nav.v[(np.arange(n_steps) + 1) * lin.per_step - 1] / 1e-3)
     mask = lin.mask
     ys = np.empty((lin.gains.shape[0], 3))
-    nz_idx, nz_cnt = lin.nz if lin.nz is not None else _nonzero_columns(lin.f_dyn)
+    nz_idx, nz_cnt = lin.nz
     j = rerun_loop(lin.f_dyn, nz_idx, nz_cnt, lin.gains, mask, z_all, x, ys)
     z = z_all[mask] * 1e-3
     nis = np.einsum("ki,kij,kj->k", ys, lin.s_inv, ys)

@@ -453,7 +453,8 @@ def test_stacked_subset_screen_equals_the_one_by_one_screen():
     import itertools
     from rlgsim.estimators.identify.subset_conditioning import passing
     from rlgsim.estimators.identify.subset_fits import added_column_ssr, subset_ssr
-    from rlgsim.estimators.identify.term_averaging import conditioned, corr_matrix
+    from rlgsim.estimators.identify.subset_conditioning import conditioned
+    from rlgsim.estimators.identify.term_averaging import corr_matrix
     rng = np.random.default_rng(17)
     refused = 0
     for _ in range(5):

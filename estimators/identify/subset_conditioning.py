@@ -1,6 +1,6 @@
 """The linear subsets of a term selection that pass the collinearity screen
-(:func:`rlgsim.estimators.identify.term_averaging.conditioned`: every variance inflation
-factor at most ``MAX_VIF``), all subsets of one size at once.
+(:func:`conditioned`: every variance inflation factor at most :data:`MAX_VIF`), all subsets of
+one size at once.
 
 Why: the best-subset search of :mod:`rlgsim.estimators.identify.term_selection` screens every
 subset of up to six of a dozen candidates (some 2,500) again for each nonlinear term it adds,
@@ -13,12 +13,28 @@ fail, and then the stack is halved until it stands alone and is screened as befo
 from __future__ import annotations
 
 import itertools
+from typing import Sequence
 
 import numpy as np
 
-from rlgsim.estimators.identify.term_averaging import MAX_VIF, conditioned
+__all__ = ["MAX_VIF", "conditioned", "passing"]
 
-__all__ = ["passing"]
+#: largest variance inflation factor of a subset's terms (partial |r| ≈ 0.995): beyond it the
+#: recording cannot tell the terms' coefficients apart and the subset is not considered
+MAX_VIF = 100.0
+
+
+def conditioned(R: dict, combo: Sequence[str]) -> bool:
+    """All variance inflation factors of the subset ``combo`` at most :data:`MAX_VIF`."""
+    if len(combo) < 2:
+        return True
+    idx = [R["names"].index(c) for c in combo]
+    sub = R["R"][np.ix_(idx, idx)]
+    try:
+        vif = np.diag(np.linalg.inv(sub))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.all(np.isfinite(vif)) and np.all(vif <= MAX_VIF))
 
 
 def _screen(R: dict, combos: list[tuple[str, ...]], idx: np.ndarray) -> list[bool]:

@@ -20,8 +20,8 @@ same way. Terms whose inclusion is undecided (between 5 % and 95 %) are grouped 
 candidates whose window features they nearly repeat (|r| ≥ 0.9 after the chosen model's other
 terms are removed) as ``unseparable``, each group with a one-line reason naming the programme
 feature that would separate it. The variance inflation factors of the chosen terms are
-``vif``. A subset in which a term's variance inflation factor exceeds :data:`MAX_VIF` (100,
-partial |r| ≈ 0.995) is neither selected nor averaged: two terms that nearly repeat each other
+``vif``. A subset in which a term's variance inflation factor exceeds ``MAX_VIF`` (100,
+partial |r| ≈ 0.995; :mod:`rlgsim.estimators.identify.subset_conditioning`) is neither selected nor averaged: two terms that nearly repeat each other
 get huge opposite coefficients there, which extrapolate wildly to another programme (their
 difference is then what the recording cannot determine, and the group is named instead).
 
@@ -63,11 +63,11 @@ as the honest one around a model-averaged estimate: Hjort & Claeskens, JASA 98, 
 
 from __future__ import annotations
 
-import itertools
 from typing import Sequence
 
 import numpy as np
 
+from rlgsim.estimators.identify.subset_conditioning import passing
 from rlgsim.estimators.identify.subset_fits import subset_ssr
 
 
@@ -128,10 +128,6 @@ def _overdispersion(r: np.ndarray, batches: int, gls: bool = False, p: int = 0) 
 #: with Akaike weights; predictions on another programme 49 % / 81 % against 56 % / 83 %)
 AVERAGING_PENALTY = 2.0
 
-#: largest variance inflation factor of a subset's terms (partial |r| ≈ 0.995): beyond it the
-#: recording cannot tell the terms' coefficients apart and the subset is not considered
-MAX_VIF = 100.0
-
 
 def without_intercept(v: np.ndarray, ones: np.ndarray) -> np.ndarray:
     """``v`` with its projection on the intercept column ``ones`` removed (centring, for an
@@ -147,30 +143,16 @@ def corr_matrix(lcols: dict, names: Sequence[str], ones: np.ndarray) -> dict:
     return {"names": list(names), "R": Z.T @ Z}
 
 
-def conditioned(R: dict, combo: Sequence[str]) -> bool:
-    """All variance inflation factors of the subset ``combo`` at most :data:`MAX_VIF`."""
-    if len(combo) < 2:
-        return True
-    idx = [R["names"].index(c) for c in combo]
-    sub = R["R"][np.ix_(idx, idx)]
-    try:
-        vif = np.diag(np.linalg.inv(sub))
-    except np.linalg.LinAlgError:
-        return False
-    return bool(np.all(np.isfinite(vif)) and np.all(vif <= MAX_VIF))
-
-
 def _subset_weights(y: np.ndarray, base: np.ndarray, lin_names: Sequence[str], lcols: dict,
-                    R: dict, c_hat: float, max_linear: int, subsets=None
+                    R: dict, c_hat: float, max_linear: int
                     ) -> tuple[list[tuple[str, ...]], np.ndarray]:
     """Every well-conditioned linear subset (up to ``max_linear`` of ``lin_names``) on top of
     ``base``, with its QAIC weight ``w ∝ exp(−QAIC/2)``; the subsets carrying all but 1e-4 of
     the weight (at most 1000, at least one), most weighty first: (subsets, renormalised
-    weights). ``subsets(R, names, size)``: those of a size (default: :func:`conditioned`)."""
+    weights). Which subsets pass: :func:`conditioned`, screened a size at once."""
     n, fits = y.size, []
     for size in range(0, min(max_linear, len(lin_names)) + 1):
-        combos = (list(subsets(R, list(lin_names), size)) if subsets is not None else
-                  [c for c in itertools.combinations(lin_names, size) if conditioned(R, c)])
+        combos = passing(R, list(lin_names), size)
         ssr = np.maximum(subset_ssr(y, base, lcols, combos), 1e-300)   # a size at once
         fits += [(n * np.log(v / n) / c_hat + (base.shape[1] + size) * AVERAGING_PENALTY, c)
                  for v, c in zip(ssr.tolist(), combos)]
@@ -265,17 +247,16 @@ def _group_reason(group: list[str], pairs: dict, averaged: dict, lead: str, valu
 
 def averaging(y: np.ndarray, base: np.ndarray, base_names: Sequence[str],
               lin_names: Sequence[str], lcols: dict, chosen_lin: Sequence[str], max_linear: int,
-              batches: int, gls: bool = False, subsets=None) -> tuple:
+              batches: int, gls: bool = False) -> tuple:
     """Selection uncertainty of the linear subset (module docstring): (averaged, unseparable
     groups with their reasons, ĉ, averaged models, combined effects, stand-ins, the full model
-    of the prediction band). ``subsets``: as for :func:`_subset_weights`."""
+    of the prediction band)."""
     R = corr_matrix(lcols, lin_names, base[:, 0])
     Xb = np.column_stack([base] + [lcols[c] for c in chosen_lin])
     _, _, r_best = _ols(y, Xb, batches, gls)
     c_hat = _overdispersion(r_best, batches, gls, Xb.shape[1])
     models = []
-    for combo, wi in zip(*_subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear,
-                                          subsets)):
+    for combo, wi in zip(*_subset_weights(y, base, lin_names, lcols, R, c_hat, max_linear)):
         X = np.column_stack([base] + [lcols[c] for c in combo])
         beta, cov, _ = _ols(y, X, batches, gls)
         models.append((tuple(base_names), tuple(combo), beta, cov, float(wi)))

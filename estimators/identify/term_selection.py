@@ -400,7 +400,7 @@ def select_terms(y: np.ndarray, candidates: Sequence[Term], *, max_linear: int =
     base = np.column_stack([ones] + fcols + [nl_cols[c] for c in nl_chosen])
     averaged, groups, c_hat, models, combined, standins, full_model = averaging(
         y, base, ["intercept", *fixed_names, *nl_chosen], [t.name for t in lin], lcols,
-        lin_chosen, max_linear, batches, gls, subsets=passing)
+        lin_chosen, max_linear, batches, gls)
     for name in nl_chosen:                     # held at the choice: its own refined values
         averaged[name] = (float(res.x[names.index(name)]), float(res.se[names.index(name)]), 1.0)
     return SelectedLaw(terms=tuple(chosen), fit=res, steps=tuple(steps), bic=float(bic),

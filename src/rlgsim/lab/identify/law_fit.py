@@ -50,11 +50,12 @@ from typing import Callable
 
 import numpy as np
 
+from rlgsim.estimators.features import window_average
 from rlgsim.estimators.identify.allan_noise import NoiseFit, fit_allan
 from rlgsim.estimators.identify.term_selection import SelectedLaw, Term, select_terms
 from rlgsim.estimators.identify.window_noise import covariance_from_fit
 from rlgsim.sim.sensors.gyro import pulses_per_arcsec as template_pulses_per_arcsec
-from rlgsim.lab.identify.feature_memo import remembered as _remembered, window_means
+from rlgsim.lab.identify.feature_memo import remembered as _remembered
 from rlgsim.lab.identify.node_names import node_column
 from rlgsim.lab.identify.recording_data import RecordingData
 
@@ -238,8 +239,7 @@ def _gls_bias(rec: RecordingData, y: np.ndarray, cands: list[Term], noise: Noise
         if z.size == 0 or z.max() <= OUTLIER_Z:
             break
         keep = np.delete(keep, int(np.argmax(z)))
-        bias_sel = select_terms(y[keep], _subset(cands, keep),
-                                noise_cov=cov[np.ix_(keep, keep)])
+        bias_sel = select_terms(y[keep], _subset(cands, keep), noise_cov=cov[np.ix_(keep, keep)])
     outliers: tuple[float, ...] = ()
     bad = np.setdiff1d(np.arange(y.size), keep)
     if bad.size:
@@ -271,7 +271,7 @@ def fit_laws(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str, ...
     rows = _window_rows(rec)
 
     def win(v: np.ndarray) -> np.ndarray:
-        return window_means(v, 1.0 / step, rec.window_s, rows)
+        return np.asarray(window_average(v, 1.0 / step, rec.window_s))[rows]
 
     uhfo_sel, u0, uhfo_node, u_t_ref, uhfo_noise = _uhfo_law(rec, nodes_c, node_names, block,
                                                              device, t_ref, win)
@@ -355,7 +355,7 @@ def bias_features(rec: RecordingData, nodes_c: np.ndarray, node_names: tuple[str
     rows = _window_rows(rec)
 
     def win(v: np.ndarray) -> np.ndarray:
-        return window_means(v, 1.0 / rec.step_s, rec.window_s, rows)
+        return np.asarray(window_average(v, 1.0 / rec.step_s, rec.window_s))[rows]
     T = nodes_c[:, node_column(block, laws.bias_node, node_names)]
     extra, _ = _bias_extra(rec, nodes_c, node_names, block, law, laws.bias_node, laws.u0_v)
     sel = laws.bias
