@@ -140,7 +140,8 @@ def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
     def record(name, f):
         def g(self, *a):
             if self._is_vehicle():
-                made[name, a] = made.get((name, a)) or f(self, *a)
+                if (name, a) not in made:
+                    made[name, a] = f(self, *a)
                 return made[name, a]
             return f(self, *a)
         return g

@@ -62,7 +62,7 @@ from rlgsim.sim.motion._trajectory_kernel import (LF_DUR, LF_T0, LI_GEO, LI_LEVE
 #: numba's on-disk cache keys each kernel on its own file only, yet the kernels here compile
 #: in helpers of _trajectory_kernel and _trajectory_cheb: a change to those must edit this
 #: line too, or a checkout with a warm cache keeps running the old helpers
-HELPERS_REVISION = "2026-11-27: chunk_bounds shared by both chunk refits (_trajectory_kernel)"
+HELPERS_REVISION = "2026-11-27: cheb_fit no longer stores the unused half-width (_trajectory_cheb)"
 
 #: Gauss–Legendre points per sub-interval of a leg whose attitude turns (with the Hermite
 #: position), of one of constant attitude whose velocity changes, and of one holding its

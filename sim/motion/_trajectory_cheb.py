@@ -90,7 +90,7 @@ def cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w,
     """The mean series of leg ``j``'s chunk [lo, hi] (leg time) → ``out`` (N + 1, 6): rows
     0 … N − 1 the Chebyshev coefficients of the mean over a sample of ``inv`` seconds of the
     integrands' interpolant on the chunk widened by half a sample each side (within the leg;
-    module docstring), row N (j, lo, hi, the widened interval's middle and 2/length, δ)."""
+    module docstring), row N (j, lo, hi, the widened interval's middle and 2/length)."""
     a = max(lo - 0.5 * inv, 0.0)                    # every sample whose middle is in the
     b = min(hi + 0.5 * inv, legs_f[j, LF_DUR])      # chunk lies in [a, b]: no extrapolation
     mid, half = 0.5 * (a + b), 0.5 * (b - a)
@@ -123,7 +123,7 @@ def cheb_fit(coef, dcoef, legs_i, legs_f, dense, j, lo, hi, inv, dct, earth, w,
             for k in range(NODES - 2 * jj):
                 out[k, q] += scale * a[k]
     out[NODES, 0], out[NODES, 1], out[NODES, 2] = j, lo, hi
-    out[NODES, 3], out[NODES, 4], out[NODES, 5] = mid, 1.0 / half, 0.5 * inv / half
+    out[NODES, 3], out[NODES, 4] = mid, 1.0 / half
 
 
 @njit(cache=True, nogil=True)
@@ -149,7 +149,7 @@ def cheb_mean(cfit, tau, inv, quads, res):  # pragma: no cover - compiled
         res[q] = inv * (cfit[0, q] + s * b1 - b2)
 
 
-#: the radii tried by :func:`chunk_radius` [s]: 5 % apart (the largest one that passes is taken)
+#: the radii tried by :func:`chunk_radii` [s]: 5 % apart (the largest one that passes is taken)
 _RHO_GRID = np.geomspace(1e-4, 1e6, 461)
 
 

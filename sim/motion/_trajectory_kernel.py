@@ -25,7 +25,8 @@ array ``w`` (32,) = the state (0..19), the channels (20..25) and their rates (26
 The Earth model's constants come from :mod:`rlgsim.ground.earth` (passed in, never re-typed).
 numba's on-disk cache keys each kernel on its own file: a change here must also edit the
 kernels' files that compile these helpers in (``HELPERS_REVISION`` of
-:mod:`~rlgsim.sim.motion._trajectory_block`; _trajectory_truth.py, _trajectory_route.py),
+:mod:`~rlgsim.sim.motion._trajectory_block`; _trajectory_cheb.py, _trajectory_truth.py,
+_trajectory_route.py),
 or a warm cache keeps the old helpers.
 No ``fastmath``: the same IEEE operations in the same order for a piece whatever block holds it.
 """

@@ -43,8 +43,10 @@ h = 0.02 s and w = 3 rad/s the relative error is ~2e-20 — far below float64's 
 of the increments. Legs of constant attitude take 3 or 2 nodes (their integrands are
 polynomials of the velocity and slow functions of the position), and where they also hold a
 velocity that moves the vehicle, the exact means of fitted 10-s chunks (the bounds are in
-:mod:`rlgsim.sim.motion._trajectory_block`). The increments are thus the exact integrals to
-rounding, as on the turntable.
+:mod:`rlgsim.sim.motion._trajectory_block`). Turning and accelerating legs mostly take the
+exact mean series of a degree-11 Chebyshev interpolant on chunks of at most 1 s (its bound in
+:mod:`rlgsim.sim.motion._trajectory_cheb`); the quadrature above is what those are checked
+against. The increments are thus the exact integrals to rounding, as on the turntable.
 
 **Truth.** Position, ground velocity and attitude at each sample's end (:meth:`Trajectory.states`).
 

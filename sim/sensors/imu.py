@@ -216,13 +216,7 @@ class ImuSimulator:
         block 0 drew its own in this thread: ~2 ms of a 1 h run at 100 Hz. A block of
         another layout is drawn when asked for (:meth:`_take_normals`)."""
         per_block = int(round(BLOCK_S / self.step_s))
-        m = min(per_block, self.n_steps)
-        n = self._block_size(m)
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
-        self._ahead.append(((0, 0, m, n), self._submit_parts(0, m, n)))
-        if m < self.n_steps:
-            self._queue_after(0, 0, per_block)
+        self._queue_after(-1, -per_block, per_block)        # from block 0, step 0
 
     def _is_vehicle(self) -> bool:
         return getattr(self.motion, "kind", "") == "trajectory"
@@ -379,7 +373,7 @@ class ImuSimulator:
     def _queue_after(self, b: int, k0: int, m: int) -> None:
         """Queue the normals of the blocks after block ``b`` (first step ``k0``, blocks of ``m``
         steps assumed, up to the run's end; a block of another length is drawn when asked for)
-        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, two tasks per block (a
+        until :data:`PREFETCH_BLOCKS` are queued: one worker thread, three tasks per block (a
         vehicle's kinematics go to their own worker: :meth:`start`)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlgsim-imu")
