@@ -144,7 +144,8 @@ def write_programme(path: str | os.PathLike, segments: Iterable[Mapping]) -> pat
             w = csv.DictWriter(fh, PROGRAMME_COLUMNS, lineterminator="\n")
             w.writeheader()
             for r in programme_rows(segments):
-                w.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
+                w.writerow({k: repr(float(v)) if isinstance(v, float) else v  # np.float64 too
+                            for k, v in r.items()})
         os.replace(tmp, p)
     finally:
         if tmp.exists():

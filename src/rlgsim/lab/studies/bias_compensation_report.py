@@ -14,9 +14,9 @@ from rlgsim.lab.studies.bias_compensation_ranking import rankings
 from rlgsim.lab.studies.compensators import EQUATION_KINDS, RAW
 from rlgsim.lab.studies.fitting import Fitted
 from rlgsim.lab.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
-from rlgsim.lab.studies.report_text import (before_check, definitions,
-                                            device_coefficients_section, first_test_navigation,
-                                            fmt, truth_score_tables)
+from rlgsim.lab.studies.report_text import (before_check, beside_first_test_navigation,
+                                            definitions, device_coefficients_section,
+                                            first_test_navigation, fmt, truth_score_tables)
 from rlgsim.lab.studies.runs import RunSeries
 from rlgsim.lab.studies.scoring import has_truth, series_stability
 from rlgsim.lab.study import Study, StudyResult
@@ -27,12 +27,7 @@ def report(study: Study, config: Config, result: StudyResult) -> Report:
     """The report of a run (the paper's tables beside ours, truth-based scores, rankings,
     figures). The navigation runs in a worker process meanwhile
     (:class:`rlgsim.lab.studies.task_share.TaskShare`: the same bytes as here)."""
-    from rlgsim.lab.studies.task_share import TaskShare
-    nav = TaskShare(first_test_navigation, [(study, config, result.details)], background=True)
-    try:
-        return _report(study, config, result, nav)
-    finally:
-        nav.close()
+    return beside_first_test_navigation(_report, study, config, result)
 
 
 def _report(study: Study, config: Config, result: StudyResult, nav_runs) -> Report:

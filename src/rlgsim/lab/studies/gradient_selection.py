@@ -163,9 +163,9 @@ def _start_workers(rows: int, n_jobs) -> None:
 def _start_search_workers(study: Study, config: Config, unit: int):
     """A started thread that starts the PSO-SVR search's worker processes
     (:func:`rlgsim.estimators.tuned.start_search_workers`) while the runs are simulated, or
-    None: no ``pso_svr`` compensator, inside a worker process, a recording among the train
-    runs, or fewer train windows than a parallel search needs (estimated from the scenarios'
-    durations; the search decides for itself again)."""
+    None: no ``pso_svr`` compensator, inside a worker process, or a recording among the train
+    runs. The train windows, estimated from the scenarios' durations, go with it: with fewer
+    than a parallel search needs the thread starts no worker (the search decides again)."""
     import multiprocessing
     import threading
 
@@ -194,10 +194,10 @@ def run(study: Study, config: Config, workdir: pathlib.Path, *, unit: int = 0,
     ex = load_experiment(study, config.train, config.test, config, workdir, unit=unit,
                          progress=progress,
                          done=_runs_done(started, study, config, workdir, unit, progress))
+    t_data = time.perf_counter() - t_start      # the runs, not the search workers' start
     if warm is not None:
         warm.join()
     runs, Xtr, ytr, random_state = ex.runs, ex.X, ex.y, ex.random_state
-    t_data = time.perf_counter() - t_start
 
     listings: dict[str, list[tuple[str, float, bool]]] = {}
 

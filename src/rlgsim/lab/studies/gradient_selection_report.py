@@ -15,9 +15,9 @@ from rlgsim.lab.studies.fitting import Fitted
 from rlgsim.lab.studies.gradient_selection_config import Config, Outcome, PaperTable
 from rlgsim.lab.studies.gradient_selection_figures import figures, short
 from rlgsim.lab.studies.gradient_selection_ranking import excitations, rankings
-from rlgsim.lab.studies.report_text import (before_check, definitions,
-                                            device_coefficients_section, first_test_navigation,
-                                            fmt, truth_score_tables)
+from rlgsim.lab.studies.report_text import (before_check, beside_first_test_navigation,
+                                            definitions, device_coefficients_section,
+                                            first_test_navigation, fmt, truth_score_tables)
 from rlgsim.lab.studies.recording_runs import recorded_labels, recordings_paragraph, run_origin
 from rlgsim.lab.studies.scoring import has_truth
 
@@ -34,13 +34,7 @@ def report(study: Study, config: Config, result: StudyResult, prepare=None) -> R
     scores, the ranking, figures); ``prepare``: the recipe's gradient selection, for the
     navigation's drawn units (:func:`navigation`). The navigation runs in a worker process
     meanwhile (:class:`rlgsim.lab.studies.task_share.TaskShare`: the same bytes as here)."""
-    from rlgsim.lab.studies.task_share import TaskShare
-    nav = TaskShare(first_test_navigation, [(study, config, result.details, prepare)],
-                    background=True)
-    try:
-        return _report(study, config, result, nav)
-    finally:
-        nav.close()
+    return beside_first_test_navigation(_report, study, config, result, prepare)
 
 
 def _report(study: Study, config: Config, result: StudyResult, nav_runs) -> Report:

@@ -118,3 +118,17 @@ def first_test_navigation(study, config, out, prepare=None):
     test = config.test[0]
     exp = ImuRun(out.runs, tuple(config.train), test, out.fitted, out.predictions[test.label])
     return imu_navigation(study, config, exp, unit=out.unit, prepare=prepare)
+
+
+def beside_first_test_navigation(build, study, config, result, prepare=None):
+    """``build(study, config, result, nav)`` — a single-gyro study's report — while
+    :func:`first_test_navigation` runs in a worker process
+    (:class:`rlgsim.lab.studies.task_share.TaskShare`, ``nav``: the same bytes as here); the
+    worker is stopped when the report is built or fails."""
+    from rlgsim.lab.studies.task_share import TaskShare
+    nav = TaskShare(first_test_navigation, [(study, config, result.details, prepare)],
+                    background=True)
+    try:
+        return build(study, config, result, nav)
+    finally:
+        nav.close()

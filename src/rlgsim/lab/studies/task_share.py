@@ -111,8 +111,8 @@ class TaskShare:
 
     def results(self, landed: Callable[[int, Any], None] | None = None) -> list[Any]:
         """Every task's result, in task order; a task's exception is raised here.
-        ``landed(i, result)``, if given, is called in this process as each result arrives
-        (e.g. a progress bar), in no particular order."""
+        ``landed(i, result)``, if given, is called in this process as it finishes each of its
+        own tasks, and for the worker's tasks once all are done (e.g. a progress bar)."""
         def got(i: int, value: Any) -> Any:
             if landed is not None:
                 landed(i, value)
