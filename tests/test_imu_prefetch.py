@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from _imu_helpers import SITE, Trace, temperatures
-from rlgsim.sim.sensors.imu import ImuSimulator, _held_steps, _step_sums
+from rlgsim.sim.sensors.imu import ImuSimulator, _held_steps, _step_sums, steps_held
 from rlgsim.sim.sensors.imu_model import ImuModel
 from rlgsim.sim.motion.kinematics import Motion, segments_from_program
 from rlgsim.sim.rng import generator
@@ -61,9 +61,12 @@ def test_held_step_sums_are_the_plain_sums(idx):
         held = _held_steps(runs, m, idx)
         assert same_bits(_step_sums(x, idx, m, held), plain_sums(x, idx, m))
         # the held runs are at rest by the bits too
-        uniform = step_inputs(x, m, idx, compiled=False)[0]
+        uniform, first = step_inputs(x, m, idx, compiled=False)
         for lo, hi in held:
             assert uniform[lo:hi].all()
+        # known from the runs: at rest only where the bits say so, with the same sample
+        u_held, f_held = steps_held(x, m, idx, held)
+        assert not (u_held & ~uniform).any() and same_bits(f_held, first)
 
 
 def test_uneven_steps_keep_the_plain_sums():

@@ -134,3 +134,21 @@ def test_first_edge_at_is_searchsorted():
         t = np.sort(t[(t > edges[0]) & (t < edges[-1])])
         np.testing.assert_array_equal(Motion._first_edge_at(t, k0, n, rate),
                                       np.searchsorted(edges, t))
+
+
+def test_held_steps_leave_only_whole_steps_after_a_runs_first_unwritten():
+    """``held_steps`` = r: every sample outside :attr:`MotionBlock.unwritten` is the full
+    block's, and each unwritten run lies in a constant run after its first whole step."""
+    mo = PROGRAMMES["paper000_short"]
+    full = mo.increments(4200.0, 60_000, 100.0, angles=False)
+    for r in (500, 100, 7):
+        got = mo.increments(4200.0, 60_000, 100.0, angles=False, held_steps=r)
+        assert got.constant == full.constant and got.unwritten
+        written = np.ones(60_000, dtype=bool)
+        for lo, hi in got.unwritten:
+            assert lo % r == 0 and hi % r == 0 and hi > lo
+            assert any(c0 + r <= lo and hi <= c1 for c0, c1 in got.constant)
+            written[lo:hi] = False
+        assert 0.8 * 60_000 < (~written).sum()
+        assert same_bits(got.dtheta_rad[written], full.dtheta_rad[written])
+        assert same_bits(got.dv_m_per_s[written], full.dv_m_per_s[written])

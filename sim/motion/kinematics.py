@@ -102,6 +102,11 @@ class MotionBlock:
     rate_hz: float = 1.0
     constant: tuple[tuple[int, int], ...] = ()
     states: dict[str, np.ndarray] | None = None
+    #: runs ``(lo, hi)`` of samples inside :attr:`constant` runs whose increments were NOT
+    #: written (:meth:`Motion.increments` with ``held_steps``): their rows of ``dtheta_rad``
+    #: and ``dv_m_per_s`` hold whatever the memory held; each lies in a ``constant`` run whose
+    #: first samples were written, and holds their increment
+    unwritten: tuple[tuple[int, int], ...] = ()
 
     @cached_property
     def t_s(self) -> np.ndarray:
@@ -121,6 +126,19 @@ def _edges(k0: int, j: np.ndarray | int, rate_hz: float) -> np.ndarray:
     """Sample edges (k0 + j)/f [s] of the grid (the start of sample j; ``k0 + j`` exact in
     float64 below 2^53), element by element the values of ``(k0 + arange(n + 1))/f``."""
     return (k0 + np.asarray(j, dtype=float)) / rate_hz
+
+
+def _written(lo: int, hi: int, r: int, unwritten: list[tuple[int, int]]
+             ) -> list[tuple[int, int]]:
+    """The parts of the fill run of samples [lo, hi) that :meth:`Motion.increments` writes
+    when a reader of whole steps of ``r`` samples (``r`` > 0) at rest reads only the first
+    step of each run of them: everything but the whole steps after the first whole step
+    (those are appended to ``unwritten``); ``r`` = 0: all of it."""
+    s0, s1 = -(-lo // r) if r > 0 else 0, hi // r if r > 0 else 0
+    if s1 - s0 < 2:
+        return [(lo, hi)]
+    unwritten.append(((s0 + 1) * r, s1 * r))
+    return [(lo, (s0 + 1) * r), (s1 * r, hi)]
 
 
 #: Values assumed when a static segment omits a field (e.g. a bare {"kind": "static"} mount).
@@ -268,8 +286,8 @@ class Motion:
         o, i, _ = self.angles(t_s)
         return body_to_enu(o, i)
 
-    def increments(self, t0_s: float, n: int, rate_hz: float, *, angles: bool = True
-                   ) -> MotionBlock:
+    def increments(self, t0_s: float, n: int, rate_hz: float, *, angles: bool = True,
+                   held_steps: int = 0) -> MotionBlock:
         """Exact Δθ and Δv for ``n`` samples at ``rate_hz`` starting at ``t0_s`` (on the grid).
 
         Sample j covers [(k0 + j)/f, (k0 + j + 1)/f) with k0 = round(t0_s·f).
@@ -282,6 +300,12 @@ class Motion:
         straddling a motion boundary are computed by :meth:`_exact` over windows that hold each
         turning motion's samples whole, so every number is the one the whole-block
         computation gives (tests/test_motion_fill.py compares the two).
+
+        ``held_steps`` = r > 0: a caller that reads a run of whole steps of r samples at rest
+        only through its first step (the IMU stage: :func:`rlgsim.sim.sensors.imu._held_steps`)
+        has each fill run's samples from its second whole step to its last whole step's end
+        left unwritten — ~97 % of paper000's samples, whose 2 × 24 bytes a sample were the
+        block's largest memory traffic; they are listed in :attr:`MotionBlock.unwritten`.
         """
         if n < 0 or rate_hz <= 0:
             raise ValueError(f"need n >= 0 and rate_hz > 0, got n={n}, rate_hz={rate_hz}")
@@ -299,13 +323,15 @@ class Motion:
         # long run and the IMU stage takes the rows it needs without a copy
         dth, dv = np.empty((3, n)), np.empty((3, n))
         fills, windows = self._layout(k0, n, rate_hz, e0, e1)
+        unwritten = []
         for lo, hi, j in fills:
-            dth[:, lo:hi] = (self._coef["w"][0][j] * (1.0 / rate_hz))[:, None]
-            dv[:, lo:hi] = (self._coef["f"][0][j] * (1.0 / rate_hz))[:, None]
+            for a, b in _written(lo, hi, held_steps, unwritten):
+                dth[:, a:b] = (self._coef["w"][0][j] * (1.0 / rate_hz))[:, None]
+                dv[:, a:b] = (self._coef["f"][0][j] * (1.0 / rate_hz))[:, None]
         for lo, hi in windows:
             dth[:, lo:hi], dv[:, lo:hi] = (x.T for x in self._exact(k0 + lo, hi - lo, rate_hz))
         block = MotionBlock(dth.T, dv.T, None, None, None, k0, rate_hz,
-                            tuple((lo, hi) for lo, hi, _ in fills))
+                            tuple((lo, hi) for lo, hi, _ in fills), unwritten=tuple(unwritten))
         if angles:
             block.outer_deg, block.inner_deg, block.segment = self.angles(block.t_s)
         return block

@@ -264,15 +264,21 @@ class ImuSimulator:
         the steps at rest of each, their sums per thermal step and the table at each step's
         end; a vehicle's truth rows too (:attr:`motion_rows`) unless ``truth`` is False (then
         :meth:`_truth_rows` makes them)."""
-        mb = self._vehicle_block(k0, n, truth)
         idx = sample_step_index(n, m, self.rate_hz, self.step_s)
+        # a turntable's runs of whole steps at rest are read through their first step only
+        # (steps_held, _step_sums): the rest of them is not written (Motion.increments)
+        sparse = (isinstance(idx, int) and n == m * idx and not self.truth_samples
+                  and not self._is_vehicle())
+        mb = self._vehicle_block(k0, n, truth, held_steps=idx if sparse else 0)
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
+        steps = (lambda x_t: steps_held(x_t, m, idx, held)) if sparse else (
+            lambda x_t: step_inputs(x_t, m, idx))
         out: dict[str, Any] = {
             "motion": mb, "dth_t": dth_t, "dv_t": dv_t,
             # steps at rest (one increment for all their samples): evaluated once per step
-            "steps_g": step_inputs(dth_t, m, idx),
-            "steps_a": step_inputs(dv_t, m, idx) if self.r.accels is not None else None,
+            "steps_g": steps(dth_t),
+            "steps_a": steps(dv_t) if self.r.accels is not None else None,
             "dtheta_step": _step_sums(dth_t, idx, m, held),
             "dv_step": _step_sums(dv_t, idx, m, held)}
         if n:                               # the table at the ends of each step's last sample
@@ -281,10 +287,14 @@ class ImuSimulator:
             out["table"] = (outer, inner, np.asarray(segment).astype(np.int32))
         return out
 
-    def _vehicle_block(self, k0: int, n: int, truth: bool = True) -> Any:
+    def _vehicle_block(self, k0: int, n: int, truth: bool = True, held_steps: int = 0
+                       ) -> Any:
         """The motion's block of ``n`` samples from thermal step ``k0``; a vehicle's with its
-        truth states (``states``) too (``truth``)."""
-        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False)
+        truth states (``states``) too (``truth``); a turntable's with the runs of whole steps
+        of ``held_steps`` samples at rest written only in their first step (> 0;
+        :meth:`rlgsim.sim.motion.kinematics.Motion.increments`)."""
+        more = {"held_steps": held_steps} if held_steps else {}
+        mb = self.motion.increments(k0 * self.step_s, n, self.rate_hz, angles=False, **more)
         if self._is_vehicle() and truth:
             mb.states = self.motion.truth(mb.t_s)
             if self.motion_rows is not None:    # the truth group's rows, made here once
@@ -525,6 +535,23 @@ def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | i
         return None
     runs = [(-(-lo // idx), min(hi // idx, m)) for lo, hi in constant]
     return [(lo, hi) for lo, hi in runs if hi > lo]
+
+
+def steps_held(x_t: np.ndarray, m: int, idx: int, held: list[tuple[int, int]] | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rlgsim.sim.sensors.sensor_triad.step_inputs`' (uniform, first) of increments
+    ``x_t`` (3, m·idx) known from the motion: the ``held`` runs of steps (:func:`_held_steps`)
+    at rest, with their first step's first sample; every other step's own first sample, not
+    marked at rest. Only the first step of a held run is read (the others may be unwritten:
+    :attr:`rlgsim.sim.motion.kinematics.MotionBlock.unwritten`). A step at rest by its bits
+    but not held is counted sample by sample: the same operations on the same numbers, so
+    the same pulses (:mod:`rlgsim.sim.sensors._pulse_kernel`)."""
+    uniform = np.zeros(m, dtype=np.bool_)
+    first = np.array(x_t[:, ::idx])                 # (3, m): each step's first sample
+    for lo, hi in held or ():
+        uniform[lo:hi] = True
+        first[:, lo + 1:hi] = first[:, lo:lo + 1]
+    return uniform, first
 
 
 def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int,
