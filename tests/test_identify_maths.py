@@ -2,6 +2,8 @@
 statsmodels OLS for standard errors and the BIC, known synthetic laws for the term selection,
 synthetic white noise and random walk for the Allan fit."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import statsmodels.api as sm
@@ -407,10 +409,12 @@ def test_batched_heater_network_equals_the_integrator():
     for h in (5.0, 30.0):
         for net, c in zip(nets, _coefficients(nets, h, 25.0, True)):
             it = ThermalIntegrator(net, h, 0.0)
-            for k in ("_mu", "_c_s", "_c_ds", "_c_u", "_c_b", "_c_db", "_c_h", "_r_s", "_r_t",
-                      "_h_kp", "_h_ki", "_h_aw", "_h_max", "_h_sp", "_h_tg", "_to_nodes_T"):
-                want = getattr(it, k)
-                np.testing.assert_allclose(getattr(c, k), want, rtol=0,
+            pairs = [(k, getattr(c, k), getattr(it, k)) for k in
+                     ("_mu", "_c_s", "_c_ds", "_c_u", "_c_b", "_c_db", "_to_nodes_T")]
+            pairs += [(f.name, getattr(c.heat, f.name), getattr(it._heat, f.name))
+                      for f in dataclasses.fields(c.heat)]
+            for k, got, want in pairs:
+                np.testing.assert_allclose(got, want, rtol=0,
                                            atol=1e-13 * np.max(np.abs(want)), err_msg=k)
             np.testing.assert_allclose(c.w0, it.initial_state(25.0, True).modal_if_valid(),
                                        rtol=1e-13)

@@ -56,6 +56,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
+from rlgsim.sim.thermal.heater_terms import heater_terms
 from rlgsim.sim.thermal.network import ThermalNetwork
 
 #: Rows per matrix product when mapping modal to node temperatures (fixed, see module doc).
@@ -263,21 +264,7 @@ class ThermalIntegrator:
         C^-½, ``V`` the eigenvectors, ``E`` the per-mode step exponentials, ``h`` the step)."""
         # controlled heaters: ZOH power into their node, sensors read from the modal state
         self.heaters = tuple(network.heaters)
-        if self.heaters:
-            nodes_map = d[:, None] * V                            # T = nodes_map @ w
-            self._c_h = np.column_stack([V.T[:, hh.node] * d[hh.node] * E[:, 0, 4]
-                                         for hh in self.heaters])          # (n, H)
-            self._r_s = np.array([nodes_map[hh.sensor] for hh in self.heaters])   # (H, n)
-            self._r_t = np.array([nodes_map[max(hh.track_node, 0)] for hh in self.heaters])
-            self._h_kp = np.array([hh.kp_w_per_k for hh in self.heaters])
-            self._h_ki = np.array([hh.kp_w_per_k * h / hh.ti_s for hh in self.heaters])
-            self._h_aw = np.array([h / hh.ti_s for hh in self.heaters])
-            self._h_max = np.array([hh.max_power_w for hh in self.heaters])
-            self._h_sp = np.array([hh.setpoint_c - (hh.track_gain * hh.track_reference_c
-                                                    if hh.track_node >= 0 else 0.0)
-                                   for hh in self.heaters])
-            self._h_tg = np.array([hh.track_gain if hh.track_node >= 0 else 0.0
-                                   for hh in self.heaters])
+        self._heat = heater_terms(self.heaters, d, V, E[:, 0, 4], h) if self.heaters else None
         # nonlinear link parts (exact radiation, natural convection): their residual heat is
         # evaluated at each grid point and held over the step (exponential Euler)
         self.nonlinear_links = tuple(network.nonlinear_links)
@@ -540,11 +527,12 @@ class ThermalIntegrator:
         n = w0.size
         aux = self._kernel_args
         if aux is None:
+            ht = self._heat
             aux = self._kernel_args = (
-                np.ascontiguousarray(self._r_s), np.ascontiguousarray(self._r_t),
-                np.ascontiguousarray(self._c_h.T), self._h_kp.copy(), self._h_ki.copy(),
-                self._h_aw.copy(), self._h_max.copy(), self._h_sp.copy(), self._h_tg.copy(),
-                bool(np.any(self._h_tg != 0.0)))
+                np.ascontiguousarray(ht.sensor_rows), np.ascontiguousarray(ht.track_rows),
+                np.ascontiguousarray(ht.cols.T), ht.kp.copy(), ht.ki.copy(), ht.aw.copy(),
+                ht.max_power.copy(), ht.setpoint.copy(), ht.track_gain.copy(),
+                bool(np.any(ht.track_gain != 0.0)))
         rs, rt, cols, kp, ki, aw, pmax, sp0, tg, track = aux
         coef = self._kernel_coef
         if coef is None or coef.shape[0] != len(terms):
@@ -573,11 +561,12 @@ class ThermalIntegrator:
         mu = self._mu
         H = len(self.heaters)
         if H:
-            rs, rt = self._r_s, self._r_t
-            cols = [np.ascontiguousarray(self._c_h[:, j]) for j in range(H)]
-            kp, ki, aw, pmax = (self._h_kp.tolist(), self._h_ki.tolist(),
-                                self._h_aw.tolist(), self._h_max.tolist())
-            sp0, tg = self._h_sp.tolist(), self._h_tg.tolist()
+            ht = self._heat
+            rs, rt = ht.sensor_rows, ht.track_rows
+            cols = [np.ascontiguousarray(ht.cols[:, j]) for j in range(H)]
+            kp, ki, aw, pmax = (ht.kp.tolist(), ht.ki.tolist(), ht.aw.tolist(),
+                                ht.max_power.tolist())
+            sp0, tg = ht.setpoint.tolist(), ht.track_gain.tolist()
             track = any(x != 0.0 for x in tg)
             I = [float(x) for x in integ]
             heat = [np.empty_like(w0) for _ in range(H)]   # cols[j]·P for the last P used

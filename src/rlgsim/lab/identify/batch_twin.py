@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rlgsim.sim.thermal.heater_terms import heater_terms
 from rlgsim.sim.thermal.network import ThermalNetwork
 from rlgsim.sim.thermal.thermometers import ProbeSet
 
@@ -110,9 +111,9 @@ def _coefficients(nets: list[ThermalNetwork], step_s: float, air0: float, powere
                   ) -> list[_Coefs]:
     """Step coefficients of each network (:class:`_Coefs`): ``S = C^-½ K C^-½ = V Λ Vᵀ``,
     ``μ = e^{−λh}``, the forcing weights of the setpoint (chamber air), its ramp, the power
-    and each boundary from :func:`_phi`, the heaters' input columns and sensor rows in the
-    modal basis ``w = Vᵀ C^½ T``, the PI constants (``ki = kp·h/ti``, anti-windup ``h/ti``,
-    the tracked setpoint ``sp − gain·ref`` and its gain) — the integrator's formulae."""
+    and each boundary from :func:`_phi`, and the heaters' terms in the modal basis
+    ``w = Vᵀ C^½ T`` (:func:`rlgsim.sim.thermal.heater_terms.heater_terms`, the integrator's own
+    function, with the closed-form ZOH weight ``a``) — the integrator's formulae."""
     h = float(step_s)
     C = np.stack([np.asarray(n.capacitance_j_per_k, dtype=float) for n in nets])
     d = 1.0 / np.sqrt(C)
@@ -136,17 +137,7 @@ def _coefficients(nets: list[ThermalNetwork], step_s: float, air0: float, powere
         c._c_b, c._c_db = beta_b * a[k][None, :], beta_b * b[k][None, :]
         nodes_map = dk[:, None] * Vk
         c._to_nodes_T = np.ascontiguousarray(nodes_map.T)
-        hs = net.heaters
-        c._c_h = np.column_stack([Vk.T[:, q.node] * dk[q.node] * a[k] for q in hs])
-        c._r_s = np.array([nodes_map[q.sensor] for q in hs])
-        c._r_t = np.array([nodes_map[max(q.track_node, 0)] for q in hs])
-        c._h_kp = np.array([q.kp_w_per_k for q in hs])
-        c._h_ki = np.array([q.kp_w_per_k * h / q.ti_s for q in hs])
-        c._h_aw = np.array([h / q.ti_s for q in hs])
-        c._h_max = np.array([q.max_power_w for q in hs])
-        c._h_sp = np.array([q.setpoint_c - (q.track_gain * q.track_reference_c
-                                            if q.track_node >= 0 else 0.0) for q in hs])
-        c._h_tg = np.array([q.track_gain if q.track_node >= 0 else 0.0 for q in hs])
+        c.heat = heater_terms(net.heaters, dk, Vk, a[k], h)
         c.T0 = net.steady_state(air0, powered0)
         c.heaters0 = np.asarray(net.steady_heater_power_w(air0, powered0), dtype=float)
         c.w0 = (Vk.T * np.sqrt(C[k])[None, :]) @ c.T0
@@ -170,15 +161,15 @@ def _stacked(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np.ndarray,
          "w0": np.stack([it.w0 for it in integs]),
          "coef": np.stack([_forcing_coef(it) for it in integs]),
          "inputs": inputs, "src": src,
-         "ch": np.stack([it._c_h for it in integs]),
-         "rs": np.stack([it._r_s for it in integs]),
-         "rt": np.stack([it._r_t for it in integs]),
-         "kp": np.stack([it._h_kp for it in integs]),
-         "ki": np.stack([it._h_ki for it in integs]),
-         "aw": np.stack([it._h_aw for it in integs]),
-         "pmax": np.stack([it._h_max for it in integs]),
-         "sp0": np.stack([it._h_sp for it in integs]),
-         "tg": np.stack([it._h_tg for it in integs]),
+         "ch": np.stack([it.heat.cols for it in integs]),
+         "rs": np.stack([it.heat.sensor_rows for it in integs]),
+         "rt": np.stack([it.heat.track_rows for it in integs]),
+         "kp": np.stack([it.heat.kp for it in integs]),
+         "ki": np.stack([it.heat.ki for it in integs]),
+         "aw": np.stack([it.heat.aw for it in integs]),
+         "pmax": np.stack([it.heat.max_power for it in integs]),
+         "sp0": np.stack([it.heat.setpoint for it in integs]),
+         "tg": np.stack([it.heat.track_gain for it in integs]),
          "integ": np.stack([it.heaters0 for it in integs]),
          "on": u > 0}
     c["track"] = bool(np.any(c["tg"] != 0.0))
