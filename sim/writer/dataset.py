@@ -165,6 +165,10 @@ class GroupWriter:
         #: names of the growing datasets (none is kept open here: an open dataset keeps its
         #: chunks in HDF5's chunk cache past the writer's close, which moves where they land)
         self._growing_names: list[str] = []
+        #: what each growing dataset was made with here (its type, chunk shape and shape: no
+        #: rows yet), so its first append reopens it with one H5Dopen instead of asking HDF5
+        #: back through h5py's group lookup and Dataset properties (:class:`_Made`)
+        self._made: dict[str, tuple[np.dtype, tuple[int, ...], tuple[int, ...]]] = {}
 
     def _count_row(self, name: str, dim: str, dtype: Any, tail: tuple[int, ...] = (),
                    scale: bool = False) -> None:
@@ -193,8 +197,9 @@ class GroupWriter:
         """A dimension with its coordinate variable. ``growing=True`` makes it the unlimited
         dimension that :meth:`append` extends (its values arrive with the rows)."""
         if growing:
-            ds = new_dataset(self._g, name, (0,), dtype, maxshape=(None,),
-                             chunks=self._chunks(dtype, ()))
+            chunks = self._chunks(dtype, ())
+            ds = new_dataset(self._g, name, (0,), dtype, maxshape=(None,), chunks=chunks)
+            self._made[name] = (np.dtype(dtype), chunks, (0,))
             self._growing[name] = [name]
             self._count_row(name, name, dtype, scale=True)
         else:
@@ -212,6 +217,7 @@ class GroupWriter:
         implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
         it takes the variables only."""
         ds = new_dataset(self._g, name, (0,), ">f4", maxshape=(None,), chunks=(1 << 16,))
+        self._made[name] = (np.dtype(">f4"), (1 << 16,), (0,))
         ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
         self._growing[name] = []
         self._dim_only.add(name)
@@ -243,6 +249,7 @@ class GroupWriter:
             if set(extra) <= {"scaleoffset"} and plain_name(name):
                 ds = new_dataset(self._g, name, (0, *tail), dtype, maxshape=(None, *tail),
                                  chunks=chunks, scaleoffset=extra.get("scaleoffset"))
+                self._made[name] = (np.dtype(dtype), chunks, (0, *tail))
             else:                                   # other filters: h5py's own checks
                 ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
                                             dtype=dtype, chunks=chunks, track_times=False,
@@ -304,13 +311,22 @@ class GroupWriter:
             return
         start = self._rows.get(dim)
         if start is None:
-            start = self._rows[dim] = self._g[dim].shape[0]
+            start = self._rows[dim] = 0 if dim in self._made else self._g[dim].shape[0]
         for v in names:
             st = self._staged.get(v)
             if st is None:
-                st = self._staged[v] = _ChunkStage(self._g[v], start, self._direct)
+                st = self._staged[v] = _ChunkStage(self._open(v), start, self._direct)
             st.append(rows[v])
         self._rows[dim] = start + m
+
+    def _open(self, name: str) -> "h5py.Dataset | _Made":
+        """Growing dataset ``name`` opened for its stage: one H5Dopen with what it was made
+        with here (:class:`_Made`), else (a dataset this writer did not make) through h5py."""
+        made = self._made.get(name)
+        if made is None:
+            return self._g[name]
+        with h5py._objects.phil:
+            return _Made(h5py.h5d.open(self._g.id, name.encode("utf-8")), *made)
 
     def flush(self) -> None:
         """Write every staged row (the partial last chunks) and size the coordinate-less
@@ -323,6 +339,21 @@ class GroupWriter:
             rows = self._rows.get(dim)
             if rows is not None and self._g[dim].shape[0] != rows:
                 self._g[dim].resize(rows, axis=0)
+
+
+class _Made:
+    """A growing dataset this writer made, open for its stage: its HDF5 identifier and the
+    type, chunk shape and shape (no rows: it is opened before its first append) it was made
+    with — what :class:`_ChunkStage` and :mod:`rlgsim.sim.writer._direct_chunks` read of an
+    ``h5py.Dataset`` (``id``, ``dtype``, ``chunks``, ``shape``), without h5py's group lookup,
+    Dataset object and the HDF5 calls its properties make (~0.1 ms a dataset: a run's first
+    block opens ~30 in the writer thread)."""
+
+    __slots__ = ("id", "dtype", "chunks", "shape")
+
+    def __init__(self, dsid: Any, dtype: np.dtype, chunks: tuple[int, ...],
+                 shape: tuple[int, ...]) -> None:
+        self.id, self.dtype, self.chunks, self.shape = dsid, dtype, chunks, shape
 
 
 class _ChunkStage:
@@ -346,7 +377,8 @@ class _ChunkStage:
     __slots__ = ("ds", "rows", "tail", "written", "buf", "fill", "dtype", "direct", "flushed",
                  "order")
 
-    def __init__(self, ds: h5py.Dataset, start: int, direct: bool | None = None) -> None:
+    def __init__(self, ds: "h5py.Dataset | _Made", start: int, direct: bool | None = None
+                 ) -> None:
         self.ds = ds
         self.dtype = ds.dtype
         self.rows = int(ds.chunks[0])
