@@ -83,7 +83,7 @@ class DirectChunks:
         if self.codec is None:                    # unfiltered: the chunks' own bytes
             buf = np.ascontiguousarray(data, dtype=self.ds.dtype).reshape(-1).view(np.uint8)
             ends = np.arange(0, buf.size + 1, self.chunk_bytes)
-            if reused:
+            if reused and self.capacity:   # kept in the mirror: a copy
                 buf = buf.copy()
         else:
             buf, ends = encode(self.codec, data, compiled=self.compiled)
