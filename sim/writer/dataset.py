@@ -56,7 +56,8 @@ from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, I
                                           VERSION_ATTR, open_dataset)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
 from rlgsim.ground.provenance import versions_json
-from rlgsim.sim.writer._new_dataset import new_dataset, plain_name, write_rows
+from rlgsim.sim.writer._new_dataset import (DatasetAttrs, new_dataset_id, plain_name,
+                                           set_attr as _set_attr, write_rows)
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -93,51 +94,6 @@ def _versions_json() -> str:
     return versions_json()
 
 
-class _TextAttributes:
-    """Text attributes written as h5py's ``obj.attrs[name] = text`` writes them — a scalar
-    variable-length UTF-8 string, the same HDF5 calls (an existing one deleted, H5Acreate,
-    H5Awrite, H5Aclose) with the same types — without the per-call type guessing and
-    conversion of h5py's high-level path: ~0.02 ms an attribute instead of ~0.07 ms, and a run
-    writes ~170 of them (``units``, ``description``) while it lays out its file."""
-
-    def __init__(self) -> None:
-        from h5py import h5s, h5t
-        self._file_type = h5t.py_create(_STR, logical=True)   # as AttributeManager.create
-        self._memory_type = h5t.py_create(_STR)
-        self._space = h5s.create_simple(())
-
-    def write(self, obj_id: Any, name: str, text: str) -> None:
-        from h5py import h5a
-        key = name.encode("ascii")
-        data = np.asarray(np.asarray(text, dtype=_STR), dtype=_STR)
-        if h5a.exists(obj_id, key):
-            h5a.delete(obj_id, key)
-        attr = h5a.create(obj_id, key, self._file_type, self._space)
-        try:
-            attr.write(data, mtype=self._memory_type)
-        except BaseException:
-            attr.close()
-            h5a.delete(obj_id, key)
-            raise
-        attr.close()
-
-
-_TEXT_ATTRIBUTES: _TextAttributes | None = None
-
-
-def _set_attr(obj: Any, name: str, value: Any) -> None:
-    """``obj.attrs[name] = value`` — text with an ASCII name through :class:`_TextAttributes`
-    (the same attribute, faster), anything else through h5py."""
-    global _TEXT_ATTRIBUTES
-    if type(value) is str and name.isascii():
-        if _TEXT_ATTRIBUTES is None:
-            _TEXT_ATTRIBUTES = _TextAttributes()
-        with h5py._objects.phil:                  # h5py's lock, as its own attrs path holds
-            _TEXT_ATTRIBUTES.write(obj.id, name, value)
-    else:
-        obj.attrs[name] = value
-
-
 def _attr_value(value: Any) -> Any:
     if isinstance(value, str):
         return value
@@ -169,6 +125,8 @@ class GroupWriter:
         #: rows yet), so its first append reopens it with one H5Dopen instead of asking HDF5
         #: back through h5py's group lookup and Dataset properties (:class:`_Made`)
         self._made: dict[str, tuple[np.dtype, tuple[int, ...], tuple[int, ...]]] = {}
+        #: length of each fixed coordinate made here (a growing variable's fixed dimensions)
+        self._sizes: dict[str, int] = {}
 
     def _count_row(self, name: str, dim: str, dtype: Any, tail: tuple[int, ...] = (),
                    scale: bool = False) -> None:
@@ -198,7 +156,7 @@ class GroupWriter:
         dimension that :meth:`append` extends (its values arrive with the rows)."""
         if growing:
             chunks = self._chunks(dtype, ())
-            ds = new_dataset(self._g, name, (0,), dtype, maxshape=(None,), chunks=chunks)
+            dsid = new_dataset_id(self._g, name, (0,), dtype, maxshape=(None,), chunks=chunks)
             self._made[name] = (np.dtype(dtype), chunks, (0,))
             self._growing[name] = [name]
             self._count_row(name, name, dtype, scale=True)
@@ -207,18 +165,21 @@ class GroupWriter:
             if data.dtype.kind in "UO":
                 data = np.asarray([str(v) for v in data], dtype=object)
                 dtype = _STR
-            ds = self._fixed(name, data, dtype)
-        ds.make_scale(name)
-        self._set_attrs(ds, units, description, attrs)
+            dsid = self._fixed(name, data, dtype)
+            self._sizes[name] = int(data.shape[0])
+        with h5py._objects.phil:                  # Dataset.make_scale(name)'s call
+            h5py.h5ds.set_scale(dsid, name.encode("utf-8"))
+        self._set_attrs(dsid, units, description, attrs)
 
     def dimension(self, name: str) -> None:
         """A growing dimension *without* coordinate values (netCDF-4: "a dimension but not a
         variable"; xarray shows it without an index). For sample-rate axes whose coordinate is
         implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
         it takes the variables only."""
-        ds = new_dataset(self._g, name, (0,), ">f4", maxshape=(None,), chunks=(1 << 16,))
+        dsid = new_dataset_id(self._g, name, (0,), ">f4", maxshape=(None,), chunks=(1 << 16,))
         self._made[name] = (np.dtype(">f4"), (1 << 16,), (0,))
-        ds.make_scale(f"{_NOT_A_VARIABLE}{0:10d}")
+        with h5py._objects.phil:
+            h5py.h5ds.set_scale(dsid, f"{_NOT_A_VARIABLE}{0:10d}".encode("utf-8"))
         self._growing[name] = []
         self._dim_only.add(name)
         self._count_row(name, name, ">f4", scale=True)
@@ -243,47 +204,51 @@ class GroupWriter:
         if string:
             dtype = _STR
         if dims and dims[0] in self._growing:
-            tail = tuple(int(s.shape[0]) for s in scales[1:])
+            tail = tuple(self._sizes[d] if d in self._sizes else int(sc.shape[0])
+                         for d, sc in zip(dims[1:], scales[1:]))
             extra = dict(storage or {})
             chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
             if set(extra) <= {"scaleoffset"} and plain_name(name):
-                ds = new_dataset(self._g, name, (0, *tail), dtype, maxshape=(None, *tail),
-                                 chunks=chunks, scaleoffset=extra.get("scaleoffset"))
+                dsid = new_dataset_id(self._g, name, (0, *tail), dtype, maxshape=(None, *tail),
+                                      chunks=chunks, scaleoffset=extra.get("scaleoffset"))
                 self._made[name] = (np.dtype(dtype), chunks, (0, *tail))
             else:                                   # other filters: h5py's own checks
-                ds = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
-                                            dtype=dtype, chunks=chunks, track_times=False,
-                                            **extra)
+                dsid = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
+                                              dtype=dtype, chunks=chunks, track_times=False,
+                                              **extra).id
             self._growing[dims[0]].append(name)
             self._count_row(name, dims[0], dtype, tail)
         else:
             arr = np.asarray(data)
             if string:
                 arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
-            ds = self._fixed(name, arr, dtype)
-        for axis, scale in enumerate(scales):       # ds.dims[axis].attach_scale(scale)
-            with h5py._objects.phil:
-                h5py.h5ds.attach_scale(ds.id, scale, axis)
-        self._set_attrs(ds, units, description, attrs)
+            dsid = self._fixed(name, arr, dtype)
+        with h5py._objects.phil:
+            for axis, scale in enumerate(scales):   # ds.dims[axis].attach_scale(scale)
+                h5py.h5ds.attach_scale(dsid, scale, axis)
+        self._set_attrs(dsid, units, description, attrs)
 
-    def _fixed(self, name: str, data: np.ndarray, dtype: Any) -> h5py.Dataset:
+    def _fixed(self, name: str, data: np.ndarray, dtype: Any) -> Any:
         """A dataset holding ``data`` (not growing): ``create_dataset(name, data=data,
         dtype=dtype, track_times=False)``, through
         :func:`~rlgsim.sim.writer._new_dataset.new_dataset` for numbers and text (h5py's
         ``array_for_new_object`` decides what is written: the array as it is, text as an
-        object array of ``str`` viewed with h5py's UTF-8 string dtype)."""
+        object array of ``str`` viewed with h5py's UTF-8 string dtype). Returns its
+        ``DatasetID``."""
         kind = data.dtype.kind
         if plain_name(name) and (kind in "biuf" or (
                 kind == "O" and dtype is _STR and all(type(v) is str for v in data.flat))):
             arr = np.asarray(data, order="C")
             if kind == "O":
                 arr = arr.view(dtype=_STR)
-            return new_dataset(self._g, name, arr.shape, dtype, data=arr)
-        return self._g.create_dataset(name, data=data, dtype=dtype, track_times=False)
+            return new_dataset_id(self._g, name, arr.shape, dtype, data=arr)
+        return self._g.create_dataset(name, data=data, dtype=dtype, track_times=False).id
 
     @staticmethod
-    def _set_attrs(ds: h5py.Dataset, units: str | None, description: str,
+    def _set_attrs(dsid: Any, units: str | None, description: str,
                    attrs: Mapping[str, Any] | None) -> None:
+        """The attributes of the dataset ``dsid`` (a ``DatasetID``)."""
+        ds = DatasetAttrs(dsid)
         if units is not None:
             _set_attr(ds, "units", units)
         _set_attr(ds, "description", description)
