@@ -37,12 +37,19 @@ replaced by a look-up) — so what is left is what a vehicle costs beyond them: 
 ``trajectory`` group's 13 float64 a sample through the writer, and the sensor equation per
 sample instead of per thermal step. Its ratio is the ceiling no faster kinematics can pass.
 
-Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor]``.
+**Where the time goes** (``--parts``): the same pairs, each run's CPU seconds thread by thread
+(main, the normals worker, the motion workers' increments and truth rows, the writer and its
+share for the ``trajectory`` group) and the wall seconds the main thread waits for its workers
+and for the writer (benchmarks/_sim_threads.py) — on two cores the wall time is at least the
+CPU over two and at least the writer's chain, which starts with the first block.
+
+Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor | --parts]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import pathlib
 import statistics
@@ -54,6 +61,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from _machine import MIN_PAIRS, LoadWatch, alternate, load_text, machine, spread  # noqa: E402
+from _sim_threads import ThreadParts  # noqa: E402
 
 TARGET = 0.75
 STATIC = """
@@ -117,6 +125,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"alternating pairs (default {MIN_PAIRS}, the fewest for a verdict)")
     ap.add_argument("--floor", action="store_true",
                     help="the trajectory's kinematics free: what bounds the ratio (docstring)")
+    ap.add_argument("--parts", action="store_true",
+                    help="also print each thread's CPU and waits per run (benchmarks/"
+                         "_sim_threads.py; docstring)")
     args = ap.parse_args(argv)
     static, moving = scenarios(args.hours)
     epochs = int(round(static.duration_s * 100))
@@ -194,9 +205,11 @@ def _measure(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
               f"{CPU['static'][-1]:.2f} / {CPU['trajectory'][-1]:.2f} s; load {load_text()}",
               flush=True)
         watch.sample()
-    ws, wm = alternate(lambda: run_once(static, tmp / "s.h5", "static"),
-                       lambda: run_once(moving, tmp / "m.h5", "trajectory"),
-                       max(1, args.repeat), report)
+    with contextlib.ExitStack() as stack:
+        parts = stack.enter_context(ThreadParts()) if args.parts else None
+        ws, wm = alternate(lambda: _timed(parts, "static", static, tmp / "s.h5"),
+                           lambda: _timed(parts, "trajectory", moving, tmp / "m.h5"),
+                           max(1, args.repeat), report)
     ratios = [s / m for s, m in zip(ws, wm)]
     print(f"{args.hours:g} h at 100 Hz = {epochs:,} epochs (the route: {route_hours(moving):g} h "
           f"of segments); static {spread(ws, unit=' s')}, trajectory {spread(wm, unit=' s')}")
@@ -207,8 +220,19 @@ def _measure(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
           f"{spread(CPU['trajectory'], unit=' s')}; ratio {spread(cpu)} (less sensitive to "
           f"others' load than the wall clock; on an idle 2-core machine the wall-clock ratio "
           f"can differ, the simulator's worker threads overlapping its main thread)")
+    if parts is not None:
+        print("CPU seconds by thread and wall seconds waiting (--parts; benchmarks/"
+              "_sim_threads.py; 'kinematics' is the main thread's own on a static run):")
+        print("\n".join(parts.lines()))
     print(watch.line())
     return 0
+
+
+def _timed(parts, kind: str, sc, out: pathlib.Path) -> float:
+    """:func:`run_once`, its threads' parts kept when ``parts`` (``--parts``)."""
+    if parts is None:
+        return run_once(sc, out, kind)
+    return parts.run(kind, lambda: run_once(sc, out, kind))
 
 
 if __name__ == "__main__":
