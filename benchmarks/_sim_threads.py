@@ -1,5 +1,5 @@
-"""Where a simulator run's CPU and waiting go, thread by thread (``bench_sim_trajectory.py
---parts``).
+"""Where a simulator run's CPU and waiting go, thread by thread (printed by
+``bench_sim_trajectory.py`` unless ``--no-parts``).
 
 A run (:func:`rlgsim.sim.run.simulate.simulate`) has up to five threads: the main thread (the
 thermal part, the sensor equation and pulses), the IMU stage's worker drawing the white noise

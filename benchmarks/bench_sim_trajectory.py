@@ -37,13 +37,15 @@ replaced by a look-up) — so what is left is what a vehicle costs beyond them: 
 ``trajectory`` group's 13 float64 a sample through the writer, and the sensor equation per
 sample instead of per thermal step. Its ratio is the ceiling no faster kinematics can pass.
 
-**Where the time goes** (``--parts``): the same pairs, each run's CPU seconds thread by thread
-(main, the normals worker, the motion workers' increments and truth rows, the writer and its
-share for the ``trajectory`` group) and the wall seconds the main thread waits for its workers
-and for the writer (benchmarks/_sim_threads.py) — on two cores the wall time is at least the
-CPU over two and at least the writer's chain, which starts with the first block.
+**Where the time goes** (printed unless ``--no-parts``): the same pairs, each run's CPU seconds
+thread by thread (main, the normals worker, the motion workers' increments and truth rows, the
+writer and its share for the ``trajectory`` group) and the wall seconds the main thread waits
+for its workers and for the writer (benchmarks/_sim_threads.py) — on two cores the wall time is
+at least the CPU over two and at least the writer's chain, which starts with the first block.
+The wrappers that count them cost a few microseconds per block (~100 calls a run of 0.2-0.4 s).
 
-Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor | --parts]``.
+Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor]
+[--no-parts]``.
 """
 
 from __future__ import annotations
@@ -125,9 +127,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"alternating pairs (default {MIN_PAIRS}, the fewest for a verdict)")
     ap.add_argument("--floor", action="store_true",
                     help="the trajectory's kinematics free: what bounds the ratio (docstring)")
-    ap.add_argument("--parts", action="store_true",
-                    help="also print each thread's CPU and waits per run (benchmarks/"
-                         "_sim_threads.py; docstring)")
+    ap.add_argument("--no-parts", dest="parts", action="store_false",
+                    help="leave out each thread's CPU and waits per run (printed by default: "
+                         "benchmarks/_sim_threads.py; docstring)")
     args = ap.parse_args(argv)
     static, moving = scenarios(args.hours)
     epochs = int(round(static.duration_s * 100))
@@ -221,15 +223,15 @@ def _measure(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
           f"others' load than the wall clock; on an idle 2-core machine the wall-clock ratio "
           f"can differ, the simulator's worker threads overlapping its main thread)")
     if parts is not None:
-        print("CPU seconds by thread and wall seconds waiting (--parts; benchmarks/"
-              "_sim_threads.py; 'kinematics' is the main thread's own on a static run):")
+        print("CPU seconds by thread and wall seconds waiting (benchmarks/_sim_threads.py; "
+              "'kinematics' is the main thread's own on a static run):")
         print("\n".join(parts.lines()))
     print(watch.line())
     return 0
 
 
 def _timed(parts, kind: str, sc, out: pathlib.Path) -> float:
-    """:func:`run_once`, its threads' parts kept when ``parts`` (``--parts``)."""
+    """:func:`run_once`, its threads' parts kept when ``parts`` (not ``--no-parts``)."""
     if parts is None:
         return run_once(sc, out, kind)
     return parts.run(kind, lambda: run_once(sc, out, kind))
