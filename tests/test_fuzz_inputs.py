@@ -326,3 +326,23 @@ def test_fuzzed_toml_bytes_are_user_errors_or_tables(data):
         assert isinstance(presets.parse_toml(text, "fuzz.toml"), dict)
     except UserInputError:
         pass
+
+
+@pytest.mark.parametrize("continuous", [True, False])
+def test_motion_bound_is_never_below_the_count(continuous):
+    """check_motions' shortcut (an upper bound from one repetition's steps) against the count
+    of the motions themselves, over random programmes (zero-length turns, repeats, lead-ins)."""
+    import random
+    from rlgsim.sim.motion.turntable import Hold, Repeat, Rotate, TurntableProgram
+    from rlgsim.sim.run.run_budget import _motions_bound
+    rng = random.Random(7 + continuous)
+    for _ in range(40):
+        steps = [Hold(rng.choice([0.37, 5.0, 60.0]))]
+        for _ in range(rng.randrange(4)):
+            steps.append(Rotate("outer", rng.choice([0.0, 360.0, -360.0]), 10.0))
+            steps.append(Repeat(rng.randrange(3), (Hold(1.5), Rotate("inner", 360.0, 20.0))))
+        prog = TurntableProgram(steps, continuous=continuous,
+                                lead_in_s=rng.choice([0.0, 0.5, 100.0]))
+        duration = rng.choice([0.2, 7.0, 100.0, 601.5])
+        count = sum(1 for _ in prog.motions(until_s=duration))
+        assert count <= _motions_bound(prog, duration)

@@ -145,8 +145,18 @@ def _written(lo: int, hi: int, r: int, unwritten: list[tuple[int, int]]
 _STATIC_DEFAULTS = {"axis": None, "rate_deg_s": 0.0, "outer_deg": 0.0, "inner_deg": 0.0}
 
 
+def _time(seg: Any, name: str) -> Any:
+    """A segment's ``t0_s``/``t1_s``: its attribute (a timeline segment's), else
+    :func:`_field`'s."""
+    if type(getattr(seg, "attrs", None)) is dict and not isinstance(seg, Mapping):
+        return getattr(seg, name)
+    return _field(seg, name)
+
+
 def _field(seg: Any, name: str) -> Any:
     attrs = getattr(seg, "attrs", None)
+    if type(attrs) is dict and name in attrs:     # a timeline segment's (no ABC check)
+        return attrs[name]
     if isinstance(attrs, Mapping) and name in attrs:
         return attrs[name]
     if isinstance(seg, Mapping) and name in seg:
@@ -174,8 +184,8 @@ class Motion:
         segs = [s for s in segments if getattr(s, "track", "turntable") == "turntable"]
         if not segs:
             raise ValueError("no turntable segments")
-        t0 = np.array([float(_field(s, "t0_s")) for s in segs])
-        t1 = np.array([float(_field(s, "t1_s")) for s in segs])
+        t0 = np.array([float(_time(s, "t0_s")) for s in segs])
+        t1 = np.array([float(_time(s, "t1_s")) for s in segs])
         kind = [_field(s, "kind") for s in segs]
         axis = [_field(s, "axis") for s in segs]
         rate = np.array([float(_field(s, "rate_deg_s")) if k == "rotate" else 0.0
