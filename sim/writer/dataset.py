@@ -23,15 +23,19 @@ have written them (:mod:`rlgsim.sim.writer._direct_chunks`): the same bytes as H
 fraction of its CPU time — once a self-check has shown that with the HDF5 this process loaded
 (:mod:`rlgsim.sim.writer._direct_check`; HDF5's filter otherwise).
 :func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
+A run may defer its layout (:meth:`DatasetWriter.defer_layout`): the groups are declared at
+once, their HDF5 calls recorded and made later, in order, by :meth:`DatasetWriter.lay_out` in
+the run's writer thread while the first block is computed.
 
 Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
-format marker and version); :func:`summary` is what ``rlgsim info`` prints.
+format marker and version); :func:`summary` (:mod:`rlgsim.sim.writer.summary`) is what
+``rlgsim info`` prints.
 
 Why this file is over 400 lines: it is the one HDF5 writer — the group writer with its chunk
-staging and direct-chunk path, the dataset's life cycle (temporary file, marker written last,
-stale temporaries) and the small reading helpers of ``rlgsim info`` and ``add_group``, which
-must agree with it on the layout; the encoders and the direct-chunk checks are apart
-(_scaleoffset*.py, _direct_*.py).
+staging, direct-chunk path and deferred layout, the dataset's life cycle (temporary file,
+marker written last, stale temporaries) and ``add_group``, which must agree with it on the
+layout; the encoders, the direct-chunk checks, the low-level creation calls and the summary
+are apart (_scaleoffset*.py, _direct_*.py, _new_dataset.py, summary.py).
 """
 
 from __future__ import annotations
@@ -40,24 +44,23 @@ import contextlib
 import functools
 import importlib.util
 import itertools
-import json
 import math
 import os
 import pathlib
 import sys
 import threading
-from typing import Any, Iterable, Iterator, Mapping
+from typing import Any, Callable, Iterable, Iterator, Mapping
 
 import h5py
 import numpy as np
 
 from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
-                                          INCOMPLETE_ATTR, TIME,
-                                          VERSION_ATTR, open_dataset)
+                                          INCOMPLETE_ATTR, VERSION_ATTR)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
 from rlgsim.ground.provenance import versions_json
 from rlgsim.sim.writer._new_dataset import (DatasetAttrs, new_dataset_id, plain_name,
                                            set_attr as _set_attr, write_rows)
+from rlgsim.sim.writer.summary import summary  # noqa: F401 - what ``rlgsim info`` prints
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -107,8 +110,13 @@ def _attr_value(value: Any) -> Any:
 class GroupWriter:
     """One group: coordinates (dimension scales) and variables; rows appended along ``time``."""
 
-    def __init__(self, group: h5py.Group, *, direct: bool | None = None) -> None:
-        self._g = group
+    def __init__(self, group: h5py.Group | None, *, direct: bool | None = None,
+                 name: str | None = None, ops: list[Callable[[], Any]] | None = None) -> None:
+        self._g = group             # None until a deferred layout makes it (``ops``)
+        self._name = name if name is not None else group.name.lstrip("/")
+        #: the HDF5 calls recorded while the layout is deferred (shared with the dataset
+        #: writer, which makes them in order: :meth:`DatasetWriter.lay_out`); None: made now
+        self._ops = ops
         self._direct = direct       # the direct-chunk path forced on/off (None: _direct_chunks)
         self._growing: dict[str, list[str]] = {}     # growing dim -> variables along it
         self._dim_only: set[str] = set()             # growing dims without coordinate values
@@ -142,12 +150,20 @@ class GroupWriter:
 
     @property
     def name(self) -> str:
-        return self._g.name.lstrip("/")
+        return self._name
 
     def _chunks(self, dtype: np.dtype, tail: tuple[int, ...]) -> tuple[int, ...]:
         row = max(1, int(np.prod(tail, dtype=np.int64))) * max(1, np.dtype(dtype).itemsize)
         rows = int(min(1 << 16, max(64, _CHUNK_BYTES // row)))
         return (rows, *tail)
+
+    def _do(self, call: Callable[[], Any]) -> None:
+        """Make HDF5 call(s) ``call`` now, or record it for :meth:`DatasetWriter.lay_out` when
+        the dataset's layout is deferred (:meth:`DatasetWriter.defer_layout`)."""
+        if self._ops is None:
+            call()
+        else:
+            self._ops.append(call)
 
     def coordinate(self, name: str, values: Iterable | None = None, *, units: str | None = None,
                    description: str, dtype: Any = np.float64, growing: bool = False,
@@ -156,38 +172,55 @@ class GroupWriter:
         dimension that :meth:`append` extends (its values arrive with the rows)."""
         if growing:
             chunks = self._chunks(dtype, ())
-            dsid = new_dataset_id(self._g, name, (0,), dtype, maxshape=(None,), chunks=chunks)
             self._made[name] = (np.dtype(dtype), chunks, (0,))
             self._growing[name] = [name]
             self._count_row(name, name, dtype, scale=True)
+
+            def make() -> Any:
+                return new_dataset_id(self._g, name, (0,), dtype, maxshape=(None,),
+                                      chunks=chunks)
         else:
-            data = np.asarray(list(values) if not isinstance(values, np.ndarray) else values)
+            data = np.array(list(values) if not isinstance(values, np.ndarray) else values)
             if data.dtype.kind in "UO":
                 data = np.asarray([str(v) for v in data], dtype=object)
                 dtype = _STR
-            dsid = self._fixed(name, data, dtype)
             self._sizes[name] = int(data.shape[0])
-        with h5py._objects.phil:                  # Dataset.make_scale(name)'s call
-            h5py.h5ds.set_scale(dsid, name.encode("utf-8"))
-        self._set_attrs(dsid, units, description, attrs)
+
+            def make() -> Any:
+                return self._fixed(name, data, dtype)
+
+        def lay_out() -> None:
+            dsid = make()
+            with h5py._objects.phil:                  # Dataset.make_scale(name)'s call
+                h5py.h5ds.set_scale(dsid, name.encode("utf-8"))
+            self._set_attrs(dsid, units, description, attrs)
+        self._do(lay_out)
 
     def dimension(self, name: str) -> None:
         """A growing dimension *without* coordinate values (netCDF-4: "a dimension but not a
         variable"; xarray shows it without an index). For sample-rate axes whose coordinate is
         implicit, where a stored coordinate would cost 8 bytes per sample; :meth:`append` along
         it takes the variables only."""
-        dsid = new_dataset_id(self._g, name, (0,), ">f4", maxshape=(None,), chunks=(1 << 16,))
         self._made[name] = (np.dtype(">f4"), (1 << 16,), (0,))
-        with h5py._objects.phil:
-            h5py.h5ds.set_scale(dsid, f"{_NOT_A_VARIABLE}{0:10d}".encode("utf-8"))
         self._growing[name] = []
         self._dim_only.add(name)
         self._count_row(name, name, ">f4", scale=True)
 
+        def lay_out() -> None:
+            dsid = new_dataset_id(self._g, name, (0,), ">f4", maxshape=(None,),
+                                  chunks=(1 << 16,))
+            with h5py._objects.phil:
+                h5py.h5ds.set_scale(dsid, f"{_NOT_A_VARIABLE}{0:10d}".encode("utf-8"))
+        self._do(lay_out)
+
     def set_attrs(self, attrs: Mapping[str, Any]) -> None:
         """Set attributes of the group itself."""
-        for key, value in attrs.items():
-            self._g.attrs[key] = _attr_value(value)
+        values = {key: _attr_value(value) for key, value in attrs.items()}
+
+        def lay_out() -> None:
+            for key, value in values.items():
+                self._g.attrs[key] = value
+        self._do(lay_out)
 
     def variable(self, name: str, dims: tuple[str, ...], *, units: str | None = None,
                  description: str, dtype: Any = np.float64, data: Any = None,
@@ -198,35 +231,54 @@ class GroupWriter:
         h5py keywords of a growing variable — ``chunks`` (overrides the default chunk shape) and
         filters built into HDF5, so every netCDF-4 reader decodes them (e.g.
         ``{"scaleoffset": 0}``: lossless packing of integers into the bits each chunk needs)."""
-        with h5py._objects.phil:                  # the scales, open for this call only
-            scales = [h5py.h5d.open(self._g.id, d.encode("utf-8")) for d in dims]
         string = np.dtype(dtype).kind in "UO" if dtype is not _STR else True
         if string:
             dtype = _STR
         if dims and dims[0] in self._growing:
-            tail = tuple(self._sizes[d] if d in self._sizes else int(sc.shape[0])
-                         for d, sc in zip(dims[1:], scales[1:]))
+            tail = tuple(self._size(d) for d in dims[1:])
             extra = dict(storage or {})
             chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
-            if set(extra) <= {"scaleoffset"} and plain_name(name):
-                dsid = new_dataset_id(self._g, name, (0, *tail), dtype, maxshape=(None, *tail),
-                                      chunks=chunks, scaleoffset=extra.get("scaleoffset"))
+            low_level = set(extra) <= {"scaleoffset"} and plain_name(name)
+            if low_level:
                 self._made[name] = (np.dtype(dtype), chunks, (0, *tail))
-            else:                                   # other filters: h5py's own checks
-                dsid = self._g.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail),
-                                              dtype=dtype, chunks=chunks, track_times=False,
-                                              **extra).id
             self._growing[dims[0]].append(name)
             self._count_row(name, dims[0], dtype, tail)
+
+            def make() -> Any:
+                if low_level:
+                    return new_dataset_id(self._g, name, (0, *tail), dtype,
+                                          maxshape=(None, *tail), chunks=chunks,
+                                          scaleoffset=extra.get("scaleoffset"))
+                return self._g.create_dataset(name, shape=(0, *tail),   # other filters:
+                                              maxshape=(None, *tail),  # h5py's own checks
+                                              dtype=dtype, chunks=chunks, track_times=False,
+                                              **extra).id
         else:
-            arr = np.asarray(data)
+            arr = np.array(data)
             if string:
                 arr = np.asarray([str(v) for v in arr.ravel()], dtype=object).reshape(arr.shape)
-            dsid = self._fixed(name, arr, dtype)
-        with h5py._objects.phil:
-            for axis, scale in enumerate(scales):   # ds.dims[axis].attach_scale(scale)
-                h5py.h5ds.attach_scale(dsid, scale, axis)
-        self._set_attrs(dsid, units, description, attrs)
+
+            def make() -> Any:
+                return self._fixed(name, arr, dtype)
+
+        def lay_out() -> None:
+            with h5py._objects.phil:                  # the scales, open for this call only
+                scales = [h5py.h5d.open(self._g.id, d.encode("utf-8")) for d in dims]
+            dsid = make()
+            with h5py._objects.phil:
+                for axis, scale in enumerate(scales):   # ds.dims[axis].attach_scale(scale)
+                    h5py.h5ds.attach_scale(dsid, scale, axis)
+            self._set_attrs(dsid, units, description, attrs)
+        self._do(lay_out)
+
+    def _size(self, dim: str) -> int:
+        """Length of the fixed dimension ``dim``: as this writer made it, else (a group it
+        did not lay out) read from the file."""
+        size = self._sizes.get(dim)
+        if size is None:
+            with h5py._objects.phil:
+                size = int(h5py.h5d.open(self._g.id, dim.encode("utf-8")).shape[0])
+        return size
 
     def _fixed(self, name: str, data: np.ndarray, dtype: Any) -> Any:
         """A dataset holding ``data`` (not growing): ``create_dataset(name, data=data,
@@ -497,6 +549,7 @@ class DatasetWriter:
         self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True,
                                rdcc_nbytes=CHUNK_CACHE_BYTES)
         self._groups: list[GroupWriter] = []
+        self._ops: list[Callable[[], Any]] | None = None    # a deferred layout's calls
         # The format marker is written last (commit): until then the file says it is
         # incomplete, so the temporary file of a killed run is never taken for a dataset.
         root = self._file["/"]             # File.attrs opens the root group at every use
@@ -531,13 +584,42 @@ class DatasetWriter:
 
     def group(self, name: str, description: str,
               attrs: Mapping[str, Any] | None = None) -> GroupWriter:
-        g = self._file.create_group(name, track_order=True)
-        _set_attr(g, "description", description)
-        for key, value in (attrs or {}).items():
-            _set_attr(g, key, _attr_value(value))
-        writer = GroupWriter(g)
+        values = {key: _attr_value(value) for key, value in (attrs or {}).items()}
+        writer = GroupWriter(None, name=name, ops=self._ops)
+
+        def lay_out() -> None:
+            g = writer._g = self._file.create_group(name, track_order=True)
+            _set_attr(g, "description", description)
+            for key, value in values.items():
+                _set_attr(g, key, value)
+        if self._ops is None:
+            lay_out()
+        else:
+            self._ops.append(lay_out)
         self._groups.append(writer)
         return writer
+
+    def defer_layout(self) -> None:
+        """Record the HDF5 calls of the groups declared from now on instead of making them;
+        :meth:`lay_out` makes them, in the same order, in whichever thread calls it (the run's
+        writer thread, while the main thread computes the first block: sim/run/simulate.py).
+        The declarations themselves — names, dimensions, the row bytes of the size estimate —
+        are taken at once, so a bad one is refused before anything is written."""
+        if self._ops is None:
+            self._ops = []
+
+    def lay_out(self) -> None:
+        """Make the recorded HDF5 calls of the deferred layout, in order (no-op when nothing
+        is deferred), then read the dimension lists as the size estimate's visit did
+        (:meth:`read_dimension_lists`); later declarations are made at once again."""
+        ops, self._ops = self._ops, None
+        if ops is None:
+            return
+        for g in self._groups:
+            g._ops = None
+        for call in ops:
+            call()
+        self.read_dimension_lists()
 
     def set_attrs(self, attrs: Mapping[str, Any]) -> None:
         for key, value in attrs.items():
@@ -599,48 +681,3 @@ def add_group(path: str | os.PathLike, name: str, description: str,
             del f[name]
         f.move(tmp, name)
         _close_stages([writer])
-
-
-# --------------------------------------------------------------------------- reading
-
-
-def _text(value: Any) -> str:
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    if isinstance(value, np.generic):
-        return str(value.item())
-    return str(value)
-
-
-def summary(path: str | os.PathLike) -> str:
-    """A human-readable summary of a dataset (what ``rlgsim info`` prints)."""
-    with open_dataset(path) as ds:
-        a = ds.attrs
-        lines = [f"{path}: {FORMAT} v{_text(a.get(VERSION_ATTR))}, "
-                 f"rlgsim {_text(a.get('software_version', '?'))}"]
-        if "software_versions" in a:            # datasets written since issue 29
-            try:
-                made = json.loads(_text(a["software_versions"]))
-                lines.append("  made with: " + ", ".join(f"{k} {v}" for k, v in made.items()))
-            except (ValueError, AttributeError):
-                pass
-        for key, label in (("scenario_name", "scenario"), ("scenario_source", "scenario file"),
-                           ("device", "device"), ("seed", "seed"),
-                           ("duration_s", "duration [s]"),
-                           ("thermal_step_s", "thermal step [s]")):
-            if key in a:
-                lines.append(f"  {label}: {_text(a[key])}")
-        for gname in ds.groups():
-            desc = _text(ds.group_attrs(gname).get("description", ""))
-            lines.append(f"  group {gname}: {desc}")
-            for v in ds.variables(gname):
-                shape = "×".join(f"{d}={n}" for d, n in zip(v.dims, v.shape))
-                units = _text(v.units) if v.units is not None else ""
-                extra = ""
-                if v.name == TIME and v.shape[0]:
-                    n = v.shape[0]
-                    first = ds.read(gname, TIME, slice(0, 1))[0]
-                    last = ds.read(gname, TIME, slice(n - 1, n))[0]
-                    extra = f"  [{first:g} .. {last:g}]"
-                lines.append(f"    {v.name:<18} ({shape}) {units}{extra}")
-    return "\n".join(lines)
