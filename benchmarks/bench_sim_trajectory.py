@@ -36,6 +36,10 @@ first run and handed out again (the IMU stage's ``_kinematics_now`` and ``_truth
 replaced by a look-up) — so what is left is what a vehicle costs beyond them: the
 ``trajectory`` group's 13 float64 a sample through the writer, and the sensor equation per
 sample instead of per thermal step. Its ratio is the ceiling no faster kinematics can pass.
+With ``--unwritten`` the ``trajectory`` group's rows are dropped before the writer too (its
+datasets stay empty: a counterfactual, not a product) — what is left is the sensor equation per
+sample and the route's build: the ceiling if a vehicle stored no truth states at the sample
+rate.
 
 **Where the time goes** (printed unless ``--no-parts``): the same pairs, each run's CPU seconds
 thread by thread (main, the normals worker, the motion workers' increments and truth rows, the
@@ -44,8 +48,8 @@ for its workers and for the writer (benchmarks/_sim_threads.py) — on two cores
 at least the CPU over two and at least the writer's chain, which starts with the first block.
 The wrappers that count them cost a few microseconds per block (~100 calls a run of 0.2-0.4 s).
 
-Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor]
-[--no-parts]``.
+Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor
+[--unwritten]] [--no-parts]``.
 """
 
 from __future__ import annotations
@@ -127,6 +131,9 @@ def main(argv: list[str] | None = None) -> int:
                     help=f"alternating pairs (default {MIN_PAIRS}, the fewest for a verdict)")
     ap.add_argument("--floor", action="store_true",
                     help="the trajectory's kinematics free: what bounds the ratio (docstring)")
+    ap.add_argument("--unwritten", action="store_true",
+                    help="with --floor: the trajectory group's rows not written either "
+                         "(a counterfactual bound; docstring)")
     ap.add_argument("--no-parts", dest="parts", action="store_false",
                     help="leave out each thread's CPU and waits per run (printed by default: "
                          "benchmarks/_sim_threads.py; docstring)")
@@ -147,8 +154,15 @@ def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
     watch = LoadWatch()
     print(f"machine: {machine()}")
     print(f"load average before: {load_text()}", flush=True)
+    from rlgsim.sim.writer.dataset import GroupWriter
     kin, rows = ImuSimulator._kinematics_now, ImuSimulator._truth_rows
+    append = GroupWriter.append
     made: dict = {}
+    what = "free kinematics" + (", its rows unwritten" if args.unwritten else "")
+
+    def unwritten(self, dim, arrays):       # --unwritten: the trajectory group's rows dropped
+        if self.name != "trajectory":
+            append(self, dim, arrays)
 
     def record(name, f):
         def g(self, *a):
@@ -160,6 +174,8 @@ def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
         return g
     ImuSimulator._kinematics_now = record("k", kin)     # a first run fills ``made``; the
     ImuSimulator._truth_rows = record("t", rows)        # timed ones only look them up
+    if args.unwritten:
+        GroupWriter.append = unwritten
     try:
         simulate(moving, tmp / "warm.h5", progress=False)   # the route stays built (cached)
         run_once(static, tmp / "warm.h5")
@@ -172,7 +188,7 @@ def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
             return time.perf_counter() - t0
 
         def report(i: int, s: float, m: float) -> None:
-            print(f"  pair {i}: static {s:.2f} s, trajectory with free kinematics {m:.2f} s, "
+            print(f"  pair {i}: static {s:.2f} s, trajectory with {what} {m:.2f} s, "
                   f"ratio {s / m:.2f}; CPU {CPU['static'][-1]:.2f} / "
                   f"{CPU['trajectory'][-1]:.2f} s; load {load_text()}", flush=True)
             watch.sample()
@@ -181,11 +197,12 @@ def _floor(args, static, moving, epochs: int, tmp: pathlib.Path) -> int:
                            max(1, args.repeat), report)
     finally:
         ImuSimulator._kinematics_now, ImuSimulator._truth_rows = kin, rows
+        GroupWriter.append = append
     ratios = [s / m for s, m in zip(ws, wm)]
     cpu = [s / m for s, m in zip(CPU["static"], CPU["trajectory"])]
     print(f"{args.hours:g} h at 100 Hz = {epochs:,} epochs; static {spread(ws, unit=' s')}, "
-          f"trajectory with free kinematics {spread(wm, unit=' s')}")
-    print(f"ceiling of the trajectory / static throughput (kinematics free): {spread(ratios)} "
+          f"trajectory with {what} {spread(wm, unit=' s')}")
+    print(f"ceiling of the trajectory / static throughput ({what}): {spread(ratios)} "
           f"(target >= {TARGET:.2f}: {watch.verdict(statistics.median(ratios) >= TARGET, len(ratios))}); "
           f"CPU: static {spread(CPU['static'], unit=' s')}, trajectory "
           f"{spread(CPU['trajectory'], unit=' s')}, ratio {spread(cpu)}")
