@@ -83,10 +83,17 @@ def _programmes() -> dict[str, Motion]:
 PROGRAMMES = _programmes()
 
 
+@pytest.mark.parametrize("compiled", [False, True])
 @pytest.mark.parametrize("name", list(PROGRAMMES))
 @pytest.mark.parametrize("rate_hz", [100.0, 73.0, 7.3, 1000.0, 0.1])
-def test_increments_are_the_whole_block_computation(name, rate_hz):
+def test_increments_are_the_whole_block_computation(name, rate_hz, compiled, monkeypatch):
+    """... with the windows computed by NumPy (Motion._exact) and by the compiled kernel
+    (sim/motion/_kinematics_kernel.py)."""
     mo = PROGRAMMES[name]
+    monkeypatch.setattr(mo, "compiled", compiled)
+    if compiled:
+        from rlgsim.sim.motion.kinematics import _compiled_window
+        assert _compiled_window() is not None          # it agreed with NumPy's here
     rng = np.random.default_rng([zlib.crc32(name.encode()), int(rate_hz * 10)])
     t_end = mo.end_s
     blocks = 0

@@ -30,7 +30,10 @@ gives s_1 = s_2 = 0 exactly). The table part is simply w u Δ. A sample interval
 a motion boundary is split at the boundary and the pieces are summed, so the increments are the
 exact integrals (to rounding), not rate × Δt.
 
-Vectorised over samples; the only Python loop runs over the motions that touch a block.
+Vectorised over samples; the only Python loop runs over the motions that touch a block. In a
+long run (numba loaded) the windows of turning and straddling samples are computed by one
+compiled call each (:mod:`rlgsim.sim.motion._kinematics_kernel`: the same numbers, checked
+against this module's NumPy path once per process).
 
 Why this file is over 400 lines: it is one model, the exact kinematics of the table on the
 rotating Earth (segments, their angles and the closed-form increments over any sample grid,
@@ -40,6 +43,7 @@ vehicle's kinematics too (trajectory.py).
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from functools import cached_property
 from collections.abc import Mapping
@@ -168,6 +172,46 @@ def _field(seg: Any, name: str) -> Any:
     raise ValueError(f"turntable segment {seg!r} has no {name!r}")
 
 
+_window_kernel: list = []
+
+
+def _compiled_window() -> Any:
+    """:func:`rlgsim.sim.motion._kinematics_kernel.exact_window` when it gives
+    :meth:`Motion._exact`'s numbers in this process (compared once on a fixed programme with
+    turns, boundaries between sample edges and a zero-length motion), else None."""
+    if not _window_kernel:
+        try:
+            from rlgsim.sim.motion._kinematics_kernel import exact_window
+            _window_kernel.append(exact_window if _agrees(exact_window) else None)
+        except ImportError:                     # pragma: no cover - numba is a dependency
+            _window_kernel.append(None)
+    return _window_kernel[0]
+
+
+def _agrees(kernel: Any) -> bool:
+    """Whether ``kernel`` gives :meth:`Motion._exact`'s bits on a fixed programme."""
+    static = {"kind": "static", "axis": None, "rate_deg_s": 0.0, "inner_deg": 0.0}
+    turn = {"kind": "rotate", "axis": "outer", "rate_deg_s": 7.3, "inner_deg": 0.0}
+    segs = [TurntableSegment(0.0, 1.013, "turntable", "a", {**static, "outer_deg": 10.0}),
+            TurntableSegment(1.013, 13.5, "turntable", "b", {**turn, "outer_deg": 10.0}),
+            TurntableSegment(13.5, 13.5, "turntable", "c",
+                             {**static, "outer_deg": 10.0 + 7.3 * 12.487}),
+            TurntableSegment(13.5, 20.0, "turntable", "d",
+                             {**turn, "outer_deg": 10.0 + 7.3 * 12.487, "axis": "inner"})]
+    mo = Motion(segs)
+    for rate_hz, k0, n in ((100.0, 0, 2100), (7.3, 3, 150), (1000.0, 13_400, 200)):
+        dth, dv = np.empty((3, n)), np.empty((3, n))
+        done = kernel(k0, n, rate_hz, mo._t0, mo._rate, mo._coef["w"][0], mo._coef["f"][0],
+                      mo._turn["w"], mo._turn["f"], dth, dv, 0)
+        ref = mo._exact(k0, n, rate_hz)
+        if not done:
+            return False
+        if not all(np.array_equal(x.view(np.int64), np.ascontiguousarray(r.T).view(np.int64))
+                   for x, r in zip((dth, dv), ref)):
+            return False
+    return True
+
+
 class Motion:
     """Exact kinematics of the IMU on the turntable at ``site``.
 
@@ -178,6 +222,11 @@ class Motion:
     previous one ended. After the last segment the table is held static at its final angles.
     A static segment may omit ``axis``, ``rate_deg_s`` and the angles (then 0°, 0°).
     """
+
+    #: compute the windows of :meth:`increments` with the compiled kernel
+    #: (:mod:`rlgsim.sim.motion._kinematics_kernel`: the same numbers) — None: when numba is
+    #: already loaded in this process (a short run does not import it for this)
+    compiled: bool | None = None
 
     def __init__(self, segments: Iterable[Any], site: Site | None = None) -> None:
         self.site = site if site is not None else Site()
@@ -338,8 +387,14 @@ class Motion:
             for a, b in _written(lo, hi, held_steps, unwritten):
                 dth[:, a:b] = (self._coef["w"][0][j] * (1.0 / rate_hz))[:, None]
                 dv[:, a:b] = (self._coef["f"][0][j] * (1.0 / rate_hz))[:, None]
+        kernel = _compiled_window() if windows and self._sorted and self.compiled is not False \
+            and (self.compiled or "numba" in sys.modules) else None
         for lo, hi in windows:
-            dth[:, lo:hi], dv[:, lo:hi] = (x.T for x in self._exact(k0 + lo, hi - lo, rate_hz))
+            if kernel is None or not kernel(    # the same numbers, compiled (nogil)
+                    k0 + lo, hi - lo, rate_hz, self._t0, self._rate, self._coef["w"][0],
+                    self._coef["f"][0], self._turn["w"], self._turn["f"], dth, dv, lo):
+                dth[:, lo:hi], dv[:, lo:hi] = (x.T for x in
+                                               self._exact(k0 + lo, hi - lo, rate_hz))
         block = MotionBlock(dth.T, dv.T, None, None, None, k0, rate_hz,
                             tuple((lo, hi) for lo, hi, _ in fills), unwritten=tuple(unwritten))
         if angles:
