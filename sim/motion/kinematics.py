@@ -111,6 +111,9 @@ class MotionBlock:
     #: and ``dv_m_per_s`` hold whatever the memory held; each lies in a ``constant`` run whose
     #: first samples were written, and holds their increment
     unwritten: tuple[tuple[int, int], ...] = ()
+    #: (6, n): rows 0-2 ``dtheta_rad.T``, rows 3-5 ``dv_m_per_s.T`` when both are views of one
+    #: array (:meth:`Motion.increments`), so a per-row reduction of both is one call; else None
+    both: np.ndarray | None = None
 
     @cached_property
     def t_s(self) -> np.ndarray:
@@ -380,7 +383,8 @@ class Motion:
             raise ValueError(f"t0_s = {t0_s!r} s is before the first turntable segment")
         # stored axis by axis, (3, n), and handed out as (n, 3) views: each component is one
         # long run and the IMU stage takes the rows it needs without a copy
-        dth, dv = np.empty((3, n)), np.empty((3, n))
+        both = np.empty((6, n))                 # Δθ and Δv rows in one array (MotionBlock.both)
+        dth, dv = both[:3], both[3:]
         fills, windows = self._layout(k0, n, rate_hz, e0, e1)
         unwritten = []
         for lo, hi, j in fills:
@@ -396,7 +400,8 @@ class Motion:
                 dth[:, lo:hi], dv[:, lo:hi] = (x.T for x in
                                                self._exact(k0 + lo, hi - lo, rate_hz))
         block = MotionBlock(dth.T, dv.T, None, None, None, k0, rate_hz,
-                            tuple((lo, hi) for lo, hi, _ in fills), unwritten=tuple(unwritten))
+                            tuple((lo, hi) for lo, hi, _ in fills), unwritten=tuple(unwritten),
+                            both=both)
         if angles:
             block.outer_deg, block.inner_deg, block.segment = self.angles(block.t_s)
         return block
