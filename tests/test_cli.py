@@ -1,4 +1,5 @@
-"""The rlgsim command line: demo end to end, list, info, run, one-line errors with exit 2."""
+"""The rlgsim command line: list, info, run, one-line errors with exit 2 (``rlgsim demo`` end to
+end: test_studies.py, whose demo tests read that run)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import sys
 import pathlib
 import time
 
-import h5py
 import pytest
 
 from rlgsim.lab.cli.main import main
@@ -20,18 +20,6 @@ def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.run([sys.executable, "-m", "rlgsim.lab.cli", *args], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=120)
-
-
-def test_demo_runs_end_to_end(tmp_path):
-    r = _cli("demo", "--quiet", cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
-    out = tmp_path / "rlgsim-demo"
-    assert (out / "report.md").is_file() and (out / "report.html").is_file()
-    assert "rlgsim-demo/report.md" in r.stdout and "rlgsim-demo/report.html" in r.stdout
-    (train,) = (out / "data").glob("demo_cycle-seed7001.h5")
-    with h5py.File(train) as f:
-        assert f.attrs["scenario_name"] == "demo_cycle"
-        assert f["thermal/time"].shape[0] == 8 * 3600
 
 
 def test_list_shows_shipped_scenarios_and_devices(capsys):

@@ -8,10 +8,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
-import os
 import pathlib
-import subprocess
-import sys
 import time
 
 import h5py
@@ -35,19 +32,6 @@ def _tiny_study(folder: pathlib.Path) -> pathlib.Path:
     return path
 
 
-def _cli_cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "rlgsim.lab.cli", "montecarlo", *args]
-
-
-def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(ROOT)}
-
-
-def _cli(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
-    return subprocess.run(_cli_cmd(*args), cwd=cwd, env=_env(), capture_output=True, text=True,
-                          timeout=300)
-
-
 def _units_table(folder: pathlib.Path) -> list[dict[str, str]]:
     return list(csv.DictReader(io.StringIO((folder / "units.csv").read_text())))
 
@@ -68,19 +52,25 @@ def _demo_on_the_tiny_cycle(folder: pathlib.Path) -> pathlib.Path:
     return path
 
 
-def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_path):
+def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_path, capsys):
+    """The three campaigns go through the command's entry point (``main``) in this process:
+    their units run in other processes all the same (the local pool's workers, the cluster's),
+    which is what the comparison is about; a campaign as its own ``python -m rlgsim`` process is
+    test_kill.py's (three of them) — a process start here cost seconds of the suite (issue 30)."""
     distributed = pytest.importorskip("distributed")
     n = "2"
     demo = str(_demo_on_the_tiny_cycle(tmp_path / "study"))
-    r1 = _cli(demo, "--units", n, "--workers", "1", "-o", "w1", "--quiet", cwd=tmp_path)
-    assert r1.returncode == 0, r1.stderr
-    r2 = _cli(demo, "--units", n, "--workers", "2", "-o", "w2", "--quiet", cwd=tmp_path)
-    assert r2.returncode == 0, r2.stderr
+
+    def campaign(out: str, *how: str) -> None:
+        code = main(["montecarlo", demo, "--units", n, *how, "-o", str(tmp_path / out),
+                     "--quiet"])
+        assert code == 0, capsys.readouterr().err
+
+    campaign("w1", "--workers", "1")
+    campaign("w2", "--workers", "2")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
-        rd = _cli(demo, "--units", n, "--scheduler", cluster.scheduler_address,
-                  "-o", "dask", "--quiet", cwd=tmp_path)
-    assert rd.returncode == 0, rd.stderr
+        campaign("dask", "--scheduler", cluster.scheduler_address)
     for d in ("w1", "w2", "dask"):       # a failed unit (e.g. a worker lost on a loaded
         failed = [u for u in _units_table(tmp_path / d) if u["status"] != "ok"]   # machine)
         assert not failed, f"{d}: {failed}"    # is not a byte difference: say which it was

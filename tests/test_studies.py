@@ -3,8 +3,11 @@ study files, the CLI, and the HTML report rendered by headless Chromium."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import math
+import os
 import pathlib
 import shutil
 
@@ -22,11 +25,37 @@ DEG_PER_H = 180.0 / math.pi * 3600.0
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory) -> pathlib.Path:
-    out = tmp_path_factory.mktemp("demo")
-    md = run_study(load_study("demo"), out, progress=False)
-    assert md == out / "report.md"
-    return out
+def demo_command(tmp_path_factory) -> tuple[pathlib.Path, str]:
+    """``rlgsim demo`` run once in a fresh folder, through the command line's own entry point
+    (in this process: the demo study is the suite's costliest shared set-up, so every demo test
+    reads this one run; ``python -m rlgsim`` as a process is test_namespace.py's and
+    test_kill.py's). Returns the report folder and what the command printed."""
+    cwd = tmp_path_factory.mktemp("demo")
+    printed = io.StringIO()
+    here = os.getcwd()
+    try:
+        os.chdir(cwd)
+        with contextlib.redirect_stdout(printed):
+            assert main(["demo", "--quiet"]) == 0
+    finally:
+        os.chdir(here)
+    return cwd / "rlgsim-demo", printed.getvalue()
+
+
+@pytest.fixture(scope="module")
+def demo(demo_command) -> pathlib.Path:
+    """The demo study's report folder (``rlgsim demo``'s ./rlgsim-demo/)."""
+    return demo_command[0]
+
+
+def test_demo_runs_end_to_end(demo_command):
+    out, printed = demo_command
+    assert (out / "report.md").is_file() and (out / "report.html").is_file()
+    assert "rlgsim-demo/report.md" in printed and "rlgsim-demo/report.html" in printed
+    (train,) = (out / "data").glob("demo_cycle-seed7001.h5")
+    with h5py.File(train) as f:
+        assert f.attrs["scenario_name"] == "demo_cycle"
+        assert f["thermal/time"].shape[0] == 8 * 3600
 
 
 def _scores(folder: pathlib.Path) -> dict[str, dict[str, float]]:
@@ -148,15 +177,16 @@ def test_bad_parameter_value_is_a_user_error_at_fit_time(tmp_path):
         run_study(study, tmp_path, progress=False)
 
 
-def test_cli_study_list_and_run(tmp_path, capsys):
+def test_cli_study_list_and_run(demo, capsys):
+    """``rlgsim study --list``; an unknown study is one line. (``rlgsim study demo`` itself is
+    ``rlgsim demo``'s run, the ``demo`` fixture: the same handler, cli/study.py's run.)"""
     assert main(["study", "--list"]) == 0
     out = capsys.readouterr().out
     names = [n for n, _ in list_studies()]
     assert "demo" in names and "paper001" in names
     for name in names:
         assert name in out
-    assert main(["study", "demo", "-o", str(tmp_path / "r"), "--quiet"]) == 0
-    assert (tmp_path / "r" / "report.html").is_file()
+    assert (demo / "report.html").is_file()
     assert main(["study", "no_such_study"]) == 2
     assert "unknown study 'no_such_study'" in capsys.readouterr().err
 
