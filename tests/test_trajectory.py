@@ -300,6 +300,29 @@ def test_same_numbers_whatever_block_asks():
         assert np.array_equal(whole.dv_m_per_s[k:k + n], part.dv_m_per_s)
 
 
+def test_range_check_leaves_out_only_legs_under_the_ranges():
+    """The range check (``peak_inputs(below=...)``) leaves out the legs of constant attitude and
+    velocity whose bounds are under both ranges — each such leg's own grid peaks are under them
+    (the bounds hold) — and its peaks, when over a range, are the full grid's, time and all;
+    with ranges no hold's bounds are under, it is the full grid's."""
+    from rlgsim.sim.motion._trajectory_kernel import peak_inputs
+    from rlgsim.sim.motion.trajectory import _EARTH
+    traj = Trajectory(constant_attitude_legs() + manoeuvres()[1:], START, until_s=200.0)
+    full = traj.peak_inputs()
+    below = (0.999 * full[0], 0.999 * full[1])
+    calm = traj._calm_legs(*below)
+    assert calm.sum() >= 3 and traj.peak_inputs(below=below) == full
+    for j in np.flatnonzero(calm):
+        skip = np.ones(len(calm), dtype=np.int64)
+        skip[j] = 0
+        own = np.empty(3)
+        peak_inputs(traj._coef, traj._dcoef, traj._d2coef, traj._legs_i, traj._legs_f,
+                    traj._dense, _EARTH, 0.5, skip, own)
+        assert own[0] < below[0] and own[1] < below[1]
+    assert not traj._calm_legs(1e-6, 1.0).any()
+    assert traj.peak_inputs(below=(1e-6, 1.0)) == full
+
+
 def test_attitude_convention_and_quaternion():
     """Heading 90° points the nose (body y) East; pitch lifts it; roll drops the right wing
     (body x); the stored quaternion is the same rotation."""

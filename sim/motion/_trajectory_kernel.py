@@ -259,16 +259,19 @@ def position_rate_at(coef, dcoef, j, tau, lat, hgt, e2, a_axis):  # pragma: no c
 
 
 @njit(cache=True, nogil=True)
-def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s,
+def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s, skip,
                 out):  # pragma: no cover - compiled
     """Largest |ω_ib^b| and |f^b| component and the time of the largest rate → ``out`` (3,),
     on each leg's grid of :meth:`rlgsim.sim.motion.trajectory.Trajectory.peak_inputs` (m =
     max(2, ⌈duration/``step_s``⌉ + 1) points k·duration/(m − 1), the last one the duration):
-    the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest."""
+    the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest;
+    the legs with ``skip`` (m,) ≠ 0 left out."""
     a_axis, e2 = earth[0], earth[1]
     w = np.empty(32)
     best_w = best_f = at = 0.0
     for j in range(legs_i.shape[0]):
+        if skip[j] != 0:
+            continue
         dur = legs_f[j, LF_DUR]
         m = max(2, int(np.ceil(dur / step_s)) + 1)
         step = dur / (m - 1)

@@ -492,16 +492,64 @@ class Trajectory:
         return block
 
     # ---- checks -------------------------------------------------------------------------
-    def peak_inputs(self, step_s: float = 0.5) -> tuple[float, float, float]:
+    def peak_inputs(self, step_s: float = 0.5, below: tuple[float, float] | None = None
+                    ) -> tuple[float, float, float]:
         """Largest |ω_ib^b| component [rad/s] and |f^b| component [m/s²] over the run, on a
         grid of ``step_s`` plus the leg ends, and the time of the largest rate — by the
         compiled kernel (sim/motion/_trajectory_kernel.py: the grid of :meth:`peak_inputs_numpy`,
-        the integrands' compiled formulas; ~2 ms for 4 h of route instead of ~50 ms)."""
+        the integrands' compiled formulas; ~3 ms for 4 h of route instead of ~50 ms).
+
+        ``below`` = (rate, force): the legs that provably stay under both on the whole leg
+        (:meth:`_calm_legs`) are left out. Then a peak that exceeds ``rate`` (or ``force``) is
+        the full grid's, with its time, for every leg left out is below it; one under it
+        only says the run stays under (what the range check asks: the 4-h land route's holds,
+        ~3/4 of its grid, cost nothing)."""
         from rlgsim.sim.motion._trajectory_kernel import peak_inputs
         out = np.empty(3)
+        skip = (self._calm_legs(*below) if below is not None
+                else np.zeros(len(self.legs), dtype=np.int64))
         peak_inputs(self._coef, self._dcoef, self._d2coef, self._legs_i, self._legs_f,
-                    self._dense, _EARTH, float(step_s), out)
+                    self._dense, _EARTH, float(step_s), skip, out)
         return float(out[0]), float(out[1]), float(out[2])
+
+    def _calm_legs(self, rate: float, force: float) -> np.ndarray:
+        """1 for each leg of constant attitude and body velocity (body frame) whose |ω_ib^b|
+        and |f^b| components stay under ``rate`` [rad/s] and ``force`` [m/s²] on the whole leg,
+        by bounds: there ω_nb^b = 0 and v̇^n = 0, so (ENU; Titterton & Weston 2004 eqs. 3.71,
+        3.85–3.87) |ω_ib^b| = |ω_ie^n + ω_en^n| ≤ Ω + |ω_en^n| and |f^b| ≤ (2Ω + |ω_en^n|)|v|
+        + γ, with |ω_en^n| ≤ |v|/((R + h) cos L) (R ≥ a(1 − e²) the smaller radius), L the
+        largest |latitude| and h the lowest height of the leg (its DOP853 steps' starts, widened
+        by |v| times the longest step), γ ≤ normal gravity at the pole at that height (it grows
+        with |L| and as h falls); each bound widened by 1e-9 of itself for rounding."""
+        from rlgsim.sim.motion import _trajectory_kernel as K
+        out = np.zeros(len(self.legs), dtype=np.int64)
+        r_min = WGS84_A * (1.0 - WGS84_E2)
+        for j, (kind, first, steps, level, _, geo) in enumerate(self._legs_i):
+            if level != 2 or geo:
+                continue
+            speed = float(np.linalg.norm(self._coef[j, 3:, 0]))
+            if kind == K.POS_FIXED:
+                lat, low = abs(self._legs_f[j, K.LF_Y0]), self._legs_f[j, K.LF_Y0 + 2]
+                reach = 0.0
+            elif kind == K.POS_DENSE and steps > 0:
+                rows = self._dense[first:first + steps]
+                lat, low = float(np.max(np.abs(rows[:, 23]))), float(np.min(rows[:, 25]))
+                reach = speed * float(np.max(rows[:, 1]))      # the most a step can move
+            else:
+                continue
+            low -= reach
+            radius = r_min + min(low, 0.0)
+            if radius <= 0.0:
+                continue
+            lat += reach / radius
+            if lat >= 0.5 * np.pi - 1e-6:
+                continue
+            w_en = speed / (radius * np.cos(lat))
+            gamma = float(normal_gravity_rad(0.5 * np.pi, min(low, 0.0)))
+            w_bound = (EARTH_RATE + w_en) * (1.0 + 1e-9)
+            f_bound = ((2.0 * EARTH_RATE + w_en) * speed + gamma) * (1.0 + 1e-9)
+            out[j] = int(w_bound < rate and f_bound < force)
+        return out
 
     def peak_inputs_numpy(self, step_s: float = 0.5) -> tuple[float, float, float]:
         """:meth:`peak_inputs` by the NumPy formulas (:meth:`_inputs`; what the tests compare

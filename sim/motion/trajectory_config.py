@@ -101,7 +101,7 @@ class TrajectoryProgram:
             traj = Trajectory(self.legs, self.initial, until_s)
         except ValueError as e:
             raise UserInputError(f"{self.source}: trajectory: {e}") from None
-        w, f, at = traj.peak_inputs()
+        w, f, at = traj.peak_inputs(below=(self.gyro_range_rad_s, self.accel_range_m_s2))
         if w > self.gyro_range_rad_s:
             raise UserInputError(
                 f"{self.source}: trajectory: body rate {w / DEG:.4g} °/s at t = {at:.6g} s is "
