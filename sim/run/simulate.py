@@ -55,13 +55,17 @@ class _Appender:
     exactly the calls the main thread would make, in the same order — one
     :meth:`GroupWriter.append` per block, group and dimension, in the order the stages
     produced them — so the file does not depend on the thread, nor on ``chunk_s``, which only
-    bounds how many blocks may wait (``max_blocks``: memory stays flat in the duration). An
+    bounds how many blocks may wait (``max_blocks``: memory stays flat in the duration). Before
+    the first block the thread calls ``first`` (the file's deferred layout,
+    :meth:`rlgsim.sim.writer.dataset.DatasetWriter.lay_out`, made while block 0 is computed). An
     error in the thread is raised in the main thread at the next :meth:`put` or at
     :meth:`close`."""
 
-    def __init__(self, writers: dict[str, GroupWriter], max_blocks: int) -> None:
+    def __init__(self, writers: dict[str, GroupWriter], max_blocks: int,
+                 first: Callable[[], None] | None = None) -> None:
         import queue
 
+        self._first = first                 # made in the thread before its first block
         self._writers = writers
         self._queue: "queue.Queue" = queue.Queue(maxsize=max(1, int(max_blocks)))
         self._error: BaseException | None = None
@@ -70,6 +74,11 @@ class _Appender:
         self._thread.start()
 
     def _run(self) -> None:
+        if self._first is not None:
+            try:
+                self._first()
+            except BaseException as exc:        # raised again in the main thread
+                self._error = exc
         while True:
             rows = self._queue.get()
             if rows is None:
@@ -213,7 +222,8 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
     from tqdm import tqdm
 
     from rlgsim.sim.run.run_budget import check_budget, row_bytes_of
-    with DatasetWriter(out, attrs) as w:
+    # declared here, the file made and laid out by the writer thread (DatasetWriter.lay_out)
+    with DatasetWriter(out, attrs, defer_layout=True) as w:
         write_timeline(w, timeline)
         writers = {}
         writers[thermal.group] = w.group(thermal.group, thermal.description)
@@ -233,14 +243,13 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
                      block_s=min(BLOCK_S, n_steps * step),
                      progress=progress,    # refuse what cannot fit (run_budget)
                      row_bytes=row_bytes_of(w.groups))
-        w.read_dimension_lists()            # the file's bytes as when the estimate read it
         t_state = thermal.initial_state()
         s_states = [s.initial_state() for s in stages]
         bar = tqdm(total=round(n_steps * step), unit="s", unit_scale=True, disable=not progress,
                    delay=1.0, desc=f"rlgsim {scenario.name}", leave=False, dynamic_ncols=True)
         # The per-block matrices are small (tens of nodes × hundreds of steps): a threaded BLAS
         # only adds synchronisation (5× slower on a busy 2-core machine), so use one thread.
-        appender = _Appender(writers, blocks_per_write)
+        appender = _Appender(writers, blocks_per_write, first=w.lay_out)
         try:
             with one_blas_thread(), _no_cyclic_gc():
                 for b in range(n_blocks):

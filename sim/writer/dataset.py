@@ -540,16 +540,26 @@ class DatasetWriter:
     KeyboardInterrupt) deletes the temporary file.
     """
 
-    def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any]) -> None:
+    def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any], *,
+                 defer_layout: bool = False) -> None:
         self.path = check_writable(path)
         remove_stale_temporaries(self.path)
         self.tmp_path = self.path.with_name(f"{self.path.name}.tmp-{os.getpid()}")
+        self._file: h5py.File | None = None
+        self._groups: list[GroupWriter] = []
+        self._ops: list[Callable[[], Any]] | None = None    # a deferred layout's calls
+        values = {key: _attr_value(value) for key, value in attrs.items()}
+        if defer_layout:                    # the file too is made by lay_out (defer_layout)
+            self._ops = [lambda: self._open(values)]
+        else:
+            self._open(values)
+
+    def _open(self, attrs: Mapping[str, Any]) -> None:
+        """Create the temporary file with its root attributes."""
         # HDF5's chunk cache off (rdcc_nbytes=0, :data:`CHUNK_CACHE_BYTES`): every chunk goes
         # to the file when it is written (see the constant)
         self._file = h5py.File(self.tmp_path, "w", libver=("earliest", "v110"), track_order=True,
                                rdcc_nbytes=CHUNK_CACHE_BYTES)
-        self._groups: list[GroupWriter] = []
-        self._ops: list[Callable[[], Any]] | None = None    # a deferred layout's calls
         # The format marker is written last (commit): until then the file says it is
         # incomplete, so the temporary file of a killed run is never taken for a dataset.
         root = self._file["/"]             # File.attrs opens the root group at every use
@@ -558,7 +568,7 @@ class DatasetWriter:
         # provenance: the versions of the libraries behind the stored numbers (issue 29)
         _set_attr(root, "software_versions", _versions_json())
         for key, value in attrs.items():
-            _set_attr(root, key, _attr_value(value))
+            _set_attr(root, key, value)
 
     @property
     def groups(self) -> tuple[GroupWriter, ...]:
@@ -600,7 +610,8 @@ class DatasetWriter:
         return writer
 
     def defer_layout(self) -> None:
-        """Record the HDF5 calls of the groups declared from now on instead of making them;
+        """Record the HDF5 calls of the groups declared from now on instead of making them (the
+        constructor's ``defer_layout=True`` defers the file's creation too);
         :meth:`lay_out` makes them, in the same order, in whichever thread calls it (the run's
         writer thread, while the main thread computes the first block: sim/run/simulate.py).
         The declarations themselves — names, dimensions, the row bytes of the size estimate —
@@ -638,7 +649,8 @@ class DatasetWriter:
 
     def abort(self) -> None:
         try:
-            self._file.close()
+            if self._file is not None:      # (a deferred layout may not have made it)
+                self._file.close()
         finally:
             try:
                 self.tmp_path.unlink()
