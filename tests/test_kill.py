@@ -4,6 +4,7 @@ cleans up the dead run's temporary files and loses nothing that was finished."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import os
@@ -16,6 +17,7 @@ import time
 
 import psutil
 from process_helpers import wait_gone
+from rlgsim.lab.cli.main import main
 from scenario_helpers import CAL_SCENARIO, TINY_STUDY, tiny_cycle
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -29,11 +31,22 @@ def _cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "rlgsim", *args]
 
 
-def _run(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
-    r = subprocess.run(_cmd(*args), cwd=cwd, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    assert "Traceback" not in r.stderr
-    return r
+def _run(*args: str, cwd: pathlib.Path) -> None:
+    """``rlgsim ARGS`` in ``cwd`` through the command's entry point, in this process: the runs
+    before and after a kill (only the killed command needs a process of its own; starting one
+    cost seconds of the suite each, issue 30)."""
+    with contextlib.chdir(cwd):
+        assert main(list(args)) == 0
+
+
+def _one_line_error(capsys, *args: str, cwd: pathlib.Path) -> str:
+    """The one line ``rlgsim ARGS`` prints for a user mistake (exit status 2), in this process."""
+    capsys.readouterr()
+    with contextlib.chdir(cwd):
+        assert main(list(args)) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    return err
 
 
 def kill_when(args: list[str], cwd: pathlib.Path, ready, timeout_s: float = 120.0
@@ -78,7 +91,7 @@ def temporaries(folder: pathlib.Path) -> list[str]:
     return sorted(p.name for p in folder.rglob("*") if ".tmp" in p.name)
 
 
-def test_kill_run(tmp_path):
+def test_kill_run(tmp_path, capsys):
     # 48 h at 100 Hz: a few seconds of writing, time to kill it (8 h could finish first)
     (tmp_path / "long.toml").write_text(SCENARIO.replace("duration_h = 2.0", "duration_h = 48"))
     out = tmp_path / "long.h5"
@@ -89,10 +102,7 @@ def test_kill_run(tmp_path):
     assert not out.exists()
     left = temporaries(tmp_path)
     assert left, "the killed run's temporary file was expected"
-    info = subprocess.run(_cmd("info", str(tmp_path / left[0])), capture_output=True,
-                          text=True, timeout=60)
-    assert info.returncode == 2 and "Traceback" not in info.stderr, info.stderr
-    assert "incomplete" in info.stderr and len(info.stderr.strip().splitlines()) == 1
+    assert "incomplete" in _one_line_error(capsys, "info", str(tmp_path / left[0]), cwd=tmp_path)
     # the next runs to the same place: 2 h are enough to show the clean-up and that the
     # output is a fresh run's bytes (48 h twice more cost most of this test's time)
     (tmp_path / "long.toml").write_text(SCENARIO)
@@ -144,7 +154,7 @@ def test_kill_study(tmp_path):
     assert temporaries(out) == []
 
 
-def test_kill_montecarlo(tmp_path):
+def test_kill_montecarlo(tmp_path, capsys):
     """The CLI process killed once a unit is finished (its workers left to their lifeline):
     none survives, no table is written; the next run to the same folder runs only the units
     left, and its tables are the bytes of an uninterrupted campaign; the folder refuses another
@@ -175,7 +185,5 @@ def test_kill_montecarlo(tmp_path):
     assert temporaries(out) == []
     other = study / "other.toml"                      # the same folder refuses another study
     other.write_text(TINY_STUDY.replace("device_seed = 5", "device_seed = 6"))
-    r = subprocess.run(_cmd("montecarlo", str(other), "--units", str(n), "-o", str(out), "-q"),
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2 and "different campaign" in r.stderr, r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
+    assert "different campaign" in _one_line_error(
+        capsys, "montecarlo", str(other), "--units", str(n), "-o", str(out), "-q", cwd=tmp_path)
