@@ -115,14 +115,16 @@ def test_corrupt_campaign_file_is_one_error_and_keeps_the_units(tmp_path, conten
     assert {u: unit_path(out, u).read_bytes() for u in range(3)} == before
 
 
-def test_cli_on_a_damaged_folder_exit_2_one_line(tmp_path):
+def test_cli_on_a_damaged_folder_exit_2_one_line(tmp_path, capsys):
+    # through the command's entry point in this process (a process start cost seconds of the
+    # suite, issue 30; python -m rlgsim's one-line errors as a process: test_cli.py)
+    from rlgsim.lab.cli.main import main
     out = tmp_path / "mc"
     (out / "units").mkdir(parents=True)
     (out / "campaign.json").write_text("{")
-    r = subprocess.run([sys.executable, "-m", "rlgsim", "montecarlo", "demo", "--units", "1",
-                        "-o", str(out), "--quiet"], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2, r.stderr
-    assert r.stderr.startswith("rlgsim: error: ") and len(r.stderr.strip().splitlines()) == 1
+    assert main(["montecarlo", "demo", "--units", "1", "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rlgsim: error: ") and len(err.strip().splitlines()) == 1, err
 
 
 def test_temporaries_of_a_dead_coordinator_are_removed(tmp_path):
