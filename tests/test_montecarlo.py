@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from rlgsim.lab.cli.main import main
-from scenario_helpers import TINY_SCENARIO, TINY_STUDY
+from scenario_helpers import TINY_SCENARIO, TINY_STUDY, demo_on_tiny_cycle
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "studies" / "demo.toml"
@@ -36,22 +36,6 @@ def _units_table(folder: pathlib.Path) -> list[dict[str, str]]:
     return list(csv.DictReader(io.StringIO((folder / "units.csv").read_text())))
 
 
-def _demo_on_the_tiny_cycle(folder: pathlib.Path) -> pathlib.Path:
-    """The shipped demo study — its device, features and every compensator (the stochastic
-    LSSVM tuning included) — on the 100-min tiny cycle (1 Hz, 60 windows) instead of its two
-    8-h runs: the same code paths at a fraction of the cost (the suite's time, issue 30)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "tiny_cycle.toml").write_text(TINY_SCENARIO)
-    text = DEMO.read_text()
-    for role, seed in (("train", 7001), ("test", 7002)):
-        line = f'{role} = [{{ scenario = "demo_cycle", seed = {seed} }}]'
-        assert line in text, line
-        text = text.replace(line, f'{role} = [{{ scenario = "tiny_cycle.toml", seed = {seed} }}]')
-    path = folder / "demo_tiny.toml"
-    path.write_text(text)
-    return path
-
-
 def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_path, capsys):
     """The three campaigns go through the command's entry point (``main``) in this process:
     their units run in other processes all the same (the local pool's workers, the cluster's),
@@ -59,7 +43,7 @@ def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_pat
     test_kill.py's (three of them) — a process start here cost seconds of the suite (issue 30)."""
     distributed = pytest.importorskip("distributed")
     n = "2"
-    demo = str(_demo_on_the_tiny_cycle(tmp_path / "study"))
+    demo = str(demo_on_tiny_cycle(tmp_path / "study"))
 
     def campaign(out: str, *how: str) -> None:
         code = main(["montecarlo", demo, "--units", n, *how, "-o", str(tmp_path / out),
