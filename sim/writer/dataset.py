@@ -34,14 +34,13 @@ format marker and version); :func:`summary` (:mod:`rlgsim.sim.writer.summary`) i
 Why this file is over 400 lines: it is the one HDF5 writer — the group writer with its chunk
 staging, direct-chunk path and deferred layout, the dataset's life cycle (temporary file,
 marker written last, stale temporaries) and ``add_group``, which must agree with it on the
-layout; the encoders, the direct-chunk checks, the low-level creation calls and the summary
-are apart (_scaleoffset*.py, _direct_*.py, _new_dataset.py, summary.py).
+layout; the encoders, the direct-chunk checks, the low-level creation calls, the summary and
+the versions are apart (_scaleoffset*.py, _direct_*.py, _new_dataset.py, summary.py, versions.py).
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import importlib.util
 import itertools
 import math
@@ -57,10 +56,10 @@ import numpy as np
 from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
                                           INCOMPLETE_ATTR, VERSION_ATTR)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
-from rlgsim.ground.provenance import versions_json
 from rlgsim.sim.writer._new_dataset import (DatasetAttrs, new_dataset_id, plain_name,
                                            set_attr as _set_attr, write_rows)
 from rlgsim.sim.writer.summary import summary  # noqa: F401 - what ``rlgsim info`` prints
+from rlgsim.sim.writer.versions import software_version, versions_json_once as _versions_json
 
 #: Target size of one HDF5 chunk [bytes] along the growing dimension.
 _CHUNK_BYTES = 1 << 18
@@ -77,24 +76,6 @@ CHUNK_CACHE_BYTES = 0
 _STR = h5py.string_dtype("utf-8")
 #: NAME of a netCDF-4 dimension scale that is not a variable (netCDF-C / h5netcdf convention).
 _NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
-
-
-@functools.lru_cache(maxsize=None)
-def software_version() -> str:
-    """The installed rlgsim version (``0+unknown`` when run from an uninstalled tree); read
-    once per process (each reading parses the distribution's metadata: ~0.5 ms)."""
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("rlgsim")
-    except PackageNotFoundError:
-        return "0+unknown"
-
-
-@functools.lru_cache(maxsize=None)
-def _versions_json() -> str:
-    """:func:`rlgsim.ground.provenance.versions_json`, read once per process: parsing five
-    distributions' metadata cost ~3 ms of every run (a 1 h run at 100 Hz takes ~0.1 s)."""
-    return versions_json()
 
 
 def _attr_value(value: Any) -> Any:
@@ -135,6 +116,8 @@ class GroupWriter:
         self._made: dict[str, tuple[np.dtype, tuple[int, ...], tuple[int, ...]]] = {}
         #: length of each fixed coordinate made here (a growing variable's fixed dimensions)
         self._sizes: dict[str, int] = {}
+        #: the scales kept open while a deferred layout is made (:meth:`_scale`); else None
+        self._open_scales: dict[str, Any] | None = None
 
     def _count_row(self, name: str, dim: str, dtype: Any, tail: tuple[int, ...] = (),
                    scale: bool = False) -> None:
@@ -262,14 +245,26 @@ class GroupWriter:
                 return self._fixed(name, arr, dtype)
 
         def lay_out() -> None:
-            with h5py._objects.phil:                  # the scales, open for this call only
-                scales = [h5py.h5d.open(self._g.id, d.encode("utf-8")) for d in dims]
+            scales = [self._scale(d) for d in dims]
             dsid = make()
             with h5py._objects.phil:
                 for axis, scale in enumerate(scales):   # ds.dims[axis].attach_scale(scale)
                     h5py.h5ds.attach_scale(dsid, scale, axis)
             self._set_attrs(dsid, units, description, attrs)
         self._do(lay_out)
+
+    def _scale(self, dim: str) -> Any:
+        """The dimension scale ``dim`` opened (H5Dopen) for attaching: for this call only, or,
+        while a deferred layout is made (:meth:`DatasetWriter.lay_out`: no chunk is written
+        meanwhile, and the simulator's files have no chunk cache), kept open until its end."""
+        opened = self._open_scales
+        if opened is not None and dim in opened:
+            return opened[dim]
+        with h5py._objects.phil:
+            scale = h5py.h5d.open(self._g.id, dim.encode("utf-8"))
+        if opened is not None:
+            opened[dim] = scale
+        return scale
 
     def _size(self, dim: str) -> int:
         """Length of the fixed dimension ``dim``: as this writer made it, else (a group it
@@ -628,8 +623,16 @@ class DatasetWriter:
             return
         for g in self._groups:
             g._ops = None
-        for call in ops:
-            call()
+            g._open_scales = {}
+        try:
+            for call in ops:
+                call()
+        finally:
+            with h5py._objects.phil:
+                for g in self._groups:
+                    for scale in (g._open_scales or {}).values():
+                        scale.close()
+                    g._open_scales = None
         self.read_dimension_lists()
 
     def set_attrs(self, attrs: Mapping[str, Any]) -> None:
