@@ -615,17 +615,15 @@ class DatasetWriter:
             self._ops = []
 
     def lay_out(self) -> None:
-        """Make the recorded HDF5 calls of the deferred layout, in order (no-op when nothing
-        is deferred), then read the dimension lists as the size estimate's visit did
+        """Make the recorded HDF5 calls of a deferred layout, in order (none when nothing is
+        deferred), then read the dimension lists as the size estimate's visit did
         (:meth:`read_dimension_lists`); later declarations are made at once again."""
         ops, self._ops = self._ops, None
-        if ops is None:
-            return
         for g in self._groups:
             g._ops = None
-            g._open_scales = {}
+            g._open_scales = {} if ops else None
         try:
-            for call in ops:
+            for call in ops or ():
                 call()
         finally:
             with h5py._objects.phil:
