@@ -138,6 +138,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="leave out each thread's CPU and waits per run (printed by default: "
                          "benchmarks/_sim_threads.py; docstring)")
     args = ap.parse_args(argv)
+    if args.unwritten and not args.floor:
+        ap.error("--unwritten needs --floor")
     static, moving = scenarios(args.hours)
     epochs = int(round(static.duration_s * 100))
     with tempfile.TemporaryDirectory(prefix="rlgsim-bench-traj-") as name:   # ~0.4 GB at 4 h

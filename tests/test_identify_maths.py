@@ -411,8 +411,8 @@ def test_batched_heater_network_equals_the_integrator():
             it = ThermalIntegrator(net, h, 0.0)
             pairs = [(k, getattr(c, k), getattr(it, k)) for k in
                      ("_mu", "_c_s", "_c_ds", "_c_u", "_c_b", "_c_db", "_to_nodes_T")]
-            pairs += [(f.name, getattr(c.heat, f.name), getattr(it._heat, f.name))
-                      for f in dataclasses.fields(c.heat)]
+            pairs += [(f.name, getattr(c._heat, f.name), getattr(it._heat, f.name))
+                      for f in dataclasses.fields(c._heat)]
             for k, got, want in pairs:
                 np.testing.assert_allclose(got, want, rtol=0,
                                            atol=1e-13 * np.max(np.abs(want)), err_msg=k)

@@ -24,7 +24,7 @@ bit for bit (tests/test_motion_fill.py compares both with the whole-block comput
 
 No ``fastmath`` (no fused multiply-add, no reassociation). ``sin``/``cos`` are the C library's,
 as NumPy's float64 ``sin``/``cos`` are on x86-64 with NumPy 2 — but a NumPy build may use its
-own vectorised ones, so :func:`available` compares the kernel with the NumPy path on a fixed
+own vectorised ones, so :func:`rlgsim.sim.motion.kinematics._compiled_window` compares the kernel with the NumPy path on a fixed
 programme once per process, and the caller keeps the NumPy path unless they agree.
 """
 

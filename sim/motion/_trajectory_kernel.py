@@ -265,7 +265,7 @@ def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s, skip,
     on each leg's grid of :meth:`rlgsim.sim.motion.trajectory.Trajectory.peak_inputs` (m =
     max(2, ⌈duration/``step_s``⌉ + 1) points k·duration/(m − 1), the last one the duration):
     the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest;
-    the legs with ``skip`` (m,) ≠ 0 left out."""
+    the legs whose entry of ``skip`` (one per leg) is ≠ 0 left out."""
     a_axis, e2 = earth[0], earth[1]
     w = np.empty(32)
     best_w = best_f = at = 0.0

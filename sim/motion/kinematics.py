@@ -93,8 +93,8 @@ class MotionBlock:
     ``inner_deg`` (n,) [°, in [0, 360)], ``segment`` (n,) index of the motion in which each
     sample interval ends; ``first_sample`` k0 and ``rate_hz`` f place sample j on the run's
     grid, [(k0 + j)/f, (k0 + j + 1)/f); ``constant`` the runs ``(lo, hi)`` of whole samples at
-    rest inside one static motion: samples lo..hi−1 hold one increment, bit for bit (other
-    samples may share theirs too); ``states`` a vehicle's truth at the sample ends when it was
+    rest inside one static motion: samples lo..hi−1 hold one increment, bit for bit, except
+    in the :attr:`unwritten` runs (other samples may share theirs too); ``states`` a vehicle's truth at the sample ends when it was
     computed with the block (:meth:`rlgsim.sim.motion.trajectory.Trajectory.truth`), else None."""
 
     dtheta_rad: np.ndarray
@@ -375,9 +375,9 @@ class Motion:
         if abs(k0 - t0_s * rate_hz) > 1e-6:
             raise ValueError(f"t0_s = {t0_s!r} s is not on the {rate_hz:g} Hz sample grid")
         if n == 0:
-            e = np.zeros((0, 3))
-            return MotionBlock(e, e.copy(), np.zeros(0), np.zeros(0),
-                               np.zeros(0, dtype=np.int64), k0, rate_hz)
+            both = np.zeros((6, 0))
+            return MotionBlock(both[:3].T, both[3:].T, np.zeros(0), np.zeros(0),
+                               np.zeros(0, dtype=np.int64), k0, rate_hz, both=both)
         e0, e1 = _edges(k0, np.array([0, n]), rate_hz)
         if e0 < self._t0[0] - _TIME_TOL_S:
             raise ValueError(f"t0_s = {t0_s!r} s is before the first turntable segment")

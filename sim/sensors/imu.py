@@ -273,20 +273,17 @@ class ImuSimulator:
         dth_t, dv_t = mb.dtheta_rad.T, mb.dv_m_per_s.T          # (3, n) C-contiguous
         held = _held_steps(mb.constant, m, idx)
         out: dict[str, Any] = {"motion": mb, "dth_t": dth_t, "dv_t": dv_t}
-        both = getattr(mb, "both", None)
-        if sparse and both is not None:         # Δθ and Δv rows of one array: one call each
-            uniform, first = steps_held(both, m, idx, held)
-            sums = _step_sums(both, idx, m, held)
+        if sparse:      # a turntable's Δθ and Δv rows are one array (Motion.increments): one call
+            uniform, first = steps_held(mb.both, m, idx, held)
+            sums = _step_sums(mb.both, idx, m, held)
             out.update(steps_g=(uniform, first[:3]),
                        steps_a=(uniform, first[3:]) if self.r.accels is not None else None,
                        dtheta_step=np.ascontiguousarray(sums[:, :3]),
                        dv_step=np.ascontiguousarray(sums[:, 3:]))
         else:
-            steps = (lambda x_t: steps_held(x_t, m, idx, held)) if sparse else (
-                lambda x_t: step_inputs(x_t, m, idx))
             # steps at rest (one increment for all their samples): evaluated once per step
-            out.update(steps_g=steps(dth_t),
-                       steps_a=steps(dv_t) if self.r.accels is not None else None,
+            out.update(steps_g=step_inputs(dth_t, m, idx),
+                       steps_a=step_inputs(dv_t, m, idx) if self.r.accels is not None else None,
                        dtheta_step=_step_sums(dth_t, idx, m, held),
                        dv_step=_step_sums(dv_t, idx, m, held))
         if n:                               # the table at the ends of each step's last sample

@@ -137,7 +137,7 @@ def _coefficients(nets: list[ThermalNetwork], step_s: float, air0: float, powere
         c._c_b, c._c_db = beta_b * a[k][None, :], beta_b * b[k][None, :]
         nodes_map = dk[:, None] * Vk
         c._to_nodes_T = np.ascontiguousarray(nodes_map.T)
-        c.heat = heater_terms(net.heaters, dk, Vk, a[k], h)
+        c._heat = heater_terms(net.heaters, dk, Vk, a[k], h)
         c.T0 = net.steady_state(air0, powered0)
         c.heaters0 = np.asarray(net.steady_heater_power_w(air0, powered0), dtype=float)
         c.w0 = (Vk.T * np.sqrt(C[k])[None, :]) @ c.T0
@@ -161,15 +161,15 @@ def _stacked(models: list[tuple[ThermalNetwork, ProbeSet]], air_c: np.ndarray,
          "w0": np.stack([it.w0 for it in integs]),
          "coef": np.stack([_forcing_coef(it) for it in integs]),
          "inputs": inputs, "src": src,
-         "ch": np.stack([it.heat.cols for it in integs]),
-         "rs": np.stack([it.heat.sensor_rows for it in integs]),
-         "rt": np.stack([it.heat.track_rows for it in integs]),
-         "kp": np.stack([it.heat.kp for it in integs]),
-         "ki": np.stack([it.heat.ki for it in integs]),
-         "aw": np.stack([it.heat.aw for it in integs]),
-         "pmax": np.stack([it.heat.max_power for it in integs]),
-         "sp0": np.stack([it.heat.setpoint for it in integs]),
-         "tg": np.stack([it.heat.track_gain for it in integs]),
+         "ch": np.stack([it._heat.cols for it in integs]),
+         "rs": np.stack([it._heat.sensor_rows for it in integs]),
+         "rt": np.stack([it._heat.track_rows for it in integs]),
+         "kp": np.stack([it._heat.kp for it in integs]),
+         "ki": np.stack([it._heat.ki for it in integs]),
+         "aw": np.stack([it._heat.aw for it in integs]),
+         "pmax": np.stack([it._heat.max_power for it in integs]),
+         "sp0": np.stack([it._heat.setpoint for it in integs]),
+         "tg": np.stack([it._heat.track_gain for it in integs]),
          "integ": np.stack([it.heaters0 for it in integs]),
          "on": u > 0}
     c["track"] = bool(np.any(c["tg"] != 0.0))
