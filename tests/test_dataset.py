@@ -268,7 +268,7 @@ def test_low_level_dataset_creation_writes_h5py_create_datasets_bytes():
     """sim/writer/_new_dataset.py makes the datasets the writer lays out with h5py's low-level
     calls: the file image must be byte for byte the one ``create_dataset`` makes (growing,
     scale-offset, fixed numeric and text datasets; in-memory files, a few ms)."""
-    from rlgsim.sim.writer._new_dataset import new_dataset
+    from rlgsim.sim.writer._new_dataset import new_dataset_id
 
     text = np.asarray(["a", "bé", ""], dtype=object).view(dataset._STR)
     made = [("t", dict(shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(64,))),
@@ -287,7 +287,7 @@ def test_low_level_dataset_creation_writes_h5py_create_datasets_bytes():
             g = f.create_group("g", track_order=True)
             for name, kw in made:
                 if low_level:
-                    new_dataset(g, name, **kw)
+                    new_dataset_id(g, name, **kw)
                 else:
                     kw = dict(kw)
                     if "data" in kw:

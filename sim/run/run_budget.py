@@ -111,16 +111,15 @@ def _motions_bound(program, duration_s: float) -> int | None:
     return 1 + reps * steps
 
 
-def check_motions(scenario) -> int:
+def check_motions(scenario) -> None:
     """Refuse a turntable programme that makes more than :data:`MAX_MOTIONS` motion segments
-    over the run; returns an upper bound of their count — :func:`_motions_bound` (one
-    repetition's steps: ~0.1 ms, where walking paper000's 6 700 motions took ~12 ms before the
-    first block) when it is within the limit, else the count (walking the motions, stopping past
-    the limit)."""
+    over the run: passed at once when the upper bound :func:`_motions_bound` is within the
+    limit (one repetition's steps: ~0.1 ms, where walking paper000's 6 700 motions took ~12 ms
+    before the first block), else by walking the motions, stopping past the limit."""
     program = scenario.turntable
     bound = _motions_bound(program, float(scenario.duration_s))
     if bound is not None and bound <= MAX_MOTIONS:
-        return bound
+        return
     n = 0
     for _ in program.motions(until_s=float(scenario.duration_s)):
         n += 1
@@ -130,7 +129,6 @@ def check_motions(scenario) -> int:
                 f"motion segments over the run ({scenario.duration_s:g} s; one repetition "
                 f"lasts {program.duration_s:.3g} s); at most {MAX_MOTIONS} allowed: use "
                 f"longer motions or a shorter run")
-    return n
 
 
 # --------------------------------------------------------------------------- size and memory

@@ -222,12 +222,8 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
     from tqdm import tqdm
 
     from rlgsim.sim.run.run_budget import check_budget, row_bytes_of
-    # declared here, the file made and laid out by the writer thread (DatasetWriter.lay_out) —
-    # but a vehicle's: its writer thread (the trajectory group, ~37 MB an hour) is its run's
-    # longest chain already (4 h route, alternated runs at load ~3: 340 ms laid out here, 355 ms
-    # there), so its file is laid out here, beside its kinematics workers
-    vehicle = getattr(motion, "kind", "") == "trajectory"
-    with DatasetWriter(out, attrs, defer_layout=not vehicle) as w:
+    # declared here, the file made and laid out by the writer thread (DatasetWriter.lay_out)
+    with DatasetWriter(out, attrs, defer_layout=True) as w:
         write_timeline(w, timeline)
         writers = {}
         writers[thermal.group] = w.group(thermal.group, thermal.description)
@@ -240,8 +236,9 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
             else:
                 writers[s.group] = w.group(s.group, s.description)
                 s.declare(writers[s.group])
-        # a run shorter than one block fills only its length: the honest block
-        check_budget(w._file, scenario, out, n_steps=n_steps,
+        # a run shorter than one block fills only its length: the honest block; no file yet
+        # (the writer thread makes it): the declared row bytes
+        check_budget(None, scenario, out, n_steps=n_steps,
                      steps_per_block=min(per_block, n_steps),
                      buffered_blocks=blocks_per_write + 1,
                      block_s=min(BLOCK_S, n_steps * step),

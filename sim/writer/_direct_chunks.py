@@ -98,10 +98,11 @@ class DirectChunks:
             if self.capacity:
                 self._insert(row, buf[ends[0]:ends[1]])
         ends = ends.tolist()
-        if not self.capacity and not self.pending:
-            # no cache (the simulator's files): each chunk goes to the file as it comes, in
-            # order — what _insert and make_room do then, without their bookkeeping per chunk
-            # (~3 µs of the writer thread's Python each; paper000_ramp writes ~21 000)
+        if not self.capacity:
+            # no cache (the simulator's files): the mirror holds nothing (pending stays empty)
+            # and each chunk goes to the file as it comes, in order, as HDF5 writes it with no
+            # cache — no per-chunk bookkeeping (~3 µs of the writer thread's Python each;
+            # paper000_ramp writes ~21 000)
             write_chunk, tail, rows = self.ds.id.write_direct_chunk, self.tail, self.rows
             for j in range(first, len(ends) - 1):
                 write_chunk((row + j * rows, *tail), buf[ends[j]:ends[j + 1]])
@@ -124,12 +125,11 @@ class DirectChunks:
             self.ds.id.write_direct_chunk((row, *self.tail), chunk)
 
     def _insert(self, row: int, chunk: np.ndarray) -> None:
-        """A chunk enters the cache: HDF5 makes room first (no cache: writes it at once)."""
+        """A chunk enters the cache (a dataset with one: :meth:`write` writes a no-cache
+        dataset's chunks at once): HDF5 makes room first."""
         if len(self.pending) >= self.entries:
             self.make_room()
         self.pending.append((row, chunk))
-        if not self.capacity:
-            self.make_room()
 
 
 def _chunk_bytes(ds: h5py.Dataset) -> int:

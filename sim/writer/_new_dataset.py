@@ -3,7 +3,7 @@ high level makes.
 
 The simulator lays out ~75 datasets per run (coordinates, parameters, growing series) before
 its first block; through ``create_dataset`` each costs ~0.1 ms, ~60 % of it h5py's argument
-checks and the creation property list built anew. :func:`new_dataset` makes the same HDF5
+checks and the creation property list built anew. :func:`new_dataset_id` makes the same HDF5
 calls with the same property values — h5py's ``make_new_dset`` (h5py/_hl/dataset.py) is the
 reference, and the tests compare the files' bytes (tests/test_dataset.py) — with each property
 list built once per process. Only what the writer uses is covered (chunked growing datasets,
@@ -24,7 +24,7 @@ import numpy as np
 _STR = h5py.string_dtype("utf-8")
 
 #: dataset creation property lists by (chunk shape, scale-offset filter, dtype kind), built once
-#: per process (:func:`new_dataset`)
+#: per process (:func:`new_dataset_id`)
 _DCPL: dict[tuple, Any] = {}
 #: h5py's file types of the dtypes datasets are made with (``h5t.py_create(dtype, logical=1)``)
 _FILE_TYPES: dict[Any, Any] = {}
@@ -34,15 +34,6 @@ _MEMORY_TYPES: dict[Any, Any] = {}
 #: dataspaces by (shape, maxshape): HDF5 copies the one H5Dcreate is given, so one serves every
 #: dataset of that shape (a run makes ~75 datasets of ~15 shapes)
 _SPACES: dict[tuple, Any] = {}
-
-
-def new_dataset(group: h5py.Group, name: str, shape: tuple[int, ...], dtype: Any, *,
-                maxshape: tuple | None = None, chunks: tuple[int, ...] | None = None,
-                scaleoffset: int | None = None, data: np.ndarray | None = None
-                ) -> h5py.Dataset:
-    """:func:`new_dataset_id` as an ``h5py.Dataset``."""
-    return h5py.Dataset(new_dataset_id(group, name, shape, dtype, maxshape=maxshape,
-                                       chunks=chunks, scaleoffset=scaleoffset, data=data))
 
 
 def new_dataset_id(group: h5py.Group, name: str, shape: tuple[int, ...], dtype: Any, *,
@@ -57,8 +48,8 @@ def new_dataset_id(group: h5py.Group, name: str, shape: tuple[int, ...], dtype: 
     checks and property-list building (~0.06 ms of the ~0.1 ms a call costs through
     ``create_dataset``; a run lays out ~75 datasets). ``data`` must already be what h5py would
     write (a C-contiguous array; text as an object array viewed with h5py's string dtype).
-    Returns the new dataset's ``h5py.h5d.DatasetID`` (an ``h5py.Dataset`` object costs ~20 µs
-    more: :func:`new_dataset`)."""
+    Returns the new dataset's ``h5py.h5d.DatasetID`` (an ``h5py.Dataset`` object would cost
+    ~20 µs more)."""
     from h5py import h5d, h5p, h5s, h5t, h5z
     dtype = np.dtype(dtype)
     key = (chunks, scaleoffset, dtype.kind if scaleoffset is not None else None)
@@ -93,7 +84,7 @@ def new_dataset_id(group: h5py.Group, name: str, shape: tuple[int, ...], dtype: 
 
 def plain_name(name: str) -> bool:
     """Whether h5py would create ``name`` in the group itself (no path, no intermediate
-    groups): the only names :func:`new_dataset` takes."""
+    groups): the only names :func:`new_dataset_id` takes."""
     return bool(name) and "/" not in name
 
 

@@ -23,9 +23,14 @@ have written them (:mod:`rlgsim.sim.writer._direct_chunks`): the same bytes as H
 fraction of its CPU time — once a self-check has shown that with the HDF5 this process loaded
 (:mod:`rlgsim.sim.writer._direct_check`; HDF5's filter otherwise).
 :func:`add_group` adds (or replaces) a group of an existing dataset (``rlgsim calibrate``).
-A run may defer its layout (:meth:`DatasetWriter.defer_layout`): the groups are declared at
-once, their HDF5 calls recorded and made later, in order, by :meth:`DatasetWriter.lay_out` in
-the run's writer thread while the first block is computed.
+A run may defer its layout (``DatasetWriter(..., defer_layout=True)``: the file too is made
+later): the groups are declared at once — names, fixed dimension sizes and the size estimate's
+row bytes taken — their HDF5 calls recorded and made later, in order, by
+:meth:`DatasetWriter.lay_out` in the run's writer thread while the first block is computed. A
+growing variable over a fixed dimension the group has not declared is refused at once
+(ValueError); what only HDF5 checks — a name used twice, a fixed variable over a dimension
+that does not exist — fails when ``lay_out`` makes the calls (in the writer thread: the run
+raises it at its next block), before any row is written.
 
 Reading: :func:`rlgsim.ground.dataset_format.open_dataset` (the one reader; it checks the
 format marker and version); :func:`summary` (:mod:`rlgsim.sim.writer.summary`) is what
@@ -56,7 +61,7 @@ import numpy as np
 from rlgsim.ground.dataset_format import (FORMAT, FORMAT_ATTR, FORMAT_VERSION, INCOMPLETE,
                                           INCOMPLETE_ATTR, VERSION_ATTR)
 from rlgsim.ground.paths import check_writable, sweep_temporaries
-from rlgsim.sim.writer._new_dataset import (DatasetAttrs, new_dataset_id, plain_name,
+from rlgsim.sim.writer._new_dataset import (_STR, DatasetAttrs, new_dataset_id, plain_name,
                                            set_attr as _set_attr, write_rows)
 from rlgsim.sim.writer.summary import summary  # noqa: F401 - what ``rlgsim info`` prints
 from rlgsim.sim.writer.versions import software_version, versions_json_once as _versions_json
@@ -73,7 +78,6 @@ _CHUNK_BYTES = 1 << 18
 #: when it is written, in the order of writing: the file's layout (not its content, format or
 #: determinism) differs from a file written with the cache.
 CHUNK_CACHE_BYTES = 0
-_STR = h5py.string_dtype("utf-8")
 #: NAME of a netCDF-4 dimension scale that is not a variable (netCDF-C / h5netcdf convention).
 _NOT_A_VARIABLE = "This is a netCDF dimension but not a netCDF variable."
 
@@ -142,7 +146,7 @@ class GroupWriter:
 
     def _do(self, call: Callable[[], Any]) -> None:
         """Make HDF5 call(s) ``call`` now, or record it for :meth:`DatasetWriter.lay_out` when
-        the dataset's layout is deferred (:meth:`DatasetWriter.defer_layout`)."""
+        the dataset's layout is deferred (``DatasetWriter(..., defer_layout=True)``)."""
         if self._ops is None:
             call()
         else:
@@ -218,7 +222,7 @@ class GroupWriter:
         if string:
             dtype = _STR
         if dims and dims[0] in self._growing:
-            tail = tuple(self._size(d) for d in dims[1:])
+            tail = tuple(self._size(d, name) for d in dims[1:])
             extra = dict(storage or {})
             chunks = tuple(extra.pop("chunks", None) or self._chunks(dtype, tail))
             low_level = set(extra) <= {"scaleoffset"} and plain_name(name)
@@ -266,19 +270,21 @@ class GroupWriter:
             opened[dim] = scale
         return scale
 
-    def _size(self, dim: str) -> int:
-        """Length of the fixed dimension ``dim``: as this writer made it, else (a group it
-        did not lay out) read from the file."""
+    def _size(self, dim: str, name: str) -> int:
+        """Length of the fixed dimension ``dim`` of growing variable ``name``, as its
+        :meth:`coordinate` declared it; ValueError naming the group, variable and dimension
+        when this group declared no such fixed dimension (before anything is laid out)."""
         size = self._sizes.get(dim)
         if size is None:
-            with h5py._objects.phil:
-                size = int(h5py.h5d.open(self._g.id, dim.encode("utf-8")).shape[0])
+            raise ValueError(f"{self.name}/{name}: dimension {dim!r} is not a fixed dimension "
+                             f"declared in group {self.name!r} (declare it first with "
+                             f"coordinate(name, values))")
         return size
 
     def _fixed(self, name: str, data: np.ndarray, dtype: Any) -> Any:
         """A dataset holding ``data`` (not growing): ``create_dataset(name, data=data,
         dtype=dtype, track_times=False)``, through
-        :func:`~rlgsim.sim.writer._new_dataset.new_dataset` for numbers and text (h5py's
+        :func:`~rlgsim.sim.writer._new_dataset.new_dataset_id` for numbers and text (h5py's
         ``array_for_new_object`` decides what is written: the array as it is, text as an
         object array of ``str`` viewed with h5py's UTF-8 string dtype). Returns its
         ``DatasetID``."""
@@ -321,9 +327,7 @@ class GroupWriter:
         m = n.pop()
         if m == 0:
             return
-        start = self._rows.get(dim)
-        if start is None:
-            start = self._rows[dim] = 0 if dim in self._made else self._g[dim].shape[0]
+        start = self._rows.get(dim, 0)      # every growing dimension was made here, empty
         for v in names:
             st = self._staged.get(v)
             if st is None:
@@ -533,6 +537,12 @@ class DatasetWriter:
 
     Use as a context manager: leaving the block normally commits, an exception (or
     KeyboardInterrupt) deletes the temporary file.
+
+    ``defer_layout=True``: the file is not made here; it and the groups declared until
+    :meth:`lay_out` are made by that call, in the order declared, in whichever thread calls it
+    (the run's writer thread, while the main thread computes the first block:
+    sim/run/simulate.py). Declaring takes the names, fixed dimension sizes and row bytes at once
+    (see the module for which mistakes are refused then and which only by ``lay_out``).
     """
 
     def __init__(self, path: str | os.PathLike, attrs: Mapping[str, Any], *,
@@ -604,16 +614,6 @@ class DatasetWriter:
         self._groups.append(writer)
         return writer
 
-    def defer_layout(self) -> None:
-        """Record the HDF5 calls of the groups declared from now on instead of making them (the
-        constructor's ``defer_layout=True`` defers the file's creation too);
-        :meth:`lay_out` makes them, in the same order, in whichever thread calls it (the run's
-        writer thread, while the main thread computes the first block: sim/run/simulate.py).
-        The declarations themselves — names, dimensions, the row bytes of the size estimate —
-        are taken at once, so a bad one is refused before anything is written."""
-        if self._ops is None:
-            self._ops = []
-
     def lay_out(self) -> None:
         """Make the recorded HDF5 calls of a deferred layout, in order (none when nothing is
         deferred), then read the dimension lists as the size estimate's visit did
@@ -632,10 +632,6 @@ class DatasetWriter:
                         scale.close()
                     g._open_scales = None
         self.read_dimension_lists()
-
-    def set_attrs(self, attrs: Mapping[str, Any]) -> None:
-        for key, value in attrs.items():
-            self._file.attrs[key] = _attr_value(value)
 
     def commit(self) -> pathlib.Path:
         for g in self._groups:                 # rows still staged (GroupWriter.append)
