@@ -1,5 +1,6 @@
 """Helpers for tests that build scenarios: TOML text of a dict (tomlkit, through
-:mod:`rlgsim.ground.toml_text`) and the quickstart as a dict."""
+:mod:`rlgsim.ground.toml_text`), the quickstart as a dict, small scenarios and studies shared
+by the CLI-level tests, and the check of a command's one-line error (:func:`one_line`)."""
 
 from __future__ import annotations
 
@@ -115,6 +116,16 @@ baseline = "raw"
 """
 
 
+def tiny_study(folder: pathlib.Path) -> pathlib.Path:
+    """:data:`TINY_STUDY` with its cycle (:data:`TINY_SCENARIO`) written into ``folder``
+    (made if missing); returns the study file's path (``folder/tiny.toml``)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "tiny_cycle.toml").write_text(TINY_SCENARIO)
+    path = folder / "tiny.toml"
+    path.write_text(TINY_STUDY)
+    return path
+
+
 def demo_on_tiny_cycle(folder: pathlib.Path) -> pathlib.Path:
     """The shipped demo study — its device, features and every compensator (the stochastic
     LSSVM tuning included) — on the 100-min tiny cycle (1 Hz, 60 windows) instead of its two
@@ -130,3 +141,17 @@ def demo_on_tiny_cycle(folder: pathlib.Path) -> pathlib.Path:
     path = folder / "demo_tiny.toml"
     path.write_text(text)
     return path
+
+
+def one_line(capture, argv: list[str]) -> str:
+    """``rlgsim ARGV`` through the command's entry point in this process, for a user mistake:
+    exit status 2 and one line on stderr starting ``rlgsim: error: ``, no traceback. Returns
+    that line. ``capture``: pytest's ``capsys`` or ``capfd`` (whose stderr is read)."""
+    from rlgsim.lab.cli.main import main
+    code = main(argv)
+    err = capture.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rlgsim: error: "), err
+    return lines[0]

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.ground.errors import UserInputError
 from rlgsim.lab.cli.main import main
-from scenario_helpers import CAL_SCENARIO, TINY_SCENARIO, TINY_STUDY
+from scenario_helpers import CAL_SCENARIO, one_line, tiny_study
 
 
 
@@ -36,16 +36,6 @@ def damaged(good: pathlib.Path, tmp_path: pathlib.Path, change) -> pathlib.Path:
     with h5py.File(path, "r+") as f:
         change(f)
     return path
-
-
-def one_line(capsys, argv) -> str:
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("rlgsim: error: "), err
-    return lines[0]
 
 
 def _set_attr(key, value):
@@ -114,12 +104,9 @@ def test_info_and_calibrate_on_damaged_datasets(good, tmp_path, capsys, case):
 def test_study_reusing_a_dataset_with_nan_probe_readings(tmp_path, capsys):
     # the short cycle's study (two ~100-min runs, one fit): a reused dataset's check is the same
     # whatever the study's size (the demo's two 8-h runs cost seconds of the suite, issue 30)
-    study = tmp_path / "study"
-    study.mkdir()
-    (study / "tiny_cycle.toml").write_text(TINY_SCENARIO)
-    (study / "tiny.toml").write_text(TINY_STUDY)
+    study = tiny_study(tmp_path / "study")
     out = tmp_path / "tiny"
-    assert main(["study", str(study / "tiny.toml"), "-o", str(out), "-q"]) == 0
+    assert main(["study", str(study), "-o", str(out), "-q"]) == 0
     data = sorted((out / "data").glob("*.h5"))[0]
     with h5py.File(data, "r+") as f:
         t = f["probes/temperature"]
@@ -127,7 +114,7 @@ def test_study_reusing_a_dataset_with_nan_probe_readings(tmp_path, capsys):
         row[:] = np.nan
         t[10] = row
     (out / "report.md").unlink()
-    line = one_line(capsys, ["study", str(study / "tiny.toml"), "-o", str(out), "-q"])
+    line = one_line(capsys, ["study", str(study), "-o", str(out), "-q"])
     assert data.name in line and "probes/temperature" in line, line
     assert not (out / "report.md").exists()
 

@@ -197,13 +197,16 @@ def test_long_runs_print_their_estimate(here, capsys, monkeypatch):
     monkeypatch.setattr(run_budget, "check_budget", check)
     (here / "q.toml").write_text(short())
     assert main(["run", "q.toml", "-o", "q.h5"]) == 0
-    import h5py
-    with h5py.File(here / "q.h5") as f:   # the writers' counts are the file's (laid out later)
-        assert counted[0] == run_budget._row_bytes(f) and counted[0][1] > 0
     err = capsys.readouterr().err
     assert "rlgsim: estimate for quickstart: about" in err and "memory per block" in err
     assert main(["run", "q.toml", "-o", "q2.h5", "-q"]) == 0
     assert "estimate" not in capsys.readouterr().err
+    import h5py
+    files = [here / "q.h5", here / "q2.h5"]   # one check per run, in the order of the runs
+    assert len(counted) == len(files), counted
+    for row_bytes, path in zip(counted, files):   # the writers' counts are each run's file's
+        with h5py.File(path) as f:                # (the file is laid out after the check)
+            assert row_bytes == run_budget._row_bytes(f) and row_bytes[1] > 0, path
 
 
 def test_estimate_is_close_to_the_real_size(here, capsys):

@@ -24,6 +24,7 @@ from rlgsim.lab.montecarlo import (finished_units, results_csv, run_campaign, sc
 
 from mc_toy_units import toy_unit
 from process_helpers import wait_gone
+from scenario_helpers import one_line
 
 TESTS = pathlib.Path(__file__).resolve().parent
 PAYLOAD = {"seed": 7}
@@ -118,13 +119,10 @@ def test_corrupt_campaign_file_is_one_error_and_keeps_the_units(tmp_path, conten
 def test_cli_on_a_damaged_folder_exit_2_one_line(tmp_path, capsys):
     # through the command's entry point in this process (a process start cost seconds of the
     # suite, issue 30; python -m rlgsim's one-line errors as a process: test_cli.py)
-    from rlgsim.lab.cli.main import main
     out = tmp_path / "mc"
     (out / "units").mkdir(parents=True)
     (out / "campaign.json").write_text("{")
-    assert main(["montecarlo", "demo", "--units", "1", "-o", str(out), "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("rlgsim: error: ") and len(err.strip().splitlines()) == 1, err
+    one_line(capsys, ["montecarlo", "demo", "--units", "1", "-o", str(out), "--quiet"])
 
 
 def test_temporaries_of_a_dead_coordinator_are_removed(tmp_path):

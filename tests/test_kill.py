@@ -18,7 +18,7 @@ import time
 import psutil
 from process_helpers import wait_gone
 from rlgsim.lab.cli.main import main
-from scenario_helpers import CAL_SCENARIO, TINY_STUDY, tiny_cycle
+from scenario_helpers import CAL_SCENARIO, TINY_STUDY, one_line, tiny_cycle
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -31,22 +31,16 @@ def _cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "rlgsim", *args]
 
 
-def _run(*args: str, cwd: pathlib.Path) -> None:
+def _run(capfd, *args: str, cwd: pathlib.Path) -> None:
     """``rlgsim ARGS`` in ``cwd`` through the command's entry point, in this process: the runs
     before and after a kill (only the killed command needs a process of its own; starting one
-    cost seconds of the suite each, issue 30)."""
+    cost seconds of the suite each, issue 30). Exit status 0 and no traceback on stderr —
+    ``capfd``'s, which holds what the command's worker processes wrote, too."""
     with contextlib.chdir(cwd):
-        assert main(list(args)) == 0
-
-
-def _one_line_error(capsys, *args: str, cwd: pathlib.Path) -> str:
-    """The one line ``rlgsim ARGS`` prints for a user mistake (exit status 2), in this process."""
-    capsys.readouterr()
-    with contextlib.chdir(cwd):
-        assert main(list(args)) == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
-    return err
+        code = main(list(args))
+    err = capfd.readouterr().err
+    assert code == 0, err
+    assert "Traceback" not in err, err
 
 
 def kill_when(args: list[str], cwd: pathlib.Path, ready, timeout_s: float = 120.0
@@ -91,7 +85,7 @@ def temporaries(folder: pathlib.Path) -> list[str]:
     return sorted(p.name for p in folder.rglob("*") if ".tmp" in p.name)
 
 
-def test_kill_run(tmp_path, capsys):
+def test_kill_run(tmp_path, capfd):
     # 48 h at 100 Hz: a few seconds of writing, time to kill it (8 h could finish first)
     (tmp_path / "long.toml").write_text(SCENARIO.replace("duration_h = 2.0", "duration_h = 48"))
     out = tmp_path / "long.h5"
@@ -102,21 +96,21 @@ def test_kill_run(tmp_path, capsys):
     assert not out.exists()
     left = temporaries(tmp_path)
     assert left, "the killed run's temporary file was expected"
-    assert "incomplete" in _one_line_error(capsys, "info", str(tmp_path / left[0]), cwd=tmp_path)
+    assert "incomplete" in one_line(capfd, ["info", str(tmp_path / left[0])])
     # the next runs to the same place: 2 h are enough to show the clean-up and that the
     # output is a fresh run's bytes (48 h twice more cost most of this test's time)
     (tmp_path / "long.toml").write_text(SCENARIO)
-    _run("run", "long.toml", "-o", "long.h5", "-q", cwd=tmp_path)
+    _run(capfd, "run", "long.toml", "-o", "long.h5", "-q", cwd=tmp_path)
     assert temporaries(tmp_path) == []                 # the next run cleaned up
-    _run("run", "long.toml", "-o", "again.h5", "-q", cwd=tmp_path)
+    _run(capfd, "run", "long.toml", "-o", "again.h5", "-q", cwd=tmp_path)
     assert out.read_bytes() == (tmp_path / "again.h5").read_bytes()
 
 
-def test_kill_calibrate(tmp_path):
+def test_kill_calibrate(tmp_path, capfd):
     (tmp_path / "cal.toml").write_text(CAL_SCENARIO)
-    _run("run", "cal.toml", "-o", "cal.h5", "-q", cwd=tmp_path)
+    _run(capfd, "run", "cal.toml", "-o", "cal.h5", "-q", cwd=tmp_path)
     shutil.copyfile(tmp_path / "cal.h5", tmp_path / "ref.h5")   # the same bytes as a 2nd run
-    _run("calibrate", "ref.h5", "-o", "ref.csv", "-q", "--workers", "2", cwd=tmp_path)
+    _run(capfd, "calibrate", "ref.h5", "-o", "ref.csv", "-q", "--workers", "2", cwd=tmp_path)
     before = (tmp_path / "cal.h5").read_bytes()
     kids = kill_when(["calibrate", "cal.h5", "-o", "cal.csv", "-q", "--workers", "2"], tmp_path,
                      lambda me: len(me.children()) >= 2)
@@ -124,7 +118,7 @@ def test_kill_calibrate(tmp_path):
     assert_no_survivors(kids)
     assert not (tmp_path / "cal.csv").exists()
     assert (tmp_path / "cal.h5").read_bytes() == before      # the dataset is untouched
-    _run("calibrate", "cal.h5", "-o", "cal.csv", "-q", "--workers", "2", cwd=tmp_path)
+    _run(capfd, "calibrate", "cal.h5", "-o", "cal.csv", "-q", "--workers", "2", cwd=tmp_path)
     assert _table(tmp_path / "cal.csv") == _table(tmp_path / "ref.csv")
     assert temporaries(tmp_path) == []
 
@@ -135,7 +129,7 @@ def _table(path: pathlib.Path) -> list[dict[str, str]]:
             for r in rows]
 
 
-def test_kill_study(tmp_path):
+def test_kill_study(tmp_path, capfd):
     study = tmp_path / "study"
     study.mkdir()
     (study / "tiny_cycle.toml").write_text(tiny_cycle(1500))
@@ -148,13 +142,13 @@ def test_kill_study(tmp_path):
     assert not (out / "report.md").exists()
     done = {p.name: p.stat().st_mtime_ns for p in data.glob("*.h5")}
     assert "tiny_cycle-seed21.h5" in done
-    _run("study", str(study / "tiny.toml"), "-o", str(out), "-q", cwd=tmp_path)
+    _run(capfd, "study", str(study / "tiny.toml"), "-o", str(out), "-q", cwd=tmp_path)
     assert (out / "report.md").is_file()
     assert {n: (data / n).stat().st_mtime_ns for n in done} == done   # finished data reused
     assert temporaries(out) == []
 
 
-def test_kill_montecarlo(tmp_path, capsys):
+def test_kill_montecarlo(tmp_path, capfd):
     """The CLI process killed once a unit is finished (its workers left to their lifeline):
     none survives, no table is written; the next run to the same folder runs only the units
     left, and its tables are the bytes of an uninterrupted campaign; the folder refuses another
@@ -167,7 +161,7 @@ def test_kill_montecarlo(tmp_path, capsys):
     (study / "tiny.toml").write_text(TINY_STUDY)
     n = 3                   # two workers: killed after one unit, at least one is left to resume
     args = ["montecarlo", str(study / "tiny.toml"), "--units", str(n), "--workers", "2", "-q"]
-    _run(*args, "-o", "ref", cwd=tmp_path)
+    _run(capfd, *args, "-o", "ref", cwd=tmp_path)
     out = tmp_path / "mc"
     kids = kill_when([*args, "-o", str(out)], tmp_path, lambda me: len(finished_units(out)) >= 1)
     assert_no_survivors(kids)
@@ -175,7 +169,7 @@ def test_kill_montecarlo(tmp_path, capsys):
     done = finished_units(out)
     assert 1 <= len(done) < n, f"not killed mid-way: {sorted(done)}"
     before = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
-    _run(*args, "-o", str(out), cwd=tmp_path)
+    _run(capfd, *args, "-o", str(out), cwd=tmp_path)
     after = {u: (out / "units" / f"unit_{u:06d}.json").stat().st_mtime_ns for u in done}
     assert before == after, "finished units were recomputed"
     units = (out / "units.csv").read_text().splitlines()
@@ -185,5 +179,5 @@ def test_kill_montecarlo(tmp_path, capsys):
     assert temporaries(out) == []
     other = study / "other.toml"                      # the same folder refuses another study
     other.write_text(TINY_STUDY.replace("device_seed = 5", "device_seed = 6"))
-    assert "different campaign" in _one_line_error(
-        capsys, "montecarlo", str(other), "--units", str(n), "-o", str(out), "-q", cwd=tmp_path)
+    assert "different campaign" in one_line(
+        capfd, ["montecarlo", str(other), "--units", str(n), "-o", str(out), "-q"])

@@ -16,20 +16,10 @@ import numpy as np
 import pytest
 
 from rlgsim.lab.cli.main import main
-from scenario_helpers import TINY_SCENARIO, TINY_STUDY, demo_on_tiny_cycle
+from scenario_helpers import TINY_SCENARIO, demo_on_tiny_cycle, tiny_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "studies" / "demo.toml"
-
-# A test-local study with the real recipe on a short cycle (about 1 s per unit).
-
-
-def _tiny_study(folder: pathlib.Path) -> pathlib.Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "tiny_cycle.toml").write_text(TINY_SCENARIO)
-    path = folder / "tiny.toml"
-    path.write_text(TINY_STUDY)
-    return path
 
 
 def _units_table(folder: pathlib.Path) -> list[dict[str, str]]:
@@ -40,7 +30,8 @@ def test_demo_study_same_bytes_on_one_and_two_workers_and_a_dask_cluster(tmp_pat
     """The three campaigns go through the command's entry point (``main``) in this process:
     their units run in other processes all the same (the local pool's workers, the cluster's),
     which is what the comparison is about; a campaign as its own ``python -m rlgsim`` process is
-    test_kill.py's (three of them) — a process start here cost seconds of the suite (issue 30)."""
+    test_kill.py's (one, killed mid-campaign) — a process start here cost seconds of the suite
+    (issue 30)."""
     distributed = pytest.importorskip("distributed")
     n = "2"
     demo = str(demo_on_tiny_cycle(tmp_path / "study"))
@@ -158,7 +149,7 @@ def test_chamber_variation_per_unit(tmp_path):
     from rlgsim.lab.study import load_study, scenario_for
     from rlgsim.sim.run.unit_variations import ChamberVariation, draw, varied
 
-    study = load_study(str(_tiny_study(tmp_path)))
+    study = load_study(str(tiny_study(tmp_path)))
     plain = scenario_for(study, "tiny_cycle.toml", unit=3)
     var = ChamberVariation(offset_c=0.5, rate_rel=0.1)
     with varied(var):

@@ -7,7 +7,6 @@ import contextlib
 import csv
 import io
 import math
-import os
 import pathlib
 import shutil
 
@@ -32,13 +31,8 @@ def demo_command(tmp_path_factory) -> tuple[pathlib.Path, str]:
     test_kill.py's). Returns the report folder and what the command printed."""
     cwd = tmp_path_factory.mktemp("demo")
     printed = io.StringIO()
-    here = os.getcwd()
-    try:
-        os.chdir(cwd)
-        with contextlib.redirect_stdout(printed):
-            assert main(["demo", "--quiet"]) == 0
-    finally:
-        os.chdir(here)
+    with contextlib.chdir(cwd), contextlib.redirect_stdout(printed):
+        assert main(["demo", "--quiet"]) == 0
     return cwd / "rlgsim-demo", printed.getvalue()
 
 
