@@ -532,9 +532,7 @@ class Trajectory:
                 lat, low = abs(self._legs_f[j, K.LF_Y0]), self._legs_f[j, K.LF_Y0 + 2]
                 reach = 0.0
             elif kind == K.POS_DENSE and steps > 0:
-                rows = self._dense[first:first + steps]
-                lat, low = float(np.max(np.abs(rows[:, 23]))), float(np.min(rows[:, 25]))
-                reach = speed * float(np.max(rows[:, 1]))      # the most a step can move
+                lat, low, reach = _dense_extent(self._dense[first:first + steps], speed)
             else:
                 continue
             low -= reach
@@ -615,6 +613,17 @@ def _leg_tables(position: list, geodetic: np.ndarray, t0: np.ndarray, duration: 
     return legs_i, legs_f
 
 
+def _dense_extent(rows: np.ndarray, speed: float) -> tuple[float, float, float]:
+    """A moving leg's extent from its DOP853 dense rows (``ROW`` columns each,
+    sim/motion/_trajectory_route.py: column 1 the step's length [s], the last three the
+    position (L [rad], λ [rad], h [m]) at its start): the largest |L| [rad] and the lowest h [m]
+    at the steps' starts, and the most one step can move the leg at ``speed`` [m/s], in m."""
+    from rlgsim.sim.motion._trajectory_route import ROW
+    y = ROW - 3
+    return (float(np.max(np.abs(rows[:, y]))), float(np.min(rows[:, y + 2])),
+            speed * float(np.max(rows[:, 1])))
+
+
 def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, dense: np.ndarray
                    ) -> np.ndarray:
     """Per leg the length [s] of its fitted chunks (sim/motion/_trajectory_block.py): a leg of
@@ -638,10 +647,9 @@ def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, den
         speed = float(np.linalg.norm(coef[j, 3:, 0]))
         if level != 2 or still or kind != K.POS_DENSE or steps == 0 or speed == 0.0:
             continue
-        rows = dense[first:first + steps]
-        lat_max = float(np.max(np.abs(rows[:, 23]))) + speed * float(np.max(rows[:, 1])) / (
-            WGS84_A * (1.0 - WGS84_E2))
-        radius = WGS84_A * (1.0 - WGS84_E2) + min(float(np.min(rows[:, 25])), 0.0)
+        lat, low, reach = _dense_extent(dense[first:first + steps], speed)
+        lat_max = lat + reach / (WGS84_A * (1.0 - WGS84_E2))
+        radius = WGS84_A * (1.0 - WGS84_E2) + min(low, 0.0)
         if lat_max >= 0.5 * np.pi or radius <= 0.0:       # pragma: no cover - the range check
             continue
         out[j] = min(_CHUNK_MAX_S, _CHUNK_OF_SCALE * radius * np.cos(lat_max) / speed)
