@@ -70,39 +70,36 @@ class ThreadParts:
             setattr(owner, name, f)
         self._undo.clear()
 
-    def _wrap_cpu(self, owner, name: str, label: str) -> None:
+    def _wrap(self, owner, name: str, label: str, clock, applies) -> None:
+        """Replace ``owner.name`` by a wrapper that adds the ``clock`` seconds of each call for
+        which ``applies(self_)`` holds to ``label`` (restored by :meth:`__exit__`)."""
         f = getattr(owner, name)
         parts = self
-        group_only = label == "writer: trajectory group"
 
         @functools.wraps(f)
         def g(self_, *a, **k):
-            if group_only and getattr(self_, "name", "") != "trajectory":
+            if not applies(self_):
                 return f(self_, *a, **k)
-            c0 = time.thread_time()
+            t0 = clock()
             try:
                 return f(self_, *a, **k)
             finally:
-                parts._add(label, time.thread_time() - c0)
+                parts._add(label, clock() - t0)
         self._undo.append((owner, name, f))
         setattr(owner, name, g)
+
+    def _wrap_cpu(self, owner, name: str, label: str) -> None:
+        """The thread CPU seconds of ``owner.name`` (the trajectory group's appends only, for
+        the writer's "trajectory group" part)."""
+        group_only = label == "writer: trajectory group"
+        self._wrap(owner, name, label, time.thread_time,
+                   lambda w: not group_only or getattr(w, "name", "") == "trajectory")
 
     def _wrap_wait(self, owner, name: str, label: str, main: bool) -> None:
-        f = getattr(owner, name)
-        parts = self
-
-        @functools.wraps(f)
-        def g(self_, *a, **k):
-            here = threading.current_thread() is threading.main_thread()
-            if here != main:
-                return f(self_, *a, **k)
-            t0 = time.perf_counter()
-            try:
-                return f(self_, *a, **k)
-            finally:
-                parts._add(label, time.perf_counter() - t0)
-        self._undo.append((owner, name, f))
-        setattr(owner, name, g)
+        """The wall seconds of ``owner.name`` called in the main thread (``main``) or in
+        another one."""
+        self._wrap(owner, name, label, time.perf_counter,
+                   lambda _: (threading.current_thread() is threading.main_thread()) == main)
 
     def run(self, kind: str, call) -> object:
         """``call()`` (one run) with its parts kept under ``kind``; the main thread's CPU too."""

@@ -94,8 +94,8 @@ class MotionBlock:
     sample interval ends; ``first_sample`` k0 and ``rate_hz`` f place sample j on the run's
     grid, [(k0 + j)/f, (k0 + j + 1)/f); ``constant`` the runs ``(lo, hi)`` of whole samples at
     rest inside one static motion: samples lo..hi−1 hold one increment, bit for bit, except
-    in the :attr:`unwritten` runs (other samples may share theirs too); ``states`` a vehicle's truth at the sample ends when it was
-    computed with the block (:meth:`rlgsim.sim.motion.trajectory.Trajectory.truth`), else None."""
+    in the :attr:`unwritten` runs (other samples may share theirs too); ``states`` a vehicle's
+    truth at the sample ends when it was computed with the block (:meth:`rlgsim.sim.motion.trajectory.Trajectory.truth`), else None."""
 
     dtheta_rad: np.ndarray
     dv_m_per_s: np.ndarray
@@ -152,19 +152,14 @@ def _written(lo: int, hi: int, r: int, unwritten: list[tuple[int, int]]
 _STATIC_DEFAULTS = {"axis": None, "rate_deg_s": 0.0, "outer_deg": 0.0, "inner_deg": 0.0}
 
 
-def _time(seg: Any, name: str) -> Any:
-    """A segment's ``t0_s``/``t1_s``: its attribute (a timeline segment's), else
-    :func:`_field`'s."""
-    if type(getattr(seg, "attrs", None)) is dict and not isinstance(seg, Mapping):
-        return getattr(seg, name)
-    return _field(seg, name)
-
-
 def _field(seg: Any, name: str) -> Any:
     attrs = getattr(seg, "attrs", None)
-    if type(attrs) is dict and name in attrs:     # a timeline segment's (no ABC check)
-        return attrs[name]
-    if isinstance(attrs, Mapping) and name in attrs:
+    if type(attrs) is dict:                       # a timeline segment's: no ABC checks
+        if name in attrs:
+            return attrs[name]
+        if hasattr(seg, name):                    # its t0_s, t1_s
+            return getattr(seg, name)
+    elif isinstance(attrs, Mapping) and name in attrs:
         return attrs[name]
     if isinstance(seg, Mapping) and name in seg:
         return seg[name]
@@ -236,8 +231,8 @@ class Motion:
         segs = [s for s in segments if getattr(s, "track", "turntable") == "turntable"]
         if not segs:
             raise ValueError("no turntable segments")
-        t0 = np.array([float(_time(s, "t0_s")) for s in segs])
-        t1 = np.array([float(_time(s, "t1_s")) for s in segs])
+        t0 = np.array([float(_field(s, "t0_s")) for s in segs])
+        t1 = np.array([float(_field(s, "t1_s")) for s in segs])
         kind = [_field(s, "kind") for s in segs]
         axis = [_field(s, "axis") for s in segs]
         rate = np.array([float(_field(s, "rate_deg_s")) if k == "rotate" else 0.0
