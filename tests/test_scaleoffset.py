@@ -68,6 +68,28 @@ def test_packed_chunks_are_the_bytes_hdf5_stores(dtype, fill):
                     assert buf[:ends[1]].tobytes() == stored, (shape, name, compiled)
 
 
+@pytest.mark.parametrize("dtype", [np.int32, np.uint16])
+def test_every_code_width_in_groups_and_tail(dtype):
+    """Every ``minbits`` the compiled packer meets (1 up to the type's width: the group-of-8
+    path below 9 bits, the two-word one below 16, the serial one above) in chunks of n values
+    with n mod 8 = 0 and 3 (the tail), with fill values among them: HDF5's stored bytes."""
+    rng = np.random.default_rng(7)
+    info = np.iinfo(dtype)
+    width = 8 * np.dtype(dtype).itemsize
+    with h5py.File("mem.h5", "w", driver="core", backing_store=False) as f:
+        for shape in ((512, 3), (1003,)):
+            for bits in range(1, width + 1):
+                d = min((1 << bits) - 2, int(info.max) - int(info.min))   # minbits = bits
+                lo = int(rng.integers(int(info.min), int(info.max) - d, endpoint=True))
+                x = rng.integers(lo, lo + d, shape, endpoint=True).astype(dtype)
+                x.flat[0], x.flat[-1] = lo, lo + d
+                x.flat[1::7] = 0                                        # the fill value
+                ds = f.create_dataset(f"{shape}/{bits}", data=x, chunks=shape, scaleoffset=0)
+                _, stored = ds.id.read_direct_chunk((0,) * len(shape))
+                buf, ends = encode(codec_of(ds), x, compiled=True)
+                assert buf[:ends[1]].tobytes() == stored, (shape, bits)
+
+
 def test_several_chunks_in_one_call_and_read_back():
     rng = np.random.default_rng(1)
     x = rng.integers(-40, 40, (5 * 64, 3)).astype(np.int32)

@@ -90,13 +90,17 @@ def encode(codec: Codec, chunks: np.ndarray, *, compiled: bool = True
     n = codec.chunk_elements
     values = np.ascontiguousarray(chunks, dtype=codec.dtype).reshape(-1, n)
     k = values.shape[0]
-    out = np.empty(k * (n * codec.dtype.itemsize + HEADER + 1), dtype=np.uint8)
-    ends = np.empty(k + 1, dtype=np.int64)
     raw = values.view(np.uint8).reshape(k, n * codec.dtype.itemsize)
+    ends = np.empty(k + 1, dtype=np.int64)
+    size = k * (n * codec.dtype.itemsize + HEADER + 1)
     if compiled:
-        from rlgsim.sim.writer._scaleoffset_kernel import encode_chunks
-        encode_chunks(values, raw, np.int64(codec.fill), out, ends)
+        from rlgsim.sim.writer._scaleoffset_kernel import SLACK, encode_chunks
+        out = np.empty(size + SLACK, dtype=np.uint8)
+        kind = codec.dtype.type
+        info = np.iinfo(codec.dtype)
+        encode_chunks(values, raw, kind(codec.fill), kind(info.max), kind(info.min), out, ends)
     else:
+        out = np.empty(size, dtype=np.uint8)
         _encode_numpy(values, raw, codec.fill, out, ends)
     return out, ends
 
