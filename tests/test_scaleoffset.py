@@ -273,3 +273,33 @@ def test_a_failed_self_check_keeps_hdf5s_filter(tmp_path, monkeypatch):
     monkeypatch.setattr(dataset, "_DIRECT_OK", True)        # the path is taken when it passes
     _write(tmp_path / "on.h5", blocks, True, monkeypatch)
     assert mirrors
+
+
+def test_chunks_written_from_compiled_code_are_h5pys_calls():
+    """sim/writer/_chunk_calls.write_chunks (H5Dwrite_chunk without the GIL, h5py's lock held)
+    writes the file h5py's write_direct_chunk writes, byte for byte; a chunk HDF5 refuses (an
+    offset off the chunk grid) is reported by its index, with nothing written after it."""
+    from rlgsim.sim.writer._chunk_calls import address, write_chunks
+    fn = address()
+    assert fn is not None                  # h5py's wheel carries its HDF5 here
+    rng = np.random.default_rng(3)
+    chunks = [rng.integers(0, 256, int(rng.integers(1, 900)), dtype=np.uint8) for _ in range(5)]
+    buf = np.concatenate(chunks)
+    ends = np.concatenate([[0], np.cumsum([c.size for c in chunks])]).astype(np.int64)
+    images = []
+    for compiled in (True, False):
+        with h5py.File(f"calls-{compiled}.h5", "w", driver="core", backing_store=False,
+                       libver=("earliest", "v110"), rdcc_nbytes=0) as f:
+            ds = f.create_dataset("p", shape=(5 * 64, 3), maxshape=(None, 3), chunks=(64, 3),
+                                  dtype=np.int32, scaleoffset=0)
+            if compiled:
+                with h5py._objects.phil:
+                    assert write_chunks(fn, ds.id.id, 10, 64, 2, buf, ends, 0) == 0  # row 10
+                    assert ds.id.get_num_chunks() == 0
+                    assert write_chunks(fn, ds.id.id, 0, 64, 2, buf, ends, 0) == -1
+            else:
+                for j in range(5):
+                    ds.id.write_direct_chunk((64 * j, 0), chunks[j])
+            f.flush()
+            images.append(f.id.get_file_image())
+    assert images[0] == images[1]

@@ -97,18 +97,39 @@ class DirectChunks:
             first = 1
             if self.capacity:
                 self._insert(row, buf[ends[0]:ends[1]])
-        ends = ends.tolist()
         if not self.capacity:
             # no cache (the simulator's files): the mirror holds nothing (pending stays empty)
             # and each chunk goes to the file as it comes, in order, as HDF5 writes it with no
             # cache — no per-chunk bookkeeping (~3 µs of the writer thread's Python each;
-            # paper000_ramp writes ~21 000)
+            # paper000_ramp writes ~21 000), from compiled code without the GIL when it can
+            if self.compiled and first < len(ends) - 1:
+                fn = _chunk_address()
+                if fn is not None:
+                    self._write_compiled(fn, buf, ends, row, first)
+                    return
+            ends = ends.tolist()
             write_chunk, tail, rows = self.ds.id.write_direct_chunk, self.tail, self.rows
             for j in range(first, len(ends) - 1):
                 write_chunk((row + j * rows, *tail), buf[ends[j]:ends[j + 1]])
             return
+        ends = ends.tolist()
         for j in range(first, len(ends) - 1):
             self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]])
+
+    def _write_compiled(self, fn: int, buf: np.ndarray, ends: np.ndarray, row: int,
+                        first: int) -> None:
+        """Chunks ``first`` … of ``buf`` (``ends``) from row ``row`` through
+        :func:`rlgsim.sim.writer._chunk_calls.write_chunks` (h5py's lock held: no other thread
+        enters HDF5 while the loop runs without the GIL)."""
+        from rlgsim.sim.writer._chunk_calls import write_chunks
+        with h5py._objects.phil:
+            failed = write_chunks(fn, self.ds.id.id, row, self.rows, len(self.tail) + 1,
+                                  np.ascontiguousarray(buf, dtype=np.uint8),
+                                  np.asarray(ends, dtype=np.int64), first)
+        if failed >= 0:
+            name = h5py.h5i.get_name(self.ds.id).decode("utf-8", "replace")
+            raise RuntimeError(f"HDF5 refused to write the chunk at row "
+                               f"{row + failed * self.rows} of dataset {name}")
 
     def make_room(self) -> None:
         """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk
@@ -130,6 +151,12 @@ class DirectChunks:
         if len(self.pending) >= self.entries:
             self.make_room()
         self.pending.append((row, chunk))
+
+
+def _chunk_address() -> int | None:
+    """:func:`rlgsim.sim.writer._chunk_calls.address` (loaded with the compiled packer)."""
+    from rlgsim.sim.writer._chunk_calls import address
+    return address()
 
 
 def _chunk_bytes(ds: h5py.Dataset) -> int:
