@@ -281,7 +281,8 @@ def test_chunks_written_from_compiled_code_are_h5pys_calls():
     offset off the chunk grid) is reported by its index, with nothing written after it."""
     from rlgsim.sim.writer._chunk_calls import address, write_chunks
     fn = address()
-    assert fn is not None                  # h5py's wheel carries its HDF5 here
+    if fn is None:
+        pytest.skip("h5py without its own HDF5 library: h5py's write_direct_chunk is kept")
     rng = np.random.default_rng(3)
     chunks = [rng.integers(0, 256, int(rng.integers(1, 900)), dtype=np.uint8) for _ in range(5)]
     buf = np.concatenate(chunks)

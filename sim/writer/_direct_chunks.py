@@ -50,6 +50,9 @@ class DirectChunks:
         self.chunk_bytes = _chunk_bytes(ds)
         self.capacity = capacity              # bytes of unfiltered chunks; 0: no cache
         self.compiled = compiled
+        #: ``H5Dwrite_chunk``'s address for the compiled calls (:mod:`rlgsim.sim.writer._chunk_calls`);
+        #: 0: h5py's call; None: not looked up yet
+        self.calls: int | None = None
         #: chunks the cache holds: (n + 1)·chunk_bytes > capacity ⇔ n ≥ capacity // chunk_bytes
         self.entries = capacity // self.chunk_bytes
         self.pending: deque[tuple[int, np.ndarray]] = deque()   # (first row, encoded bytes)
@@ -102,11 +105,11 @@ class DirectChunks:
             # and each chunk goes to the file as it comes, in order, as HDF5 writes it with no
             # cache — no per-chunk bookkeeping (~3 µs of the writer thread's Python each;
             # paper000_ramp writes ~21 000), from compiled code without the GIL when it can
-            if self.compiled and first < len(ends) - 1:
-                fn = _chunk_address()
-                if fn is not None:
-                    self._write_compiled(fn, buf, ends, row, first)
-                    return
+            if self.calls is None:
+                self.calls = _chunk_address() if self.compiled else 0
+            if self.calls and first < len(ends) - 1:
+                self._write_compiled(self.calls, buf, ends, row, first)
+                return
             ends = ends.tolist()
             write_chunk, tail, rows = self.ds.id.write_direct_chunk, self.tail, self.rows
             for j in range(first, len(ends) - 1):
@@ -153,10 +156,11 @@ class DirectChunks:
         self.pending.append((row, chunk))
 
 
-def _chunk_address() -> int | None:
-    """:func:`rlgsim.sim.writer._chunk_calls.address` (loaded with the compiled packer)."""
+def _chunk_address() -> int:
+    """:func:`rlgsim.sim.writer._chunk_calls.address` (loaded with the compiled packer), 0 for
+    None."""
     from rlgsim.sim.writer._chunk_calls import address
-    return address()
+    return address() or 0
 
 
 def _chunk_bytes(ds: h5py.Dataset) -> int:

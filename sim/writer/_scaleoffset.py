@@ -30,6 +30,7 @@ fill value (``minbits`` may be 0 and HDF5 then leaves the extra byte uninitialis
 
 from __future__ import annotations
 
+import functools
 import sys
 from dataclasses import dataclass
 
@@ -96,13 +97,19 @@ def encode(codec: Codec, chunks: np.ndarray, *, compiled: bool = True
     if compiled:
         from rlgsim.sim.writer._scaleoffset_kernel import SLACK, encode_chunks
         out = np.empty(size + SLACK, dtype=np.uint8)
-        kind = codec.dtype.type
-        info = np.iinfo(codec.dtype)
-        encode_chunks(values, raw, kind(codec.fill), kind(info.max), kind(info.min), out, ends)
+        encode_chunks(values, raw, *_scalars(codec), out, ends)
     else:
         out = np.empty(size, dtype=np.uint8)
         _encode_numpy(values, raw, codec.fill, out, ends)
     return out, ends
+
+
+@functools.lru_cache(maxsize=None)
+def _scalars(codec: Codec) -> tuple[np.integer, np.integer, np.integer]:
+    """The fill value, largest and smallest value of ``codec``'s type, as scalars of that type
+    (what :func:`rlgsim.sim.writer._scaleoffset_kernel.encode_chunks` takes)."""
+    kind, info = codec.dtype.type, np.iinfo(codec.dtype)
+    return kind(codec.fill), kind(info.max), kind(info.min)
 
 
 def _encode_numpy(values: np.ndarray, raw: np.ndarray, fill: int, out: np.ndarray,
