@@ -1,5 +1,6 @@
 """The compiled float32 normals (sim/sensors/_normal_kernel.py) are numpy's
-``Generator.standard_normal(n, dtype=np.float32)``, bit for bit: on the simulator's own
+``Generator.standard_normal(n, dtype=np.float32)``, and its float64 ones (``fill_views``: the
+IMU's slow-noise and UHFO drives) numpy's ``standard_normal(shape)``, bit for bit. The float32 ones: on the simulator's own
 streams (the seed tree's white-noise leaves), for any channel count and length, leaving each
 generator in numpy's state, with the ziggurat's rare branches reached — the tail (|z| beyond
 the last strip, r ≈ 3.654) thousands of times and the wedges about 0.7 % of all draws (the
@@ -96,3 +97,57 @@ def test_rows_and_generators_must_match_one_to_one():
         _normal_kernel.fill([g, np.random.default_rng(6)], np.empty((3, 10), dtype=np.float32))
     with pytest.raises(ValueError, match="C-contiguous float32"):
         _normal_kernel.fill([g], np.empty((1, 10)))
+
+
+def _drive_simulator(compiled: bool):
+    from rlgsim.sim.run.scenario import load_device
+    from rlgsim.sim.sensors.imu import ImuSimulator
+    from rlgsim.sim.sensors.imu_model import ImuModel
+    dev = load_device("rlg_imu_000")
+    real = ImuModel.from_device(dev).realise(generator(3, 0, "realisation", "imu", 0))
+    return ImuSimulator(real, dev.thermal.network.node_names, seed=7, unit=2, rate_hz=100.0,
+                        step_s=1.0, prefetch=False, compiled=compiled)
+
+
+@pytest.mark.parametrize("m", [0, 1, 7, 600])
+def test_the_slow_noise_and_uhfo_drives_are_numpys_float64_draws(m):
+    """The IMU's per-block drives (flicker bank, random walk, UHFO wander and read-out: one
+    :func:`fill_views` call each) against numpy's own draws, over blocks of the same tree."""
+    ours, theirs = _drive_simulator(True), _drive_simulator(False)
+    assert ours.r.uhfo is not None and ours.slow.has_flicker and ours.slow.has_walk
+    tails = 0
+    for b in (0, 1, 63, 64, 700):
+        got, ref = ours._drive_draws(b, m), theirs._drive_draws(b, m)
+        arrays = [*got["slow_draws"], *got["uhfo_draws"]]
+        refs = [*ref["slow_draws"], *ref["uhfo_draws"]]
+        for x, y in zip(arrays, refs):
+            assert x.shape == y.shape and x.flags.c_contiguous
+            assert x.tobytes() == y.tobytes(), b
+            tails += int(np.count_nonzero(np.abs(y) > 3.6541528853610088))
+    if m == 600:        # ~216 000 draws: ~56 expected beyond the float64 ziggurat's last strip
+        assert tails > 20
+
+
+def test_fill_views_refuses_what_it_cannot_draw():
+    base = np.zeros((4, 5))
+    g, h = np.random.default_rng(1), np.random.default_rng(2)
+    with pytest.raises(ValueError, match="its own generator"):
+        _normal_kernel.fill_views([(g, base[0]), (g, base[1])], base)
+    with pytest.raises(ValueError, match="float64 array"):
+        _normal_kernel.fill_views([(g, base[0])], base[:, ::2])
+    with pytest.raises(ValueError, match="views of base"):
+        _normal_kernel.fill_views([(np.random.Generator(np.random.Philox(1)), base[0])], base)
+    with pytest.raises(ValueError, match="inside base"):
+        _normal_kernel.fill_views([(h, np.zeros(5)[:3])], base)
+
+
+def test_the_float64_draw_has_no_fused_multiply_add():
+    """The wedge test (f[i−1] − f[i])·u + f[i] must round the product before the sum, as
+    numpy's x86-64 build does (no fastmath: LLVM does not contract)."""
+    import re
+
+    from numba_asm import FMA, compiled_asm
+    base = np.zeros(4)
+    _normal_kernel.fill_views([(np.random.default_rng(1), base[:2])], base)
+    kernel = _normal_kernel._fill_views
+    assert not re.search(FMA, compiled_asm(kernel, kernel.signatures[0]))

@@ -321,9 +321,10 @@ class ImuSimulator:
     def _drive_draws(self, b: int, m: int) -> dict[str, Any]:
         """The standard normals of block ``b``'s slow noise and UHFO (``m`` thermal steps):
         independent of any state, so the worker draws them with the block's white noise."""
-        out: dict[str, Any] = {"slow_draws": self.slow.draws(b, m)}
+        fill = _compiled_views() if self.compiled else None     # one call each, compiled
+        out: dict[str, Any] = {"slow_draws": self.slow.draws(b, m, fill)}
         if self.r.uhfo is not None:
-            out["uhfo_draws"] = self.r.uhfo.draws(self.seed, self.unit, b, m)
+            out["uhfo_draws"] = self.r.uhfo.draws(self.seed, self.unit, b, m, fill)
         return out
 
     def _submit_parts(self, b: int, m: int, n: int) -> list[Any]:
@@ -528,6 +529,16 @@ def _compiled_normals():
     except ImportError:                         # pragma: no cover - numba is a dependency
         return None
     return fill if available() else None
+
+
+def _compiled_views():
+    """:func:`rlgsim.sim.sensors._normal_kernel.fill_views` when it gives numpy's draws in this
+    process (the module's self-check), else None."""
+    try:
+        from rlgsim.sim.sensors._normal_kernel import available, fill_views
+    except ImportError:                         # pragma: no cover - numba is a dependency
+        return None
+    return fill_views if available() else None
 
 
 def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | int

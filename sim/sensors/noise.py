@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass, field, replace
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.signal import lfilter
@@ -282,21 +282,28 @@ class SlowNoise:
                 fs[:, c] = self.flicker.q[:, c] * rng.standard_normal(fs.shape[0])
         return fs, self.walk.initial_state()
 
-    def draws(self, b: int, m: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    def draws(self, b: int, m: int, fill: Any = None
+              ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The standard-normal drives of block ``b`` (``m`` steps): flicker (J, C, m) and
         random walk (m, C), None when the term is off. Independent of any state, so they may be
-        drawn ahead (in another thread)."""
-        wf = wr = None
-        if self.has_flicker:
-            j = self.flicker.q.shape[0]
-            wf = np.empty((j, len(self.axes), m))
-            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
-                wf[:, c, :] = self._gen(self.seed, self.unit, f"{p}.flicker", a,
-                                        b).standard_normal((j, m))
-        if self.has_walk:
-            wr = np.empty((m, len(self.axes)))
-            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
-                wr[:, c] = self._gen(self.seed, self.unit, f"{p}.rrw", a, b).standard_normal(m)
+        drawn ahead (in another thread). ``fill`` (:func:`rlgsim.sim.sensors._normal_kernel.fill_views`)
+        draws them all in one compiled call — numpy's numbers; None: numpy's call per channel."""
+        j, n_ch = self.flicker.q.shape[0], len(self.axes)
+        n_f = j * n_ch * m if self.has_flicker else 0
+        base = np.empty(n_f + (m * n_ch if self.has_walk else 0))
+        wf = base[:n_f].reshape(j, n_ch, m) if self.has_flicker else None
+        wr = base[n_f:].reshape(m, n_ch) if self.has_walk else None
+        pairs = []
+        for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
+            if wf is not None:
+                pairs.append((self._gen(self.seed, self.unit, f"{p}.flicker", a, b), wf[:, c, :]))
+            if wr is not None:
+                pairs.append((self._gen(self.seed, self.unit, f"{p}.rrw", a, b), wr[:, c]))
+        if fill is not None:
+            fill(pairs, base)
+        else:
+            for g, view in pairs:
+                view[...] = g.standard_normal(view.shape)
         return wf, wr
 
     def block(self, state: tuple[np.ndarray, np.ndarray], b: int, m: int,

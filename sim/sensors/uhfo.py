@@ -136,13 +136,20 @@ class Uhfo:
                                                       0).standard_normal()
                          for c, a in enumerate(self.axes)])
 
-    def draws(self, seed: int, unit: int, b: int, m: int) -> tuple[np.ndarray, np.ndarray]:
-        """Standard-normal drives of block ``b``: wander (C, m) and read-out (C, m)."""
-        w = np.stack([generator(seed, unit, "uhfo.wander", a, b).standard_normal(m)
-                      for a in self.axes])
-        e = np.stack([generator(seed, unit, "uhfo.readout", a, b).standard_normal(m)
-                      for a in self.axes])
-        return w, e
+    def draws(self, seed: int, unit: int, b: int, m: int, fill: Any = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Standard-normal drives of block ``b``: wander (C, m) and read-out (C, m); ``fill``
+        as :meth:`rlgsim.sim.sensors.noise.SlowNoise.draws`' (one compiled call)."""
+        base = np.empty((2, len(self.axes), m))
+        pairs = [(generator(seed, unit, purpose, a, b), base[i, c])
+                 for i, purpose in enumerate(("uhfo.wander", "uhfo.readout"))
+                 for c, a in enumerate(self.axes)]
+        if fill is not None:
+            fill(pairs, base)
+        else:
+            for g, row in pairs:
+                row[...] = g.standard_normal(m)
+        return base[0], base[1]
 
     def block(self, state: np.ndarray, seed: int, unit: int, b: int, nodes_c: np.ndarray,
               start_c: np.ndarray, dt: float, power: np.ndarray,
