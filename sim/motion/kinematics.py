@@ -43,6 +43,7 @@ vehicle's kinematics too (trajectory.py).
 
 from __future__ import annotations
 
+import bisect
 import sys
 from dataclasses import dataclass
 from functools import cached_property
@@ -282,6 +283,9 @@ class Motion:
                                      c[1], c[2]], axis=1)
                       for key, c in self._coef.items()}
         self._sorted = bool(np.all(self._t0[1:] >= self._t0[:-1]))
+        #: the starts as floats, for the searches of one or two times (bisect holds the GIL;
+        #: numpy's searchsorted releases and retakes it, a hand-off to the other threads)
+        self._t0_list = self._t0.tolist()
         self._m = m
 
     @property
@@ -306,9 +310,10 @@ class Motion:
 
     def _locate(self, t: np.ndarray, side: str) -> np.ndarray:
         """``np.searchsorted(self._t0, t, side)``, in O(n + m log n) for sorted 1-D ``t``."""
-        if t.ndim != 1 or t.size < 64 or np.any(t[1:] < t[:-1]):
+        if t.ndim != 1 or t.size < 64 or not self._sorted or np.any(t[1:] < t[:-1]):
             return np.searchsorted(self._t0, t, side=side)
-        lo, hi = np.searchsorted(self._t0, [t[0], t[-1]], side=side)
+        find = bisect.bisect_left if side == "left" else bisect.bisect_right
+        lo, hi = find(self._t0_list, t[0]), find(self._t0_list, t[-1])
         if lo == hi:
             return np.full(t.size, lo, dtype=np.intp)
         # each start t0_k (lo <= k < hi) adds one from the first t it precedes onwards
@@ -438,8 +443,8 @@ class Motion:
         starts are sorted, as a timeline's are)."""
         if not self._sorted:
             return self._t0[(self._t0 > lo) & (self._t0 < hi)]
-        i = int(np.searchsorted(self._t0, lo, side="right"))
-        k = int(np.searchsorted(self._t0, hi, side="left"))
+        i = bisect.bisect_right(self._t0_list, lo)      # np.searchsorted's, without
+        k = bisect.bisect_left(self._t0_list, hi)       # releasing the GIL
         return self._t0[i:k]
 
     @staticmethod

@@ -52,6 +52,7 @@ whose parts share the carried state and the prefetch queue; the model and realis
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections import deque
@@ -541,6 +542,15 @@ def _compiled_views():
     return fill_views if available() else None
 
 
+@functools.lru_cache(maxsize=8)
+def _counts(n: int) -> np.ndarray:
+    """``np.arange(n)`` (int64), made once per length and read-only (numpy's ``arange``
+    releases the GIL for every call however short: a hand-off to the other threads)."""
+    out = np.arange(n, dtype=np.int64)
+    out.flags.writeable = False
+    return out
+
+
 def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | int
                 ) -> list[tuple[int, int]] | None:
     """The runs of steps ``(lo, hi)`` whose ``idx`` samples all lie in one of the
@@ -600,6 +610,6 @@ def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int,
 def _last_sample_of_step(idx: np.ndarray | int, m: int, n: int) -> np.ndarray:
     """Index of the last sample whose mid-point lies in each step (the step's end sample)."""
     if isinstance(idx, int):
-        return np.arange(1, m + 1) * idx - 1
+        return _counts(m + 1)[1:] * idx - 1      # arange(1, m + 1): no GIL hand-off
     last = np.searchsorted(idx, np.arange(m), side="right") - 1
     return np.clip(last, 0, n - 1)

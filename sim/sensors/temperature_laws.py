@@ -220,6 +220,18 @@ def resolve_node(name: str, block: str, node_names: Sequence[str]) -> int:
     raise KeyError(cands[0])
 
 
+def _as_slice(index: np.ndarray) -> np.ndarray | slice:
+    """Node columns ``index`` as a slice when they are evenly spaced (each component's node in
+    its own block of the network: a gyro triad's), else the array. ``nodes_c[:, slice]`` is a
+    view of the same numbers, where an index array made a copy in a call that released and
+    retook the GIL (eight laws, several columns each, every block)."""
+    if index.size and index.min() >= 0:
+        step = int(index[1] - index[0]) if index.size > 1 else 1
+        if step > 0 and np.array_equal(index, np.arange(index.size) * step + index[0]):
+            return slice(int(index[0]), int(index[-1]) + 1, step)
+    return index
+
+
 @dataclass
 class Law:
     """A realised law: coefficient arrays (n,) in the preset unit, evaluated in SI."""
@@ -227,7 +239,7 @@ class Law:
     spec: LawSpec
     coef: dict[str, np.ndarray]
     gradients: tuple[Gradient, ...]
-    _idx: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    _idx: dict[str, np.ndarray | slice] = field(default_factory=dict, repr=False)
     _terms: dict[str, bool] = field(default_factory=dict, repr=False, compare=False)
     _langmuir: np.ndarray | None = field(default=None, repr=False, compare=False)
     _gradient_idx: tuple = field(default=(), repr=False, compare=False)
@@ -240,8 +252,8 @@ class Law:
 
         Raises KeyError (with the node name) for a node not in the network.
         """
-        def idx(name: str) -> np.ndarray:
-            return np.array([resolve_node(name, blk, node_names) for blk in blocks])
+        def idx(name: str) -> np.ndarray | slice:
+            return _as_slice(np.array([resolve_node(name, blk, node_names) for blk in blocks]))
         c = self.coef
         self._idx = {"T": idx(self.spec.node)}
         for i, g in enumerate(self.gradients):
