@@ -83,6 +83,11 @@ class DirectChunks:
         boundary; the dataset already extends over them); ``reused``: the caller changes
         ``data`` afterwards (its staging buffer), so an unfiltered dataset's mirror keeps a
         copy (else the array itself: rows handed to the writer do not change)."""
+        if self.calls is None:
+            self.calls = _chunk_address() if self.compiled else 0
+        if self.codec is not None and not self.capacity and self.calls:
+            self._encode_and_write(data, row)     # the simulator's pulses: one compiled call
+            return
         if self.codec is None:                    # unfiltered: the chunks' own bytes
             buf = np.ascontiguousarray(data, dtype=self.ds.dtype).reshape(-1).view(np.uint8)
             ends = np.arange(0, buf.size + 1, self.chunk_bytes)
@@ -92,21 +97,14 @@ class DirectChunks:
             buf, ends = encode(self.codec, data, compiled=self.compiled)
             if self.capacity:
                 buf = buf[:ends[-1]].copy()       # what the mirror holds: the encoded bytes
-        first = 0
-        if not self.started:
-            # HDF5 creates the chunk index at the dataset's first write
-            write_rows(self.ds, np.ascontiguousarray(data[:self.rows]), row)
-            self.started = True
-            first = 1
-            if self.capacity:
-                self._insert(row, buf[ends[0]:ends[1]])
+        first = self._start(data, row)
+        if first and self.capacity:
+            self._insert(row, buf[ends[0]:ends[1]])
         if not self.capacity:
             # no cache (the simulator's files): the mirror holds nothing (pending stays empty)
             # and each chunk goes to the file as it comes, in order, as HDF5 writes it with no
             # cache — no per-chunk bookkeeping (~3 µs of the writer thread's Python each;
             # paper000_ramp writes ~21 000), from compiled code without the GIL when it can
-            if self.calls is None:
-                self.calls = _chunk_address() if self.compiled else 0
             if self.calls and first < len(ends) - 1:
                 self._write_compiled(self.calls, buf, ends, row, first)
                 return
@@ -119,6 +117,36 @@ class DirectChunks:
         for j in range(first, len(ends) - 1):
             self._insert(row + j * self.rows, buf[ends[j]:ends[j + 1]])
 
+    def _start(self, data: np.ndarray, row: int) -> int:
+        """The dataset's first write, once: its first chunk through HDF5 (which creates the
+        chunk index then). Returns the chunks of ``data`` it wrote (1 or 0)."""
+        if self.started:
+            return 0
+        write_rows(self.ds, np.ascontiguousarray(data[:self.rows]), row)
+        self.started = True
+        return 1
+
+    def _encode_and_write(self, data: np.ndarray, row: int) -> None:
+        """Whole chunks ``data`` of a scale-offset dataset without a chunk cache, encoded and
+        written in one compiled call (:func:`rlgsim.sim.writer._chunk_calls.encode_and_write`;
+        h5py's lock held), after the dataset's first write (:meth:`_start`): the HDF5 calls
+        and their order of the path through :meth:`_write_compiled`."""
+        from rlgsim.sim.writer._chunk_calls import encode_and_write
+        from rlgsim.sim.writer._scaleoffset import encode_args
+        args = encode_args(self.codec, data)
+        first = self._start(data, row)
+        with h5py._objects.phil:
+            failed = encode_and_write(*args, self.calls, self.ds.id.id, row, self.rows,
+                                      len(self.tail) + 1, first)
+        self._check(failed, row)
+
+    def _check(self, failed: int, row: int) -> None:
+        """RuntimeError naming the dataset and row of the chunk HDF5 refused (``failed`` ≥ 0)."""
+        if failed >= 0:
+            name = h5py.h5i.get_name(self.ds.id).decode("utf-8", "replace")
+            raise RuntimeError(f"HDF5 refused to write the chunk at row "
+                               f"{row + failed * self.rows} of dataset {name}")
+
     def _write_compiled(self, fn: int, buf: np.ndarray, ends: np.ndarray, row: int,
                         first: int) -> None:
         """Chunks ``first`` … of ``buf`` (``ends``) from row ``row`` through
@@ -129,10 +157,7 @@ class DirectChunks:
             failed = write_chunks(fn, self.ds.id.id, row, self.rows, len(self.tail) + 1,
                                   np.ascontiguousarray(buf, dtype=np.uint8),
                                   np.asarray(ends, dtype=np.int64), first)
-        if failed >= 0:
-            name = h5py.h5i.get_name(self.ds.id).decode("utf-8", "replace")
-            raise RuntimeError(f"HDF5 refused to write the chunk at row "
-                               f"{row + failed * self.rows} of dataset {name}")
+        self._check(failed, row)
 
     def make_room(self) -> None:
         """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk

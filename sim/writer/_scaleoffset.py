@@ -88,20 +88,33 @@ def encode(codec: Codec, chunks: np.ndarray, *, compiled: bool = True
     dataset's dtype) as HDF5's filter would: returns ``(buf, ends)``, chunk j's stored bytes
     ``buf[ends[j]:ends[j + 1]]``. ``compiled``: the numba loop
     (:func:`rlgsim.sim.writer._scaleoffset_kernel.encode_chunks`); False: :func:`_encode_numpy`."""
+    if compiled:
+        from rlgsim.sim.writer._scaleoffset_kernel import encode_chunks
+        args = encode_args(codec, chunks)
+        encode_chunks(*args)
+        return args[-2], args[-1]
     n = codec.chunk_elements
     values = np.ascontiguousarray(chunks, dtype=codec.dtype).reshape(-1, n)
     k = values.shape[0]
     raw = values.view(np.uint8).reshape(k, n * codec.dtype.itemsize)
     ends = np.empty(k + 1, dtype=np.int64)
-    size = k * (n * codec.dtype.itemsize + HEADER + 1)
-    if compiled:
-        from rlgsim.sim.writer._scaleoffset_kernel import SLACK, encode_chunks
-        out = np.empty(size + SLACK, dtype=np.uint8)
-        encode_chunks(values, raw, *_scalars(codec), out, ends)
-    else:
-        out = np.empty(size, dtype=np.uint8)
-        _encode_numpy(values, raw, codec.fill, out, ends)
+    out = np.empty(k * (n * codec.dtype.itemsize + HEADER + 1), dtype=np.uint8)
+    _encode_numpy(values, raw, codec.fill, out, ends)
     return out, ends
+
+
+def encode_args(codec: Codec, chunks: np.ndarray) -> tuple:
+    """The arguments of :func:`rlgsim.sim.writer._scaleoffset_kernel.encode_chunks` for
+    ``chunks`` (as :func:`encode` takes them): ``(values, raw, fill, top, bottom, out, ends)``,
+    ``out`` and ``ends`` new and still to be filled."""
+    from rlgsim.sim.writer._scaleoffset_kernel import SLACK
+    n = codec.chunk_elements
+    values = np.ascontiguousarray(chunks, dtype=codec.dtype).reshape(-1, n)
+    k = values.shape[0]
+    raw = values.view(np.uint8).reshape(k, n * codec.dtype.itemsize)
+    ends = np.empty(k + 1, dtype=np.int64)
+    out = np.empty(k * (n * codec.dtype.itemsize + HEADER + 1) + SLACK, dtype=np.uint8)
+    return (values, raw, *_scalars(codec), out, ends)
 
 
 @functools.lru_cache(maxsize=None)
