@@ -50,10 +50,11 @@ __all__ = ["BLOCK_S", "STAGES", "default_output", "simulate"]
 class _Appender:
     """Appends each block's rows to the dataset in a writer thread, in block order.
 
-    The pulses' packing and the chunk writes (HDF5's ``H5Dwrite_chunk`` and its ``pwrite``)
-    run in compiled code without the GIL (sim/writer/_scaleoffset_kernel.py,
-    sim/writer/_chunk_calls.py), so the writes of block ``b`` overlap the arithmetic of block
-    ``b + 1`` on another core; the appends' staging and h5py's other calls hold it. The thread makes
+    The pulses' packing and, where h5py's wheel carries its own HDF5, the chunk writes (HDF5's
+    ``H5Dwrite_chunk`` and its ``pwrite``) run in compiled code without the GIL
+    (sim/writer/_scaleoffset_kernel.py, sim/writer/_chunk_calls.py), so the writes of block
+    ``b`` overlap the arithmetic of block ``b + 1`` on another core; the appends' staging and
+    h5py's other calls hold it. The thread makes
     exactly the calls the main thread would make, in the same order — one
     :meth:`GroupWriter.append` per block, group and dimension, in the order the stages
     produced them — so the file does not depend on the thread, nor on ``chunk_s``, which only

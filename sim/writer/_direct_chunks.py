@@ -50,9 +50,9 @@ class DirectChunks:
         self.chunk_bytes = _chunk_bytes(ds)
         self.capacity = capacity              # bytes of unfiltered chunks; 0: no cache
         self.compiled = compiled
-        #: ``H5Dwrite_chunk``'s address for the compiled calls (:mod:`rlgsim.sim.writer._chunk_calls`);
-        #: 0: h5py's call; None: not looked up yet
-        self.calls: int | None = None
+        #: chunks written by the compiled calls (:mod:`rlgsim.sim.writer._chunk_calls`), else by
+        #: h5py's; decided at the first write
+        self.calls: bool | None = None
         #: chunks the cache holds: (n + 1)·chunk_bytes > capacity ⇔ n ≥ capacity // chunk_bytes
         self.entries = capacity // self.chunk_bytes
         self.pending: deque[tuple[int, np.ndarray]] = deque()   # (first row, encoded bytes)
@@ -84,7 +84,7 @@ class DirectChunks:
         ``data`` afterwards (its staging buffer), so an unfiltered dataset's mirror keeps a
         copy (else the array itself: rows handed to the writer do not change)."""
         if self.calls is None:
-            self.calls = _chunk_address() if self.compiled else 0
+            self.calls = self.compiled and _compiled_calls()
         if self.codec is not None and not self.capacity and self.calls:
             self._encode_and_write(data, row)     # the simulator's pulses: one compiled call
             return
@@ -106,7 +106,7 @@ class DirectChunks:
             # cache — no per-chunk bookkeeping (~3 µs of the writer thread's Python each;
             # paper000_ramp writes ~21 000), from compiled code without the GIL when it can
             if self.calls and first < len(ends) - 1:
-                self._write_compiled(self.calls, buf, ends, row, first)
+                self._write_compiled(buf, ends, row, first)
                 return
             ends = ends.tolist()
             write_chunk, tail, rows = self.ds.id.write_direct_chunk, self.tail, self.rows
@@ -136,8 +136,8 @@ class DirectChunks:
         args = encode_args(self.codec, data)
         first = self._start(data, row)
         with h5py._objects.phil:
-            failed = encode_and_write(*args, self.calls, self.ds.id.id, row, self.rows,
-                                      len(self.tail) + 1, first)
+            failed = encode_and_write(*args, self.ds.id.id, row, self.rows, len(self.tail) + 1,
+                                      first)
         self._check(failed, row)
 
     def _check(self, failed: int, row: int) -> None:
@@ -147,14 +147,13 @@ class DirectChunks:
             raise RuntimeError(f"HDF5 refused to write the chunk at row "
                                f"{row + failed * self.rows} of dataset {name}")
 
-    def _write_compiled(self, fn: int, buf: np.ndarray, ends: np.ndarray, row: int,
-                        first: int) -> None:
+    def _write_compiled(self, buf: np.ndarray, ends: np.ndarray, row: int, first: int) -> None:
         """Chunks ``first`` … of ``buf`` (``ends``) from row ``row`` through
         :func:`rlgsim.sim.writer._chunk_calls.write_chunks` (h5py's lock held: no other thread
         enters HDF5 while the loop runs without the GIL)."""
         from rlgsim.sim.writer._chunk_calls import write_chunks
         with h5py._objects.phil:
-            failed = write_chunks(fn, self.ds.id.id, row, self.rows, len(self.tail) + 1,
+            failed = write_chunks(self.ds.id.id, row, self.rows, len(self.tail) + 1,
                                   np.ascontiguousarray(buf, dtype=np.uint8),
                                   np.asarray(ends, dtype=np.int64), first)
         self._check(failed, row)
@@ -181,11 +180,10 @@ class DirectChunks:
         self.pending.append((row, chunk))
 
 
-def _chunk_address() -> int:
-    """:func:`rlgsim.sim.writer._chunk_calls.address` (loaded with the compiled packer), 0 for
-    None."""
-    from rlgsim.sim.writer._chunk_calls import address
-    return address() or 0
+def _compiled_calls() -> bool:
+    """:func:`rlgsim.sim.writer._chunk_calls.available` (imported with the compiled packer)."""
+    from rlgsim.sim.writer._chunk_calls import available
+    return available()
 
 
 def _chunk_bytes(ds: h5py.Dataset) -> int:
