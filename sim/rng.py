@@ -70,6 +70,33 @@ def generator(seed: int, unit: int = 0, purpose: str = "", channel: str | int = 
                                                        (seed, unit, p, c, block))))
 
 
+def seed_words(seed: int, unit: int = 0, purpose: str | int = "", channel: str | int = "",
+               block: int = 0) -> np.ndarray:
+    """``seed_sequence(seed, unit, purpose, channel, block).generate_state(4, np.uint64)``: the
+    words :func:`generator`'s PCG64 seeds itself from, (4,) uint64 (a compiled draw that seeds
+    its own PCG64 needs no generator object: rlgsim.sim.sensors._normal_kernel.fill_streams).
+    ``purpose``/``channel`` may be given as their 32-bit words already (:func:`word`)."""
+    seed, unit, block = int(seed), int(unit), int(block)
+    if seed < 0 or not 0 <= unit <= _MASK or not 0 <= block <= _MASK:
+        return seed_sequence(seed, unit, purpose, channel, block).generate_state(4, np.uint64)
+    return _block_words(seed, unit, _word(purpose), _word(channel), block // _CHUNK)[block % _CHUNK]
+
+
+def block_seed_words(seed: int, unit: int, keys: "list[tuple[int, int]]", block: int
+                     ) -> np.ndarray:
+    """:func:`seed_words` (K, 4) uint64 of block ``block``'s streams ``keys`` — (purpose,
+    channel) pairs, names or their words."""
+    out = np.empty((len(keys), 4), dtype=np.uint64)
+    for k, (purpose, channel) in enumerate(keys):
+        out[k] = seed_words(seed, unit, purpose, channel, block)
+    return out
+
+
+def word(name: str | int) -> int:
+    """The 32-bit key of a purpose or channel name in the tree (what :func:`generator` hashes)."""
+    return _word(name)
+
+
 class _Seeded(ISpawnableSeedSequence):
     """A leaf's SeedSequence as PCG64 uses it: ``generate_state(4, np.uint64)`` precomputed
     (:func:`_block_words`); anything else — other state sizes, ``spawn``, ``entropy``,

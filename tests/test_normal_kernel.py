@@ -1,6 +1,6 @@
 """The compiled float32 normals (sim/sensors/_normal_kernel.py) are numpy's
-``Generator.standard_normal(n, dtype=np.float32)``, and its float64 ones (``fill_views``: the
-IMU's slow-noise and UHFO drives) numpy's ``standard_normal(shape)``, bit for bit. The float32 ones: on the simulator's own
+``Generator.standard_normal(n, dtype=np.float32)``, and its float64 ones (the
+IMU's slow-noise and UHFO drives, ``fill_streams``) numpy's ``standard_normal(shape)``, bit for bit. The float32 ones: on the simulator's own
 streams (the seed tree's white-noise leaves), for any channel count and length, leaving each
 generator in numpy's state, with the ziggurat's rare branches reached — the tail (|z| beyond
 the last strip, r ≈ 3.654) thousands of times and the wedges about 0.7 % of all draws (the
@@ -112,7 +112,8 @@ def _drive_simulator(compiled: bool):
 @pytest.mark.parametrize("m", [0, 1, 7, 600])
 def test_the_slow_noise_and_uhfo_drives_are_numpys_float64_draws(m):
     """The IMU's per-block drives (flicker bank, random walk, UHFO wander and read-out: one
-    :func:`fill_views` call each) against numpy's own draws, over blocks of the same tree."""
+    :func:`fill_streams` call each, PCG64 seeded in the kernel) against numpy's own draws from
+    the tree's generators, over blocks of the same tree (64 blocks share a seed table)."""
     ours, theirs = _drive_simulator(True), _drive_simulator(False)
     assert ours.r.uhfo is not None and ours.slow.has_flicker and ours.slow.has_walk
     tails = 0
@@ -128,17 +129,18 @@ def test_the_slow_noise_and_uhfo_drives_are_numpys_float64_draws(m):
         assert tails > 20
 
 
-def test_fill_views_refuses_what_it_cannot_draw():
+def test_fill_streams_refuses_what_it_cannot_draw():
     base = np.zeros((4, 5))
-    g, h = np.random.default_rng(1), np.random.default_rng(2)
-    with pytest.raises(ValueError, match="its own generator"):
-        _normal_kernel.fill_views([(g, base[0]), (g, base[1])], base)
+    words = np.zeros((1, 4), dtype=np.uint64)
     with pytest.raises(ValueError, match="float64 array"):
-        _normal_kernel.fill_views([(g, base[0])], base[:, ::2])
-    with pytest.raises(ValueError, match="views of base"):
-        _normal_kernel.fill_views([(np.random.Generator(np.random.Philox(1)), base[0])], base)
-    with pytest.raises(ValueError, match="inside base"):
-        _normal_kernel.fill_views([(h, np.zeros(5)[:3])], base)
+        _normal_kernel.fill_streams(words, base[:, ::2], np.zeros((1, 5), dtype=np.int64))
+    with pytest.raises(ValueError, match="words must be"):
+        _normal_kernel.fill_streams(words, base, np.zeros((2, 5), dtype=np.int64))
+    for view in [(0, 1, 0, 21, 1), (-1, 1, 0, 2, 1), (19, 2, 1, 1, 1), (5, 2, 5, 3, -3)]:
+        with pytest.raises(ValueError, match="inside base"):
+            _normal_kernel.fill_streams(words, base, np.array([view], dtype=np.int64))
+    _normal_kernel.fill_streams(words, base, np.array([(7, 0, 5, 3, 1)], dtype=np.int64))
+    assert not base.any()                   # an empty view draws nothing
 
 
 def test_the_float64_draw_has_no_fused_multiply_add():
@@ -147,7 +149,7 @@ def test_the_float64_draw_has_no_fused_multiply_add():
     import re
 
     from numba_asm import FMA, compiled_asm
-    base = np.zeros(4)
-    _normal_kernel.fill_views([(np.random.default_rng(1), base[:2])], base)
-    kernel = _normal_kernel._fill_views
+    _normal_kernel.fill_streams(np.zeros((1, 4), dtype=np.uint64), np.zeros(4),
+                                np.array([(0, 1, 0, 2, 1)], dtype=np.int64))
+    kernel = _normal_kernel._fill_seeded
     assert not re.search(FMA, compiled_asm(kernel, kernel.signatures[0]))

@@ -65,3 +65,19 @@ def test_a_leaf_generator_spawns_and_reports_its_key_as_numpy_does():
     assert (sg.entropy, sg.spawn_key, sg.pool_size) == (sr.entropy, sr.spawn_key, sr.pool_size)
     assert sg.generate_state(8).tobytes() == sr.generate_state(8).tobytes()
     assert g.standard_normal(6).tobytes() == r.standard_normal(6).tobytes()
+
+
+def test_seed_words_are_the_words_a_generator_seeds_from():
+    """What the compiled float64 draw seeds its own PCG64 from: generate_state(4, uint64) of
+    the leaf's SeedSequence, in and out of the fast path's range (a negative seed, a block
+    beyond 32 bits)."""
+    from rlgsim.sim.rng import block_seed_words, seed_sequence, seed_words, word
+    for key in [(7, 2, "gyro.rrw", "x", 0), (7, 2, "uhfo.wander", "z", 64 * 5 + 3),
+                (2**40 + 1, 0, "accel.flicker", 1, 2**32 + 5)]:
+        want = seed_sequence(*key).generate_state(4, np.uint64)
+        assert seed_words(*key).tobytes() == want.tobytes()
+        assert seed_words(key[0], key[1], word(key[2]), word(key[3]), key[4]).tobytes() \
+            == want.tobytes()
+    rows = block_seed_words(3, 1, [("a", "x"), (word("b"), word("y"))], 9)
+    assert rows.tobytes() == np.stack([seed_words(3, 1, "a", "x", 9),
+                                       seed_words(3, 1, "b", "y", 9)]).tobytes()

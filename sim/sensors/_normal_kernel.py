@@ -1,6 +1,6 @@
 """Compiled standard normals (numba, ``nogil``): ``Generator.standard_normal(n,
 dtype=np.float32, out=row)`` for each of a triad's PCG64 generators in one call — numpy's
-numbers bit for bit, in ~55 % of numpy's time — and float64 ones (:func:`fill_views`).
+numbers bit for bit, in ~55 % of numpy's time — and float64 ones (:func:`fill_streams`).
 
 Why hand-written: the white-noise normals are the largest single cost of a simulation (six
 float32 normals per epoch: ~2 s of CPU in paper000's 43 million epochs, about half the run).
@@ -45,12 +45,16 @@ draw unless it passes (a guard against other tables, another libm, another numba
 tests/test_normal_kernel.py compares the two over ~29 million draws of the simulator's own
 streams.
 
-:func:`fill_views` draws float64 normals the same way — NumPy's ``random_standard_normal``: 64
+:func:`fill_streams` draws float64 normals the same way — NumPy's ``random_standard_normal``: 64
 bits a try (index = the low 8 bits, then a sign bit and a 52-bit ``rabs``), the double tables,
-``next_double`` = (64 bits >> 11)·2⁻⁵³ — for the IMU's slow-noise and UHFO drives (~43 000 a
-600 s block at a 1 s step, 18 generators): one call a block instead of numpy's call and copy
-per generator, each of which released and took back the GIL while the simulator's other
-threads wanted it (paper000 at 100 Hz: the worker's drives 0.35 -> 0.25 s CPU, in one thread).
+``next_double`` = (64 bits >> 11)·2⁻⁵³ — from PCG64s it seeds itself from their
+``generate_state(4, uint64)`` words (numpy's ``pcg64_set_seed``), for the IMU's slow-noise and
+UHFO drives (18 streams a block, J·m per flicker channel and m per other: 8 640 draws for
+paper000_ramp's 120 steps): one call a block, no generator object, instead of a generator,
+numpy's call and a copy per stream — each of which released and took back the GIL while the
+simulator's other threads wanted it (36 hand-off chances a block -> 2). paper000_ramp's drives
+in one thread, medians of 6: 0.10 s a run with numpy -> 0.065 s (a first version that read the
+states of numpy generators took 0.14 s: the per-generator Python outweighed the draws).
 The self-check covers it too.
 """
 
@@ -196,12 +200,31 @@ def _standard_normal_d(st):                                   # pragma: no cover
             return x
 
 
+@njit(inline="always")
+def _seed(st, w):                                             # pragma: no cover (compiled)
+    """numpy's ``PCG64`` seeded with the words ``w`` (4,) of ``generate_state(4, uint64)``:
+    pcg64_set_seed — inc = (w₂w₃ << 1) | 1, state 0, a step, state += w₀w₁, a step — and no
+    32-bit half kept."""
+    st[_STATE_HI] = _U0
+    st[_STATE_LO] = _U0
+    st[_INC_HI] = (w[2] << _U1) | (w[3] >> _U63)
+    st[_INC_LO] = (w[3] << _U1) | _U1
+    _next64(st)
+    lo = st[_STATE_LO] + w[1]
+    st[_STATE_HI] = st[_STATE_HI] + w[0] + (_U1 if lo < w[1] else _U0)
+    st[_STATE_LO] = lo
+    _next64(st)
+    st[_HAS_UINT32] = _U0
+    st[_UINTEGER] = _U0
+
+
 @njit(nogil=True, cache=True)
-def _fill_views(states, base, views):                         # pragma: no cover (compiled)
-    """For each generator ``k``: ``views[k]`` = (offset, n0, s0, n1, s1) in elements of
-    ``base``; its n0·n1 draws go, in C order, to base[offset + i·s0 + j·s1]."""
+def _fill_seeded(words, base, views):                         # pragma: no cover (compiled)
+    """For each stream ``k``: a PCG64 seeded with ``words[k]`` draws n0·n1 float64 normals
+    into ``base[off + i·s0 + j·s1]`` in C order, ``views[k]`` = (off, n0, s0, n1, s1)."""
+    st = np.empty(6, dtype=np.uint64)
     for k in range(views.shape[0]):
-        st = states[k]
+        _seed(st, words[k])
         off, n0, s0, n1, s1 = views[k, 0], views[k, 1], views[k, 2], views[k, 3], views[k, 4]
         for i in range(n0):
             at = off + i * s0
@@ -280,34 +303,27 @@ def fill(generators: Sequence[np.random.Generator], out: np.ndarray, *,
         _write_back(ours, states)
 
 
-def fill_views(pairs: Sequence[tuple[np.random.Generator, np.ndarray]], base: np.ndarray
-               ) -> None:
-    """``view[...] = g.standard_normal(view.shape)`` for every ``(g, view)`` of ``pairs`` in
-    one compiled call (the GIL released once): each ``view`` a 1-D or 2-D float64 view of
-    ``base`` (C-contiguous float64; the views' elements apart), each ``g`` its own fresh PCG64
-    generator (not advanced: the simulator discards its per-block generators). Raises
-    ValueError otherwise."""
+def fill_streams(words: np.ndarray, base: np.ndarray, views: np.ndarray) -> None:
+    """``Generator(PCG64(seq)).standard_normal((n0, n1))`` into a strided view of ``base`` for
+    each stream, in one compiled call (the GIL released once), for sequences ``seq`` whose
+    ``generate_state(4, np.uint64)`` are the rows of ``words`` (K, 4) uint64
+    (:func:`rlgsim.sim.rng.seed_words`): no generator object is made. ``base`` a writeable
+    C-contiguous float64 array; ``views`` (K, 5) int64 rows (offset, n0, s0, n1, s1) in
+    elements of ``base`` — stream k's draw (i, j) goes to ``base.flat[offset + i·s0 + j·s1]``
+    (the views apart). Raises ValueError for a view outside ``base``."""
     if base.dtype != np.float64 or not base.flags.c_contiguous or not base.flags.writeable:
         raise ValueError("base must be a writeable C-contiguous float64 array")
-    if len({id(g) for g, _ in pairs}) != len(pairs):
-        raise ValueError("each view needs its own generator")
-    flat = base.reshape(-1)
-    start = flat.__array_interface__["data"][0]
-    views = np.zeros((len(pairs), 5), dtype=np.int64)
-    for k, (g, v) in enumerate(pairs):
-        if (type(g.bit_generator) is not np.random.PCG64 or v.dtype != np.float64
-                or v.ndim not in (1, 2) or v.base is None):
-            raise ValueError("need PCG64 generators and 1-D or 2-D float64 views of base")
-        shape = (1, *v.shape) if v.ndim == 1 else v.shape
-        strides = (0, *v.strides) if v.ndim == 1 else v.strides
-        off = v.__array_interface__["data"][0] - start
-        if off % 8 or any(s % 8 for s in strides):
-            raise ValueError("views must be aligned on base's elements")
-        views[k] = (off // 8, shape[0], strides[0] // 8, shape[1], strides[1] // 8)
-        last = views[k, 0] + (shape[0] - 1) * views[k, 2] + (shape[1] - 1) * views[k, 4]
-        if v.size and not (0 <= views[k, 0] < flat.size and 0 <= last < flat.size):
-            raise ValueError("views must lie inside base")
-    _fill_views(_states([g for g, _ in pairs]), flat, views)
+    if (words.dtype != np.uint64 or views.dtype != np.int64 or words.ndim != 2
+            or words.shape[1] != 4 or views.shape != (words.shape[0], 5)
+            or not (words.flags.c_contiguous and views.flags.c_contiguous)):
+        raise ValueError("words must be (K, 4) uint64 and views (K, 5) int64, C-contiguous")
+    reach = (views[:, [1, 3]] - 1) * views[:, [2, 4]]           # (n0 − 1)·s0, (n1 − 1)·s1
+    lo = views[:, 0] + np.minimum(reach, 0).sum(axis=1)
+    hi = views[:, 0] + np.maximum(reach, 0).sum(axis=1)
+    empty = (views[:, 1] <= 0) | (views[:, 3] <= 0)
+    if np.any(~empty & ((lo < 0) | (hi >= base.size))):
+        raise ValueError("views must lie inside base")
+    _fill_seeded(words, base.reshape(-1), views)
 
 
 _state: dict[str, bool] = {}
@@ -334,15 +350,16 @@ def _self_check() -> bool:
 
 
 def _self_check_views() -> bool:
-    """:func:`fill_views` against numpy: 2¹⁶ and 2¹⁷ float64 draws of two fixed generators into
-    a strided 1-D view and a transposed 2-D view of one base (~1 400 wedge tests, ~50 tail
-    draws)."""
+    """:func:`fill_streams` against numpy: 2¹⁶ and 2¹⁷ float64 draws of two fixed seed
+    sequences into a strided 1-D and a transposed 2-D view of one base (~1 400 wedge tests,
+    ~50 tail draws)."""
     n = 1 << 16
     base, want = np.zeros((n, 3)), np.zeros((n, 3))
-    fill_views([(np.random.default_rng(5), base[:, 0]),
-                (np.random.default_rng(6), base[:, 1:].T)], base)
-    want[:, 0] = np.random.default_rng(5).standard_normal(n)
-    want[:, 1:].T[...] = np.random.default_rng(6).standard_normal((2, n))
+    seqs = [np.random.SeedSequence(5), np.random.SeedSequence(6)]
+    fill_streams(np.stack([q.generate_state(4, np.uint64) for q in seqs]), base,
+                 np.array([(0, 1, 0, n, 3), (1, 2, 1, n, 3)], dtype=np.int64))
+    want[:, 0] = np.random.Generator(np.random.PCG64(seqs[0])).standard_normal(n)
+    want[:, 1:].T[...] = np.random.Generator(np.random.PCG64(seqs[1])).standard_normal((2, n))
     return base.tobytes() == want.tobytes()
 
 

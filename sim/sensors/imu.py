@@ -533,13 +533,13 @@ def _compiled_normals():
 
 
 def _compiled_views():
-    """:func:`rlgsim.sim.sensors._normal_kernel.fill_views` when it gives numpy's draws in this
-    process (the module's self-check), else None."""
+    """:func:`rlgsim.sim.sensors._normal_kernel.fill_streams` when it gives numpy's draws in
+    this process (the module's self-check), else None."""
     try:
-        from rlgsim.sim.sensors._normal_kernel import available, fill_views
+        from rlgsim.sim.sensors._normal_kernel import available, fill_streams
     except ImportError:                         # pragma: no cover - numba is a dependency
         return None
-    return fill_views if available() else None
+    return fill_streams if available() else None
 
 
 @functools.lru_cache(maxsize=8)

@@ -286,25 +286,46 @@ class SlowNoise:
               ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """The standard-normal drives of block ``b`` (``m`` steps): flicker (J, C, m) and
         random walk (m, C), None when the term is off. Independent of any state, so they may be
-        drawn ahead (in another thread). ``fill`` (:func:`rlgsim.sim.sensors._normal_kernel.fill_views`)
-        draws them all in one compiled call — numpy's numbers; None: numpy's call per channel."""
+        drawn ahead (in another thread). ``fill``
+        (:func:`rlgsim.sim.sensors._normal_kernel.fill_streams`) draws them all in one compiled
+        call from the streams' seed words — numpy's numbers; None: numpy's call per channel."""
         j, n_ch = self.flicker.q.shape[0], len(self.axes)
         n_f = j * n_ch * m if self.has_flicker else 0
         base = np.empty(n_f + (m * n_ch if self.has_walk else 0))
         wf = base[:n_f].reshape(j, n_ch, m) if self.has_flicker else None
         wr = base[n_f:].reshape(m, n_ch) if self.has_walk else None
-        pairs = []
+        if fill is not None:
+            keys, views = self._streams(m)
+            from rlgsim.sim.rng import block_seed_words
+            fill(block_seed_words(self.seed, self.unit, keys, b), base, views)
+            return wf, wr
         for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
             if wf is not None:
-                pairs.append((self._gen(self.seed, self.unit, f"{p}.flicker", a, b), wf[:, c, :]))
+                g = self._gen(self.seed, self.unit, f"{p}.flicker", a, b)
+                wf[:, c, :] = g.standard_normal((j, m))
             if wr is not None:
-                pairs.append((self._gen(self.seed, self.unit, f"{p}.rrw", a, b), wr[:, c]))
-        if fill is not None:
-            fill(pairs, base)
-        else:
-            for g, view in pairs:
-                view[...] = g.standard_normal(view.shape)
+                wr[:, c] = self._gen(self.seed, self.unit, f"{p}.rrw", a, b).standard_normal(m)
         return wf, wr
+
+    def _streams(self, m: int) -> tuple[list[tuple[int, int]], np.ndarray]:
+        """The drives' streams of a block of ``m`` steps: their (purpose, channel) words and
+        where each one's draws go in :meth:`draws`' base array — (offset, n0, s0, n1, s1), the
+        layouts of ``wf[:, c, :]`` and ``wr[:, c]`` (kept per ``m``)."""
+        cache = self.__dict__.setdefault("_stream_cache", {})
+        if m not in cache:
+            from rlgsim.sim.rng import word
+            j, n_ch = self.flicker.q.shape[0], len(self.axes)
+            n_f = j * n_ch * m if self.has_flicker else 0
+            keys, views = [], []
+            for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
+                if self.has_flicker:
+                    keys.append((word(f"{p}.flicker"), word(a)))
+                    views.append((c * m, j, n_ch * m, m, 1))
+                if self.has_walk:
+                    keys.append((word(f"{p}.rrw"), word(a)))
+                    views.append((n_f + c, 1, 0, m, n_ch))
+            cache[m] = (keys, np.array(views, dtype=np.int64).reshape(-1, 5))
+        return cache[m]
 
     def block(self, state: tuple[np.ndarray, np.ndarray], b: int, m: int,
               draws: tuple[np.ndarray | None, np.ndarray | None] | None = None
@@ -330,3 +351,4 @@ class SlowNoise:
             x, ws = self.walk.block_from(ws, wr)
             out += x
         return out, (fs, ws)
+

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from rlgsim.sim.config import Ctx, check_known_keys, get_float
-from rlgsim.sim.rng import generator
+from rlgsim.sim.rng import block_seed_words, generator, word
 from rlgsim.sim.sensors.temperature_laws import Law, LawSpec
 
 #: Keys of ``[uhfo]`` besides the law keys.
@@ -140,15 +140,18 @@ class Uhfo:
               ) -> tuple[np.ndarray, np.ndarray]:
         """Standard-normal drives of block ``b``: wander (C, m) and read-out (C, m); ``fill``
         as :meth:`rlgsim.sim.sensors.noise.SlowNoise.draws`' (one compiled call)."""
-        base = np.empty((2, len(self.axes), m))
-        pairs = [(generator(seed, unit, purpose, a, b), base[i, c])
-                 for i, purpose in enumerate(("uhfo.wander", "uhfo.readout"))
-                 for c, a in enumerate(self.axes)]
+        n_ch = len(self.axes)
+        base = np.empty((2, n_ch, m))
         if fill is not None:
-            fill(pairs, base)
-        else:
-            for g, row in pairs:
-                row[...] = g.standard_normal(m)
+            keys = [(word(purpose), word(a)) for purpose in ("uhfo.wander", "uhfo.readout")
+                    for a in self.axes]
+            views = np.array([(k * m, 1, 0, m, 1) for k in range(2 * n_ch)],
+                             dtype=np.int64).reshape(-1, 5)
+            fill(block_seed_words(seed, unit, keys, b), base, views)
+            return base[0], base[1]
+        for i, purpose in enumerate(("uhfo.wander", "uhfo.readout")):
+            for c, a in enumerate(self.axes):
+                base[i, c] = generator(seed, unit, purpose, a, b).standard_normal(m)
         return base[0], base[1]
 
     def block(self, state: np.ndarray, seed: int, unit: int, b: int, nodes_c: np.ndarray,
