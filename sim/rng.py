@@ -43,8 +43,9 @@ BLOCK_S = 600.0
 _CHUNK = 64
 
 
-def _word(name: str | int) -> int:
-    """A stable 32-bit key for a purpose/channel name (crc32; Python's hash() is salted)."""
+def word(name: str | int) -> int:
+    """The 32-bit key of a purpose or channel name in the tree (crc32; Python's hash() is
+    salted); a number is its own key (its low 32 bits)."""
     if isinstance(name, (int, np.integer)):
         return int(name) & 0xFFFFFFFF
     return zlib.crc32(str(name).encode("utf-8"))
@@ -54,20 +55,15 @@ def seed_sequence(seed: int, unit: int = 0, purpose: str = "", channel: str | in
                   block: int = 0) -> np.random.SeedSequence:
     """The :class:`~numpy.random.SeedSequence` for one (seed, unit, purpose, channel, block)."""
     return np.random.SeedSequence(
-        entropy=int(seed), spawn_key=(int(unit), _word(purpose), _word(channel), int(block)))
+        entropy=int(seed), spawn_key=(int(unit), word(purpose), word(channel), int(block)))
 
 
 def generator(seed: int, unit: int = 0, purpose: str = "", channel: str | int = "",
               block: int = 0) -> np.random.Generator:
-    """A PCG64 generator for one leaf of the tree: ``Generator(PCG64(seed_sequence(...)))``."""
-    seed, unit, block = int(seed), int(unit), int(block)
-    if seed < 0 or not 0 <= unit <= _MASK or not 0 <= block <= _MASK:
-        return np.random.Generator(np.random.PCG64(
-            seed_sequence(seed, unit, purpose, channel, block)))
-    p, c = _word(purpose), _word(channel)
-    words = _block_words(seed, unit, p, c, block // _CHUNK)
-    return np.random.Generator(np.random.PCG64(_Seeded(words[block % _CHUNK],
-                                                       (seed, unit, p, c, block))))
+    """A PCG64 generator for one leaf of the tree: ``Generator(PCG64(seed_sequence(...)))``,
+    seeded from :func:`seed_words` (the same state, bit for bit)."""
+    key = (int(seed), int(unit), word(purpose), word(channel), int(block))
+    return np.random.Generator(np.random.PCG64(_Seeded(seed_words(*key), key)))
 
 
 def seed_words(seed: int, unit: int = 0, purpose: str | int = "", channel: str | int = "",
@@ -79,7 +75,7 @@ def seed_words(seed: int, unit: int = 0, purpose: str | int = "", channel: str |
     seed, unit, block = int(seed), int(unit), int(block)
     if seed < 0 or not 0 <= unit <= _MASK or not 0 <= block <= _MASK:
         return seed_sequence(seed, unit, purpose, channel, block).generate_state(4, np.uint64)
-    return _block_words(seed, unit, _word(purpose), _word(channel), block // _CHUNK)[block % _CHUNK]
+    return _block_words(seed, unit, word(purpose), word(channel), block // _CHUNK)[block % _CHUNK]
 
 
 def block_seed_words(seed: int, unit: int, keys: "list[tuple[int, int]]", block: int
@@ -90,11 +86,6 @@ def block_seed_words(seed: int, unit: int, keys: "list[tuple[int, int]]", block:
     for k, (purpose, channel) in enumerate(keys):
         out[k] = seed_words(seed, unit, purpose, channel, block)
     return out
-
-
-def word(name: str | int) -> int:
-    """The 32-bit key of a purpose or channel name in the tree (what :func:`generator` hashes)."""
-    return _word(name)
 
 
 class _Seeded(ISpawnableSeedSequence):
@@ -215,5 +206,7 @@ def _block_words(seed: int, unit: int, purpose: int, channel: int, chunk: int) -
         w = ((pool[i % _POOL] ^ c[i]) * c[i + 1]) & _MASK
         words.append(w ^ (w >> 16))
     # pairs of little-endian uint32 words are the uint64 words
-    return np.stack([words[2 * k] | (words[2 * k + 1] << np.uint64(32)) for k in range(_POOL)],
-                    axis=1)
+    out = np.stack([words[2 * k] | (words[2 * k + 1] << np.uint64(32)) for k in range(_POOL)],
+                   axis=1)
+    out.flags.writeable = False              # cached: a caller's write would reseed 64 blocks
+    return out

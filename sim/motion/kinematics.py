@@ -327,7 +327,8 @@ class Motion:
         segment ``j`` — the runs of ``clip(_locate(a, "right") − 1, 0, m − 1)``, found from
         the segment starts inside ``a`` (O(k log n)) instead of a per-sample index array."""
         n = a.size
-        lo, hi = (int(x) for x in np.searchsorted(self._t0, [a[0], a[-1]], side="right"))
+        lo = bisect.bisect_right(self._t0_list, a[0])     # np.searchsorted(side="right")'s,
+        hi = bisect.bisect_right(self._t0_list, a[-1])    # without releasing the GIL
         # sample i lies in segment (lo + number of starts t0_k, lo <= k < hi, with t0_k <= a_i) − 1
         first = np.searchsorted(a, self._t0[lo:hi], side="left").tolist()
         out: list[tuple[int, int, int]] = []

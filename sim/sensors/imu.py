@@ -543,9 +543,10 @@ def _compiled_views():
 
 
 @functools.lru_cache(maxsize=8)
-def _counts(n: int) -> np.ndarray:
-    """``np.arange(n)`` (int64), made once per length and read-only (numpy's ``arange``
-    releases the GIL for every call however short: a hand-off to the other threads)."""
+def step_counts(n: int) -> np.ndarray:
+    """``np.arange(n)`` (int64), made once per length and read-only: numpy's ``arange`` releases
+    the GIL for every call however short, handing it to the run's other threads mid-block
+    (the IMU's and the thermal stage's step indices of a block)."""
     out = np.arange(n, dtype=np.int64)
     out.flags.writeable = False
     return out
@@ -610,6 +611,6 @@ def _step_sums(x_t: np.ndarray, idx: np.ndarray | int, m: int,
 def _last_sample_of_step(idx: np.ndarray | int, m: int, n: int) -> np.ndarray:
     """Index of the last sample whose mid-point lies in each step (the step's end sample)."""
     if isinstance(idx, int):
-        return _counts(m + 1)[1:] * idx - 1      # arange(1, m + 1): no GIL hand-off
+        return step_counts(m + 1)[1:] * idx - 1      # arange(1, m + 1): no GIL hand-off
     last = np.searchsorted(idx, np.arange(m), side="right") - 1
     return np.clip(last, 0, n - 1)

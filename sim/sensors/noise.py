@@ -56,6 +56,7 @@ from scipy.signal import lfilter
 
 from rlgsim.ground import units
 from rlgsim.sim.config import Ctx, check_known_keys, get_float, get_int
+from rlgsim.sim.rng import block_seed_words, generator, word
 
 #: Allan-deviation floor of flicker noise per unit bias instability, √(2 ln2/π) (IEEE 952 C.4).
 FLICKER_FLOOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
@@ -260,7 +261,6 @@ class SlowNoise:
     def __init__(self, bi: np.ndarray, rrw: np.ndarray, dt: float, model: NoiseModel,
                  axes: Sequence[str], seed: int, unit: int,
                  purpose: str | Sequence[str]) -> None:
-        from rlgsim.sim.rng import generator
         self._gen = generator
         self.axes = tuple(axes)
         self.seed, self.unit = seed, unit
@@ -296,7 +296,6 @@ class SlowNoise:
         wr = base[n_f:].reshape(m, n_ch) if self.has_walk else None
         if fill is not None:
             keys, views = self._streams(m)
-            from rlgsim.sim.rng import block_seed_words
             fill(block_seed_words(self.seed, self.unit, keys, b), base, views)
             return wf, wr
         for c, (p, a) in enumerate(zip(self.purposes, self.axes)):
@@ -313,7 +312,6 @@ class SlowNoise:
         layouts of ``wf[:, c, :]`` and ``wr[:, c]`` (kept per ``m``)."""
         cache = self.__dict__.setdefault("_stream_cache", {})
         if m not in cache:
-            from rlgsim.sim.rng import word
             j, n_ch = self.flicker.q.shape[0], len(self.axes)
             n_f = j * n_ch * m if self.has_flicker else 0
             keys, views = [], []

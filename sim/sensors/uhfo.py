@@ -143,16 +143,27 @@ class Uhfo:
         n_ch = len(self.axes)
         base = np.empty((2, n_ch, m))
         if fill is not None:
-            keys = [(word(purpose), word(a)) for purpose in ("uhfo.wander", "uhfo.readout")
-                    for a in self.axes]
-            views = np.array([(k * m, 1, 0, m, 1) for k in range(2 * n_ch)],
-                             dtype=np.int64).reshape(-1, 5)
+            keys, views = self._streams(m)
             fill(block_seed_words(seed, unit, keys, b), base, views)
             return base[0], base[1]
         for i, purpose in enumerate(("uhfo.wander", "uhfo.readout")):
             for c, a in enumerate(self.axes):
                 base[i, c] = generator(seed, unit, purpose, a, b).standard_normal(m)
         return base[0], base[1]
+
+    def _streams(self, m: int) -> tuple[list[tuple[int, int]], np.ndarray]:
+        """The drives' streams of a block of ``m`` steps: their (purpose, channel) words and
+        where each one's draws go in :meth:`draws`' base array (offset, n0, s0, n1, s1: row
+        ``k`` of the (2·C, m) base), kept per ``m`` as
+        :meth:`rlgsim.sim.sensors.noise.SlowNoise._streams` keeps its own."""
+        cache = self.__dict__.setdefault("_stream_cache", {})
+        if m not in cache:
+            keys = [(word(purpose), word(a)) for purpose in ("uhfo.wander", "uhfo.readout")
+                    for a in self.axes]
+            views = np.array([(k * m, 1, 0, m, 1) for k in range(len(keys))],
+                             dtype=np.int64).reshape(-1, 5)
+            cache[m] = (keys, views)
+        return cache[m]
 
     def block(self, state: np.ndarray, seed: int, unit: int, b: int, nodes_c: np.ndarray,
               start_c: np.ndarray, dt: float, power: np.ndarray,

@@ -4,13 +4,13 @@ block by block (:class:`rlgsim.sim.thermal.integrator.ThermalIntegrator`), givin
 
 from __future__ import annotations
 
-import functools
 from typing import Any
 
 import numpy as np
 
 from rlgsim.ground.dataset_format import THERMAL
 from rlgsim.sim.rng import generator
+from rlgsim.sim.sensors.imu import step_counts
 from rlgsim.sim.stages.base import ThermalTrace
 from rlgsim.sim.thermal.integrator import ThermalIntegrator
 from rlgsim.sim.writer.dataset import GroupWriter
@@ -58,7 +58,7 @@ class ThermalPart:
         return self.integrator.initial_state(ambient, powered)      # keeps its modal state
 
     def block(self, state: Any, b: int, k0: int, m: int) -> tuple[ThermalTrace, Any]:
-        k = _counts(m + 1) + k0             # = arange(k0, k0 + m + 1): no GIL hand-off
+        k = step_counts(m + 1) + k0             # = arange(k0, k0 + m + 1): no GIL hand-off
         t = k * self.step
         setpoint = np.asarray(self.timeline.setpoint(t), dtype=float)
         power = np.asarray(self.timeline.power(t[:-1]), dtype=float)
@@ -114,13 +114,3 @@ def thermal_summary(network) -> dict[str, float]:
             "thermal.ambient_conductance_w_per_k":
                 float(network.ambient_conductance_w_per_k.sum()),
             "thermal.self_heating_mean_k": float(np.mean(rise))}
-
-
-@functools.lru_cache(maxsize=8)
-def _counts(n: int) -> np.ndarray:
-    """``np.arange(n)`` (int64), made once per length and read-only: numpy's ``arange`` releases
-    the GIL for every call however short, handing it to the run's other threads mid-block,
-    where adding the block's first step to a kept one does not (small arrays)."""
-    out = np.arange(n, dtype=np.int64)
-    out.flags.writeable = False
-    return out
