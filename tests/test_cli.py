@@ -85,6 +85,31 @@ def test_a_sigterm_landing_in_a_finaliser_prints_no_traceback(capsys):
         cli_main._stop_signal.clear()
 
 
+def test_a_frame_inside_numbas_compiler_counts_as_locking_code():
+    """A SIGTERM landing while numba compiles or loads a kernel (under its compiler lock) is
+    deferred like one inside an import: the frame numba's compile event hands its listener is
+    on such a stack (a SystemExit there left the lock held, and the IMU worker loading its own
+    kernel hung the clean-up's join: 2 of 4 killed runs before)."""
+    import importlib
+    import sys
+
+    from numba import njit
+    from numba.core import event
+    cli_main = importlib.import_module("rlgsim.lab.cli.main")
+    frames = []
+
+    class Listener(event.Listener):
+        def on_start(self, ev):
+            frames.append(sys._getframe())
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Listener()):
+        njit(lambda x: x + 1)(1)
+    assert frames and all(cli_main._inside_locking_code(f) for f in frames)
+
+
 def test_a_sigterm_inside_an_import_is_raised_again_after_it(tmp_path, monkeypatch):
     """A SIGTERM landing while the main thread runs importlib's code is not raised there (an
     exception in the module locks' bookkeeping can leave a lock held, and a worker importing
@@ -98,8 +123,8 @@ def test_a_sigterm_inside_an_import_is_raised_again_after_it(tmp_path, monkeypat
     (tmp_path / "frame_during_import.py").write_text("import sys\nFRAME = sys._getframe()\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     importing = importlib.import_module("frame_during_import").FRAME
-    assert cli_main._inside_import(importing)
-    assert not cli_main._inside_import(sys._getframe())
+    assert cli_main._inside_locking_code(importing)
+    assert not cli_main._inside_locking_code(sys._getframe())
 
     again = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: again.set())

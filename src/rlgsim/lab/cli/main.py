@@ -132,15 +132,24 @@ def format_error(exc: UserInputError) -> str:
 _stop_signal: list[int] = []
 
 
-#: Seconds after which a SIGTERM that landed inside the import machinery is raised again.
-_IMPORT_RETRY_S = 0.05
+#: Seconds after which a SIGTERM that landed inside the import machinery or numba's compiler is
+#: raised again.
+_RETRY_S = 0.05
+
+#: path parts of the code whose module-wide locks a SystemExit could leave held: numba's (its
+#: compiler lock, taken to compile a kernel or load it from the cache) and llvmlite's
+_LOCKING_PACKAGES = (f"{os.sep}numba{os.sep}", f"{os.sep}llvmlite{os.sep}")
 
 
-def _inside_import(frame) -> bool:
+def _inside_locking_code(frame) -> bool:
     """Whether the interrupted main thread is running importlib's own code (a module being
-    imported, or the module locks' bookkeeping) anywhere on its stack."""
+    imported, or the module locks' bookkeeping) or numba's/llvmlite's (a kernel being compiled
+    or loaded under numba's compiler lock) anywhere on its stack. A kernel running is machine
+    code, not a frame: a signal waits for it to return, so it is not counted here."""
     while frame is not None:
-        if frame.f_code.co_filename.startswith("<frozen importlib._bootstrap"):
+        name = frame.f_code.co_filename
+        if name.startswith("<frozen importlib._bootstrap") \
+                or any(part in name for part in _LOCKING_PACKAGES):
             return True
         frame = frame.f_back
     return False
@@ -151,15 +160,18 @@ def _terminated(signum, frame):
     here can be lost when the signal lands inside a finaliser (``__del__``), so a run also polls
     :func:`_stop_requested` before every block.
 
-    Not inside an import: an exception raised in importlib's module-lock bookkeeping can leave a
-    module's lock held, and a worker thread importing that module (the IMU's normal-deviate
-    worker loads numba lazily) then waits forever while the run's clean-up joins it. There the
-    signal is simulated again in the main thread a moment later (``_thread.interrupt_main``,
-    which does nothing once the CLI has put the previous handler back)."""
+    Not inside an import or numba's compiler: an exception raised in importlib's module-lock
+    bookkeeping can leave a module's lock held, and one raised while numba compiles or loads a
+    kernel can leave its compiler lock held; a worker thread importing that module (the IMU's
+    normal-deviate worker loads numba lazily) or loading a kernel of its own (the same worker's
+    compiled draws check themselves on first use) then waits forever while the run's clean-up
+    joins it. There the signal is simulated again in the main thread a moment later
+    (``_thread.interrupt_main``, which does nothing once the CLI has put the previous handler
+    back)."""
     if signum not in _stop_signal:
         _stop_signal.append(signum)
-    if _inside_import(frame):
-        retry = threading.Timer(_IMPORT_RETRY_S, _thread.interrupt_main, args=(signum,))
+    if _inside_locking_code(frame):
+        retry = threading.Timer(_RETRY_S, _thread.interrupt_main, args=(signum,))
         retry.daemon = True
         retry.start()
         return
