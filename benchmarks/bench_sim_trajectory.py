@@ -41,11 +41,12 @@ datasets stay empty: a counterfactual, not a product) — what is left is the se
 sample and the route's build: the ceiling if a vehicle stored no truth states at the sample
 rate.
 
-**Where the time goes** (printed unless ``--no-parts``): the same pairs, each run's CPU seconds
-thread by thread (main, the normals worker, the motion workers' increments and truth rows, the
-writer and its share for the ``trajectory`` group) and the wall seconds the main thread waits
-for its workers and for the writer (benchmarks/_sim_threads.py) — on two cores the wall time is
-at least the CPU over two and at least the writer's chain, which starts with the first block.
+**Where the time goes** (printed unless ``--no-parts``; not with ``--floor``): the same
+pairs, each run's CPU seconds thread by thread (main, the normals worker, the motion workers'
+increments and truth rows, the writer and its share for the ``trajectory`` group) and the wall
+seconds the main thread waits for its workers and for the writer (benchmarks/_sim_threads.py) —
+on two cores the wall time is at least the CPU over two and at least the writer's chain, which
+starts with the first block.
 The wrappers that count them cost a few microseconds per block (~100 calls a run of 0.2-0.4 s).
 
 Usage: ``python benchmarks/bench_sim_trajectory.py [--hours H] [--repeat N] [--floor
@@ -135,8 +136,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --floor: the trajectory group's rows not written either "
                          "(a counterfactual bound; docstring)")
     ap.add_argument("--no-parts", dest="parts", action="store_false",
-                    help="leave out each thread's CPU and waits per run (printed by default: "
-                         "benchmarks/_sim_threads.py; docstring)")
+                    help="leave out each thread's CPU and waits per run (printed by default, "
+                         "not with --floor: benchmarks/_sim_threads.py; docstring)")
     args = ap.parse_args(argv)
     if args.unwritten and not args.floor:
         ap.error("--unwritten needs --floor")

@@ -12,6 +12,7 @@ import time
 import pytest
 
 from rlgsim.lab.cli.main import main
+from scenario_helpers import one_line
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -46,10 +47,7 @@ def test_run_then_info(tmp_path, capsys):
     ([], "required"),
 ])
 def test_user_mistakes_are_one_line_exit_2(args, expected, capsys):
-    assert main(args) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("rlgsim: error: ") and expected in err
-    assert err.count("\n") == 1 and "Traceback" not in err
+    assert expected in one_line(capsys, args)
 
 
 def test_error_in_a_subprocess_has_no_traceback(tmp_path):

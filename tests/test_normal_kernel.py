@@ -115,7 +115,7 @@ def test_the_slow_noise_and_uhfo_drives_are_numpys_float64_draws(m):
     :func:`fill_streams` call each, PCG64 seeded in the kernel) against numpy's own draws from
     the tree's generators, over blocks of the same tree (64 blocks share a seed table)."""
     from rlgsim.sim.sensors import imu
-    assert imu._compiled_views() is not None            # else both sides would be numpy's
+    assert imu._compiled("fill_streams") is not None            # else both sides would be numpy's
     ours, theirs = _drive_simulator(True), _drive_simulator(False)
     assert ours.r.uhfo is not None and ours.slow.has_flicker and ours.slow.has_walk
     tails = 0

@@ -199,15 +199,15 @@ def estimate(f: h5py.File | None, scenario, *, n_steps: int, steps_per_block: in
                     step_row_bytes=step_row, sample_row_bytes=sample_row)
 
 
-def check_budget(f: h5py.File | None, scenario, out: pathlib.Path, *, n_steps: int,
-                 steps_per_block: int, buffered_blocks: int, block_s: float,
-                 progress: bool, row_bytes: tuple[int, int] | None = None) -> Estimate:
+def check_budget(scenario, out: pathlib.Path, *, n_steps: int, steps_per_block: int,
+                 buffered_blocks: int, block_s: float, progress: bool,
+                 row_bytes: tuple[int, int]) -> Estimate:
     """Refuse a run that cannot fit the free disk space or the per-block memory bound (one
     line naming the scenario, the key and what to change); print the estimate of a long or
-    big run when ``progress``. ``row_bytes``: the declared dataset's (:func:`row_bytes_of`;
-    None: read from ``f``)."""
+    big run when ``progress``. ``row_bytes``: the declared dataset's (:func:`row_bytes_of`),
+    before any file exists."""
     n_blocks = max(1, math.ceil(n_steps / max(1, steps_per_block)))
-    est = estimate(f, scenario, n_steps=n_steps, steps_per_block=steps_per_block,
+    est = estimate(None, scenario, n_steps=n_steps, steps_per_block=steps_per_block,
                    buffered_blocks=min(buffered_blocks, n_blocks), block_s=block_s,
                    row_bytes=row_bytes)
     acq = scenario.acquisition

@@ -241,7 +241,7 @@ def _run(scenario, timeline, out: pathlib.Path, attrs: dict, thermal, stages: li
                 s.declare(writers[s.group])
         # a run shorter than one block fills only its length: the honest block; no file yet
         # (the writer thread makes it): the declared row bytes
-        check_budget(None, scenario, out, n_steps=n_steps,
+        check_budget(scenario, out, n_steps=n_steps,
                      steps_per_block=min(per_block, n_steps),
                      buffered_blocks=blocks_per_write + 1,
                      block_s=min(BLOCK_S, n_steps * step),

@@ -364,8 +364,9 @@ def _self_check_views() -> bool:
 
 
 def available() -> bool:
-    """Whether :func:`fill` gives numpy's draws in this process: on x86-64 only (module
-    docstring), and after its self-check (once per process)."""
+    """Whether :func:`fill` and :func:`fill_streams` give numpy's draws in this process: on
+    x86-64 only (module docstring), and after the self-check of both (once per process; a
+    failure of either turns both off)."""
     if "ok" not in _state:
         if platform.machine().lower() not in ("x86_64", "amd64"):
             _state["ok"] = False

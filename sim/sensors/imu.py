@@ -52,7 +52,6 @@ whose parts share the carried state and the prefetch queue; the model and realis
 
 from __future__ import annotations
 
-import functools
 import math
 import sys
 from collections import deque
@@ -62,6 +61,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from rlgsim.sim.block_steps import step_counts
 from rlgsim.sim.rng import BLOCK_S, generator
 from rlgsim.sim.sensors.gyro import sample_step_index
 from rlgsim.sim.sensors.imu_model import ImuRealisation
@@ -189,7 +189,7 @@ class ImuSimulator:
             return None
         z = np.empty((len(axes), n), dtype=np.float32)
         generators = [generator(self.seed, self.unit, purpose, ax, b) for ax in axes]
-        fill = _compiled_normals() if self.compiled else None
+        fill = _compiled("fill") if self.compiled else None
         if fill is not None:                    # the same draws, compiled (_normal_kernel)
             fill(generators, z, advance=False)
         else:
@@ -322,7 +322,7 @@ class ImuSimulator:
     def _drive_draws(self, b: int, m: int) -> dict[str, Any]:
         """The standard normals of block ``b``'s slow noise and UHFO (``m`` thermal steps):
         independent of any state, so the worker draws them with the block's white noise."""
-        fill = _compiled_views() if self.compiled else None     # one call each, compiled
+        fill = _compiled("fill_streams") if self.compiled else None   # one call each
         out: dict[str, Any] = {"slow_draws": self.slow.draws(b, m, fill)}
         if self.r.uhfo is not None:
             out["uhfo_draws"] = self.r.uhfo.draws(self.seed, self.unit, b, m, fill)
@@ -522,34 +522,16 @@ class ImuSimulator:
         return rows, ImuState(g_rem, a_rem, slow_state, wander)
 
 
-def _compiled_normals():
-    """:func:`rlgsim.sim.sensors._normal_kernel.fill` when it gives numpy's draws in this process (its
-    self-check, once), else None (numpy's own draw is used)."""
+def _compiled(name: str):
+    """The function ``name`` of :mod:`rlgsim.sim.sensors._normal_kernel` (``fill``: the white
+    noise's float32 draws; ``fill_streams``: the drives' float64 ones) when the kernels give
+    numpy's draws in this process (the module's self-check, once), else None (numpy's own draw
+    is used)."""
     try:
-        from rlgsim.sim.sensors._normal_kernel import available, fill
+        from rlgsim.sim.sensors import _normal_kernel
     except ImportError:                         # pragma: no cover - numba is a dependency
         return None
-    return fill if available() else None
-
-
-def _compiled_views():
-    """:func:`rlgsim.sim.sensors._normal_kernel.fill_streams` when it gives numpy's draws in
-    this process (the module's self-check), else None."""
-    try:
-        from rlgsim.sim.sensors._normal_kernel import available, fill_streams
-    except ImportError:                         # pragma: no cover - numba is a dependency
-        return None
-    return fill_streams if available() else None
-
-
-@functools.lru_cache(maxsize=8)
-def step_counts(n: int) -> np.ndarray:
-    """``np.arange(n)`` (int64), made once per length and read-only: numpy's ``arange`` releases
-    the GIL for every call however short, handing it to the run's other threads mid-block
-    (the IMU's and the thermal stage's step indices of a block)."""
-    out = np.arange(n, dtype=np.int64)
-    out.flags.writeable = False
-    return out
+    return getattr(_normal_kernel, name) if _normal_kernel.available() else None
 
 
 def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | int
@@ -567,14 +549,15 @@ def _held_steps(constant: Sequence[tuple[int, int]], m: int, idx: np.ndarray | i
 def steps_held(x_t: np.ndarray, m: int, idx: int, held: list[tuple[int, int]] | None
                ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`rlgsim.sim.sensors.sensor_triad.step_inputs`' (uniform, first) of increments
-    ``x_t`` (3, m·idx) known from the motion: the ``held`` runs of steps (:func:`_held_steps`)
+    ``x_t`` (k, m·idx) known from the motion (k = 3, or 6: a turntable's Δθ and Δv rows in one
+    array): the ``held`` runs of steps (:func:`_held_steps`)
     at rest, with their first step's first sample; every other step's own first sample, not
     marked at rest. Only the first step of a held run is read (the others may be unwritten:
     :attr:`rlgsim.sim.motion.kinematics.MotionBlock.unwritten`). A step at rest by its bits
     but not held is counted sample by sample: the same operations on the same numbers, so
     the same pulses (:mod:`rlgsim.sim.sensors._pulse_kernel`)."""
     uniform = np.zeros(m, dtype=np.bool_)
-    first = np.array(x_t[:, ::idx])                 # (3, m): each step's first sample
+    first = np.array(x_t[:, ::idx])                 # (k, m): each step's first sample
     for lo, hi in held or ():
         uniform[lo:hi] = True
         first[:, lo + 1:hi] = first[:, lo:lo + 1]

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from rlgsim.ground.dataset_format import THERMAL
+from rlgsim.sim.block_steps import step_counts
 from rlgsim.sim.rng import generator
-from rlgsim.sim.sensors.imu import step_counts
 from rlgsim.sim.stages.base import ThermalTrace
 from rlgsim.sim.thermal.integrator import ThermalIntegrator
 from rlgsim.sim.writer.dataset import GroupWriter

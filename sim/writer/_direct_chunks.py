@@ -138,14 +138,20 @@ class DirectChunks:
         with h5py._objects.phil:
             failed = encode_and_write(*args, self.ds.id.id, row, self.rows, len(self.tail) + 1,
                                       first)
-        self._check(failed, row)
+        self._rest_through_h5py(failed, args[5], args[6], row)
 
-    def _check(self, failed: int, row: int) -> None:
-        """RuntimeError naming the dataset and row of the chunk HDF5 refused (``failed`` ≥ 0)."""
-        if failed >= 0:
-            name = h5py.h5i.get_name(self.ds.id).decode("utf-8", "replace")
-            raise RuntimeError(f"HDF5 refused to write the chunk at row "
-                               f"{row + failed * self.rows} of dataset {name}")
+    def _rest_through_h5py(self, failed: int, buf: np.ndarray, ends: np.ndarray,
+                           row: int) -> None:
+        """The chunk HDF5 refused to the compiled calls (``failed`` ≥ 0; −1: none) and those
+        after it (not written) through h5py's ``write_direct_chunk``: the same calls in the same
+        order, so HDF5 either takes them (the same file) or h5py raises HDF5's own error with
+        its reason (e.g. ``OSError``, no space left on device)."""
+        if failed < 0:
+            return
+        ends = np.asarray(ends).tolist()
+        for j in range(failed, len(ends) - 1):
+            self.ds.id.write_direct_chunk((row + j * self.rows, *self.tail),
+                                          buf[ends[j]:ends[j + 1]])
 
     def _write_compiled(self, buf: np.ndarray, ends: np.ndarray, row: int, first: int) -> None:
         """Chunks ``first`` … of ``buf`` (``ends``) from row ``row`` through
@@ -153,10 +159,10 @@ class DirectChunks:
         enters HDF5 while the loop runs without the GIL)."""
         from rlgsim.sim.writer._chunk_calls import write_chunks
         with h5py._objects.phil:
-            failed = write_chunks(self.ds.id.id, row, self.rows, len(self.tail) + 1,
-                                  np.ascontiguousarray(buf, dtype=np.uint8),
+            buf = np.ascontiguousarray(buf, dtype=np.uint8)
+            failed = write_chunks(self.ds.id.id, row, self.rows, len(self.tail) + 1, buf,
                                   np.asarray(ends, dtype=np.int64), first)
-        self._check(failed, row)
+        self._rest_through_h5py(failed, buf, ends, row)
 
     def make_room(self) -> None:
         """What HDF5 flushes from the cache before it takes in one more chunk (a partial chunk

@@ -634,6 +634,8 @@ class DatasetWriter:
         self.read_dimension_lists()
 
     def commit(self) -> pathlib.Path:
+        if self._ops is not None:              # a deferred layout never made: make it now
+            self.lay_out()
         for g in self._groups:                 # rows still staged (GroupWriter.append)
             g.flush()
         del self._file.attrs[INCOMPLETE_ATTR]

@@ -136,9 +136,9 @@ _stop_signal: list[int] = []
 #: raised again.
 _RETRY_S = 0.05
 
-#: path parts of the code whose module-wide locks a SystemExit could leave held: numba's (its
-#: compiler lock, taken to compile a kernel or load it from the cache) and llvmlite's
-_LOCKING_PACKAGES = (f"{os.sep}numba{os.sep}", f"{os.sep}llvmlite{os.sep}")
+#: the packages whose module-wide locks a SystemExit could leave held: numba's (its compiler
+#: lock, taken to compile a kernel or load it from the cache) and llvmlite's
+_LOCKING_PACKAGES = ("numba", "llvmlite")
 
 
 def _inside_locking_code(frame) -> bool:
@@ -147,9 +147,8 @@ def _inside_locking_code(frame) -> bool:
     or loaded under numba's compiler lock) anywhere on its stack. A kernel running is machine
     code, not a frame: a signal waits for it to return, so it is not counted here."""
     while frame is not None:
-        name = frame.f_code.co_filename
-        if name.startswith("<frozen importlib._bootstrap") \
-                or any(part in name for part in _LOCKING_PACKAGES):
+        if frame.f_code.co_filename.startswith("<frozen importlib._bootstrap") \
+                or frame.f_globals.get("__name__", "").partition(".")[0] in _LOCKING_PACKAGES:
             return True
         frame = frame.f_back
     return False
@@ -167,7 +166,7 @@ def _terminated(signum, frame):
     compiled draws check themselves on first use) then waits forever while the run's clean-up
     joins it. There the signal is simulated again in the main thread a moment later
     (``_thread.interrupt_main``, which does nothing once the CLI has put the previous handler
-    back)."""
+    back: a command that finished before then exits with 128 + the signal all the same)."""
     if signum not in _stop_signal:
         _stop_signal.append(signum)
     if _inside_locking_code(frame):
@@ -200,7 +199,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = signal.signal(signal.SIGTERM, _terminated)
         sys.unraisablehook = _quiet_unraisable
     try:
-        return _main(argv)
+        code = _main(argv)
+        # a SIGTERM deferred (inside an import or numba's compiler) whose repeat came after the
+        # command's last poll: the command finished, but it was asked to stop — say so
+        return 128 + _stop_signal[0] if _stop_signal and code == 0 else code
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
