@@ -164,3 +164,59 @@ def test_a_sigterm_turned_into_another_exception_exits_as_terminated(monkeypatch
             cli_main._main(["run", "quickstart", "-o", "x.h5"])
     finally:
         cli_main._stop_signal.clear()
+
+
+def _no_space(path: str) -> OSError:
+    """An OSError shaped like h5py's when HDF5's write hits a full disk (errno 28, the file
+    named only in the text)."""
+    import errno
+    return OSError(errno.ENOSPC, "Can't write unprocessed chunk data (file write failed: "
+                   f"filename = '{path}', file descriptor = 3, errno = 28, error message = "
+                   "'No space left on device', offset = 4096)")
+
+
+def test_a_disk_filling_up_mid_run_is_one_line_exit_1_and_no_file(tmp_path, monkeypatch,
+                                                                   capsys):
+    """A disk that fills up while the run writes: one line naming the output (not its
+    temporary file) and the system's reason, exit status 1, nothing at the output path and no
+    temporary file left (whose close fails again on the full disk: that second error must not
+    replace the first)."""
+    import h5py
+    from rlgsim.sim.writer import dataset
+    hits = []
+    real_append = dataset.GroupWriter.append
+    real_close = h5py.File.close
+
+    def append_until_full(self, dim, arrays):
+        hits.append(self._g.file.filename)
+        if len(hits) > 1:
+            raise _no_space(hits[-1])
+        real_append(self, dim, arrays)
+
+    def close_on_full_disk(self):
+        real_close(self)
+        if len(hits) > 1:
+            raise _no_space(hits[-1])
+
+    monkeypatch.setattr(dataset.GroupWriter, "append", append_until_full)
+    monkeypatch.setattr(h5py.File, "close", close_on_full_disk)
+    out = tmp_path / "q.h5"
+    code = main(["run", "quickstart", "-o", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert len(hits) > 1 and hits[-1].startswith(str(out) + ".tmp-")
+    assert err.strip().splitlines() == [
+        f"rlgsim: error: {out}: the disk filled up while writing (No space left on device); "
+        "the partial output was removed — free some space or write elsewhere with -o"]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_other_os_errors_keep_their_traceback(monkeypatch):
+    """Only a full disk (or quota) is turned into one line: any other OSError of a run is a
+    bug's and propagates."""
+    import importlib
+    cli_main = importlib.import_module("rlgsim.lab.cli.main")
+    monkeypatch.setattr(cli_main, "_run",
+                        lambda *a: (_ for _ in ()).throw(OSError(5, "Input/output error")))
+    with pytest.raises(OSError):
+        cli_main._main(["run", "quickstart", "-o", "x.h5"])

@@ -647,9 +647,14 @@ class DatasetWriter:
         return self.path
 
     def abort(self) -> None:
+        """Close and delete the temporary file. Closing flushes HDF5's metadata, which fails
+        again on a full disk: that second error is dropped so the one that stopped the run is
+        the one raised, and the file is deleted either way."""
         try:
             if self._file is not None:      # (a deferred layout may not have made it)
                 self._file.close()
+        except Exception:
+            pass
         finally:
             try:
                 self.tmp_path.unlink()

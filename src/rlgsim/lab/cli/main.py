@@ -11,7 +11,9 @@
     rlgsim navigate DATASET|RECORDING [--models ...] [-o DIR] align and navigate free-inertially
 
 Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
-``rlgsim: error: ...`` with exit code 2 and no traceback; anything else is a bug and keeps its
+``rlgsim: error: ...`` with exit code 2 and no traceback. A disk that fills up while a command
+writes (ENOSPC, EDQUOT: not a user mistake, not a bug) is one line too, with exit code 1; the
+file being written is removed as on any failed run. Anything else is a bug and keeps its
 traceback.
 """
 
@@ -19,9 +21,11 @@ from __future__ import annotations
 
 import _thread
 import argparse
+import errno
 import math
 import os
 import pathlib
+import re
 import signal
 import sys
 import threading
@@ -126,6 +130,29 @@ def _list() -> None:
 def format_error(exc: UserInputError) -> str:
     """The one line printed for a user mistake."""
     return f"{PROG}: error: {' '.join(str(exc).split())}"
+
+
+#: the errors of a file system with no room left (the device's or the user's quota)
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+
+#: the file named in an HDF5 error's text (h5py's OSError carries no ``filename``)
+_HDF5_FILENAME = re.compile(r"filename = '([^']*)'")
+
+#: the suffix of the temporary file a dataset is written to before it is moved into place
+_TMP_SUFFIX = re.compile(r"\.tmp-\d+$")
+
+
+def format_no_space(exc: OSError) -> str:
+    """The one line printed when the disk fills up during a write: the output's path (the
+    temporary file's name without its ``.tmp-<pid>`` suffix) and the system's reason."""
+    name = exc.filename
+    if name is None:
+        found = _HDF5_FILENAME.search(str(exc))
+        name = found.group(1) if found else None
+    where = f"{_TMP_SUFFIX.sub('', os.fsdecode(name))}: " if name else ""
+    reason = os.strerror(exc.errno) if exc.errno is not None else "no space left"
+    return (f"{PROG}: error: {where}the disk filled up while writing ({reason}); the partial "
+            f"output was removed — free some space or write elsewhere with -o")
 
 
 #: The signal that asked the CLI to stop (SIGTERM), if any.
@@ -239,6 +266,13 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as exc:
+        if _stop_signal:
+            return 128 + _stop_signal[0]
+        if exc.errno in _NO_SPACE:
+            print(format_no_space(exc), file=sys.stderr)
+            return 1
+        raise
     except Exception:
         if _stop_signal:    # the SIGTERM's SystemExit raised inside a C extension's callback,
             return 128 + _stop_signal[0]    # which turned it into another exception (h5py:
