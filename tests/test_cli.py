@@ -207,7 +207,7 @@ def test_a_disk_filling_up_mid_run_is_one_line_exit_1_and_no_file(tmp_path, monk
     assert len(hits) > 1 and hits[-1].startswith(str(out) + ".tmp-")
     assert err.strip().splitlines() == [
         f"rlgsim: error: {out}: the disk filled up while writing (No space left on device); "
-        "the partial output was removed — free some space or write elsewhere with -o"]
+        "the file being written was removed — free some space or write elsewhere"]
     assert list(tmp_path.iterdir()) == []
 
 

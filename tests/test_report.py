@@ -96,3 +96,28 @@ def test_an_output_folder_that_cannot_be_created_is_a_user_error(tmp_path):
     with pytest.raises(UserInputError, match="cannot create the output folder") as err:
         output_folder(blocker / "sub")
     assert str(blocker / "sub") in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("kind", ["write_atomic", "sidecar"])
+def test_a_write_that_fails_leaves_no_temporary_file_and_names_its_path(kind, tmp_path,
+                                                                        monkeypatch):
+    """A full disk while a report file or a sidecar is written: the error names the file
+    (a write's OSError names none) and the temporary file beside it is deleted."""
+    import errno
+    import os
+    from rlgsim.ground import recording_write
+    from rlgsim.lab import report
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    module = report if kind == "write_atomic" else recording_write
+    monkeypatch.setattr(module.os, "replace", full)
+    target = tmp_path / ("a.csv" if kind == "write_atomic" else "a.toml")
+    with pytest.raises(OSError) as caught:
+        if kind == "write_atomic":
+            report.write_atomic(target, "x,y\n1,2\n")
+        else:
+            recording_write.write_sidecar(target, {"recording": {"rate_hz": 100.0}})
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(target)
+    assert list(tmp_path.iterdir()) == []

@@ -23,8 +23,15 @@ def write_sidecar(path: str | os.PathLike, tables: Mapping[str, Mapping[str, Any
     text = dumps({name: dict(table) for name, table in tables.items() if table}, header=comment)
     tomllib.loads(text)                  # never write a sidecar that does not read back
     tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, p)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, p)
+    except OSError as exc:
+        if exc.filename is None:             # a write's error names no file
+            exc.filename = str(p)
+        raise
+    finally:
+        tmp.unlink(missing_ok=True)
     return p
 
 

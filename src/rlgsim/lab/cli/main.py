@@ -13,7 +13,7 @@
 Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback. A disk that fills up while a command
 writes (ENOSPC, EDQUOT: not a user mistake, not a bug) is one line too, with exit code 1; the
-file being written is removed as on any failed run. Anything else is a bug and keeps its
+file being written is removed (what a study wrote before it stays). Anything else is a bug and keeps its
 traceback.
 """
 
@@ -151,8 +151,8 @@ def format_no_space(exc: OSError) -> str:
         name = found.group(1) if found else None
     where = f"{_TMP_SUFFIX.sub('', os.fsdecode(name))}: " if name else ""
     reason = os.strerror(exc.errno) if exc.errno is not None else "no space left"
-    return (f"{PROG}: error: {where}the disk filled up while writing ({reason}); the partial "
-            f"output was removed — free some space or write elsewhere with -o")
+    return (f"{PROG}: error: {where}the disk filled up while writing ({reason}); the file being "
+            f"written was removed — free some space or write elsewhere")
 
 
 #: The signal that asked the CLI to stop (SIGTERM), if any.
