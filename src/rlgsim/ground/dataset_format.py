@@ -307,8 +307,8 @@ class Dataset:
             if ds.is_scale:
                 dims = (name,) * ds.ndim
             else:
-                dims = tuple(ds.dims[i][0].name.rsplit("/", 1)[-1] if len(ds.dims[i]) else "?"
-                             for i in range(ds.ndim))
+                dims = tuple((d[0].name or "?").rsplit("/", 1)[-1] if len(d) else "?"
+                             for d in ds.dims)      # a deleted scale's name is None
             units = _plain(ds.attrs["units"]) if "units" in ds.attrs else None
             out.append(VariableInfo(name, dims, tuple(ds.shape), units,
                                     _plain(ds.attrs.get("description", "")), ds.dtype,

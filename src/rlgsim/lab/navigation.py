@@ -129,7 +129,8 @@ def _span(src: NavSource, span_s: float | None, align_s: float, every: int
     end = a1 + (end - a1) // every * every
     if end <= a1:
         raise UserInputError(f"{src.name}: nothing left to navigate after the alignment "
-                             f"({a1 * dt:g} s of {src.n * dt:g} s)")
+                             f"({a1 * dt:g} s of {src.n * dt:g} s; it takes the first static "
+                             f"segment after power-on, at most align_s = {align_s:g} s)")
     return a0, a1, end
 
 

@@ -65,11 +65,15 @@ def _text(v: Any) -> str:
 
 
 def _weight(coef: dict, key: str, unit: str, path: pathlib.Path) -> float:
-    """A nominal scale factor of the truth's coefficient table, in ``unit``."""
+    """A nominal scale factor of the truth's coefficient table, in ``unit`` (finite, > 0)."""
     if key not in coef or coef[key][1] != unit:
         raise UserInputError(f"{path}: truth coefficient {key} missing or not in {unit} "
                              f"(got {coef.get(key)!r})")
-    return coef[key][0]
+    value = coef[key][0]
+    if not (math.isfinite(value) and value > 0):
+        raise UserInputError(f"{path}: truth coefficient {key} = {value!r} {unit}; a nominal "
+                             f"scale factor is a finite number > 0 (a damaged dataset?)")
+    return value
 
 
 def _from_dataset_static(path: pathlib.Path) -> NavSource:
@@ -79,58 +83,102 @@ def _from_dataset_static(path: pathlib.Path) -> NavSource:
     return _from_dataset(path, need_imu=False)
 
 
-def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
-    import h5py
+def _numbers(ds: Any, group: str, name: str, shape: tuple[int | None, ...]) -> None:
+    """Refuse (one line) a variable that is missing or not numeric of ``shape`` (None: any
+    length)."""
+    if not ds.has(group, name):
+        what = f"group {group!r}" if not ds.has(group) else f"variable {group}/{name}"
+        raise UserInputError(f"{ds.path}: the dataset has no {what}")
+    info = next(v for v in ds.variables(group) if v.name == name)
+    ok = (info.dtype.kind in "iuf" and len(info.shape) == len(shape)
+          and all(want is None or got == want for got, want in zip(info.shape, shape)))
+    if not ok:
+        want = " × ".join("n" if w is None else str(w) for w in shape)
+        raise UserInputError(f"{ds.path}: {group}/{name} is {info.dtype} of shape "
+                             f"{info.shape}; navigation needs numbers of shape ({want}) "
+                             f"(a damaged dataset?)")
 
+
+def _root(ds: Any, key: str) -> float:
+    """A numeric root attribute, one line if missing or not a number."""
+    value = ds.attrs.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UserInputError(f"{ds.path}: root attribute {key} = {value!r}; a number is needed "
+                             f"(a damaged dataset?)")
+    return float(value)
+
+
+def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
+    """The dataset's inputs of a navigation run, read through the one reader
+    (:func:`rlgsim.ground.dataset_format.open_dataset`): every group, variable, shape and
+    root attribute used here is checked first (one line naming it), and a run on a vehicle
+    (group ``trajectory``) is refused — its motion is not the fixed site's."""
     from rlgsim.ground import dataset_format as fmt
     from rlgsim.sim.motion.recorded import dataset_motion
-    with fmt.open_dataset(path):                      # the format checks, one line on failure
-        pass
-    f = h5py.File(path, "r")
+    ds = fmt.open_dataset(path)                       # the format checks, one line on failure
     try:
-        imu = f["imu"]
-        gyros = [_text(a) for a in imu["gyro"][...]]
+        if ds.has(fmt.TRAJECTORY):
+            raise UserInputError(
+                f"{path}: a run on a vehicle (group trajectory); navigate aligns on a static "
+                f"segment at a fixed site and scores the drift from it — a vehicle's mission is "
+                f"scored by the aided navigator of the vehicle study (recipe vehicle, "
+                f"docs/trajectories.md)")
+        gyros = ds.strings(fmt.IMU, "gyro")
         if need_imu and len(gyros) < 3:
             raise UserInputError(f"{path}: imu/gyro has {len(gyros)} gyro(s) ({', '.join(gyros)});"
                                  " navigation needs three (x, y, z)")
-        if need_imu and "accel_pulses" not in imu:
+        if need_imu and not ds.has(fmt.IMU, "accel_pulses"):
             raise UserInputError(f"{path}: imu/accel_pulses missing; navigation needs three "
                                  "accelerometers")
-        rate = float(f.attrs["sample_rate_hz"])
-        tr = f["truth"]
-        coef = {_text(n): (float(v), _text(u)) for n, v, u in zip(
-            tr["coefficient"][...], tr["coefficient_value"][...], tr["coefficient_units"][...])}
+        n = ds.length(fmt.IMU, "gyro_pulses")
+        _numbers(ds, fmt.IMU, "gyro_pulses", (n, len(gyros)))
+        rate = _root(ds, "sample_rate_hz")
+        latitude, height = _root(ds, "latitude_deg"), _root(ds, "height_m")
+        coef = {n_: (float(v), str(u)) for n_, v, u in zip(
+            ds.strings(fmt.TRUTH, "coefficient"), ds.read(fmt.TRUTH, "coefficient_value"),
+            ds.strings(fmt.TRUTH, "coefficient_units"))}
+        law_g = law_a = None
         if need_imu:
+            _numbers(ds, fmt.IMU, "accel_pulses", (n, 3))
             k_g = np.array([_weight(coef, f"gyro.k0[{a}]", "pulses/rad", path) for a in "xyz"])
             k_a = np.array([_weight(coef, f"accel.k0[{a}]", "pulses/(m/s)", path) for a in "xyz"])
+            laws = []
+            for sensor, width in (("gyro", len(gyros)), ("accel", 3)):
+                for name in (f"{sensor}_bias", f"{sensor}_bias_random"):
+                    _numbers(ds, fmt.TRUTH, name, (ds.length(fmt.TRUTH, f"{sensor}_bias"), width))
+                laws.append(np.asarray(ds.read(fmt.TRUTH, f"{sensor}_bias"))
+                            - np.asarray(ds.read(fmt.TRUTH, f"{sensor}_bias_random")))
+            law_g, law_a = laws
         else:
             k_g = k_a = np.ones(3)
-        tracks = {_text(t) for t in f["timeline/track"][...]}
-        if "turntable" not in tracks:
-            raise UserInputError(f"{path}: no turntable track in the timeline (a vehicle run?);"
-                                 " the navigation scores cover runs at a fixed site")
-        motion = dataset_motion(path)
-        step = float(f.attrs["thermal_step_s"])
-        power = np.asarray(f["thermal/power_on"][...])
+        segments = ds.segments("turntable")
+        if not segments:
+            raise UserInputError(f"{path}: no turntable track in the timeline; the navigation "
+                                 "scores cover runs at a fixed site")
+        try:
+            motion = dataset_motion(ds)
+        except ValueError as exc:                     # the site or a turntable segment
+            raise UserInputError(f"{path}: the run's site and turntable motion cannot be "
+                                 f"rebuilt from its root attributes and timeline ({exc}); a "
+                                 f"damaged dataset?") from None
+        step = _root(ds, "thermal_step_s")
+        power = np.asarray(ds.read(fmt.THERMAL, "power_on"))
         on = np.nonzero(power >= 1)[0]
         if on.size == 0:
             raise UserInputError(f"{path}: the IMU is never powered (thermal/power_on)")
         start = int(math.ceil(on[0] * step * rate))
         t_start = start / rate
         static_end = start
-        for a, b, track, details in zip(f["timeline/t0"][...], f["timeline/t1"][...],
-                                        f["timeline/track"][...], f["timeline/details"][...]):
-            if _text(track) != "turntable" or b <= t_start:
+        for seg in segments:
+            if seg["t1"] <= t_start:
                 continue
-            import json
-            if json.loads(_text(details)).get("kind") == "static" and a <= t_start + 1e-9:
-                static_end = int(math.floor(b * rate + 1e-6))
+            if seg["attrs"].get("kind") == "static" and seg["t0"] <= t_start + 1e-9:
+                static_end = int(math.floor(seg["t1"] * rate + 1e-6))
             break
-        n = int(imu["gyro_pulses"].shape[0])
 
         def read(k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
-            return (np.asarray(imu["gyro_pulses"][k0:k1], dtype=float),
-                    np.asarray(imu["accel_pulses"][k0:k1], dtype=float))
+            return (np.asarray(ds.read(fmt.IMU, "gyro_pulses", slice(k0, k1)), dtype=float),
+                    np.asarray(ds.read(fmt.IMU, "accel_pulses", slice(k0, k1)), dtype=float))
         if not need_imu:
             read = None                                 # type: ignore[assignment]
 
@@ -138,16 +186,11 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
             mb = motion.increments(k0 / rate, k1 - k0, rate, angles=False)
             return mb.dtheta_rad, mb.dv_m_per_s
 
-        law_g = law_a = None
-        if need_imu:
-            law_g = np.asarray(tr["gyro_bias"][...]) - np.asarray(tr["gyro_bias_random"][...])
-            law_a = np.asarray(tr["accel_bias"][...]) - np.asarray(tr["accel_bias_random"][...])
-        return NavSource(path.name, rate, float(f.attrs["latitude_deg"]),
-                         float(f.attrs["height_m"]), n, 1.0 / k_g, 1.0 / k_a, start,
-                         max(static_end, start), read, motion.attitude, truth, step, law_g,
-                         law_a, [f.close])
+        return NavSource(path.name, rate, latitude, height, n,
+                         1.0 / k_g, 1.0 / k_a, start, max(static_end, start), read,
+                         motion.attitude, truth, step, law_g, law_a, [ds.close])
     except BaseException:
-        f.close()
+        ds.close()
         raise
 
 

@@ -46,17 +46,35 @@ def add_subparser(sub) -> None:
     n.set_defaults(handler=run)
 
 
+def _output(args: argparse.Namespace, src: pathlib.Path) -> pathlib.Path:
+    """The output folder, checked before any work: not an existing file, and none of the
+    files it will hold (:func:`rlgsim.lab.navigation_report.write`) an input, a folder or a
+    link (one line, exit status 2)."""
+    from rlgsim.ground.recording_sidecar import sidecar_path
+    from rlgsim.lab.cli.paths import output_file, output_folder
+    inputs = [src, sidecar_path(src), *args.models]      # a recording's sidecar beside it
+    out = output_folder(args.output or f"{src.stem}-navigation", inputs=inputs)
+    for name in (f"solution.{args.format}", "summary.csv", "navigation.png", "report.md"):
+        output_file(out / name, inputs=inputs)
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     """Navigate for parsed ``args``; returns the exit code."""
-    from rlgsim.lab.navigation import navigate
+    from rlgsim.lab.navigation import navigate_source
     from rlgsim.lab.navigation_models import load_models
     from rlgsim.lab.navigation_report import markdown_table, write
+    from rlgsim.lab.navigation_source import open_source
     src = pathlib.Path(args.source)
-    models = (load_models(args.models, src, temperature_probe=args.temperature_probe)
-              if args.models else None)
-    ds = navigate(src, models=models, span_s=None if args.span_h is None else args.span_h * 3600,
-                  align_s=args.align_s)
-    out = pathlib.Path(args.output) if args.output else pathlib.Path(f"{src.stem}-navigation")
+    out = _output(args, src)
+    source = open_source(src)          # checked (one line) before the models read it
+    try:
+        models = (load_models(args.models, src, temperature_probe=args.temperature_probe)
+                  if args.models else None)
+        ds = navigate_source(source, models=models, align_s=args.align_s,
+                             span_s=None if args.span_h is None else args.span_h * 3600)
+    finally:
+        source.close()
     paths = write(ds, out, args.format)
     if not args.quiet:
         print(markdown_table(ds))

@@ -1,0 +1,210 @@
+"""Bad and extreme inputs of the commands that read vehicle runs and damaged datasets (issue 26's
+adversarial sweep of ``rlgsim navigate``, ``study`` with the vehicle recipe, ``export``): each
+case is one line naming the file/key/value and what is allowed, exit status 2, no traceback, no
+input rewritten, nothing written. The inputs are those the sweep found failing (a traceback, a
+run on a vehicle navigated as if it stood at its start, a report written over a file) plus a
+few representatives; two small runs (a static 3-min run and a 4-min drive) are made once."""
+
+from __future__ import annotations
+
+import hashlib
+import pathlib
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from rlgsim.lab.cli.main import main
+from scenario_helpers import one_line
+
+STATIC = """
+name = "fuzz_static"
+device = "rlg_imu_000"
+seed = 7
+duration_h = 0.05
+[acquisition]
+sample_rate_hz = 10
+[power]
+on_at_s = 0
+[chamber]
+start_c = 20.0
+[[chamber.segments]]
+type = "hold"
+duration_min = 3
+"""
+
+VEHICLE = """
+name = "fuzz_vehicle"
+device = "rlg_imu_000"
+seed = 2601
+duration_h = 0.0667
+[acquisition]
+sample_rate_hz = 10
+[power]
+on_at_s = 10
+[chamber]
+start_c = -30.0
+[[chamber.segments]]
+type = "ramp"
+to_c = 0.0
+duration_min = 4
+[trajectory]
+latitude_deg = 34.25
+longitude_deg = 108.95
+height_m = 400.0
+heading_deg = 90.0
+[[trajectory.segment]]
+kind = "hold"
+duration_s = 90.0
+[[trajectory.segment]]
+kind = "accelerate"
+duration_s = 10.0
+speed_m_s = 10.0
+[[trajectory.segment]]
+kind = "turn"
+duration_s = 10.0
+by_deg = 90.0
+[[trajectory.segment]]
+kind = "hold"
+duration_s = 40.0
+gnss = false
+[[trajectory.segment]]
+kind = "accelerate"
+duration_s = 10.0
+speed_m_s = 0.0
+[[trajectory.segment]]
+kind = "hold"
+duration_s = 80.0
+"""
+
+
+@pytest.fixture(scope="session")
+def runs(tmp_path_factory) -> dict[str, pathlib.Path]:
+    """The static run and the drive, simulated once for the session."""
+    folder = tmp_path_factory.mktemp("vehicle_fuzz")
+    out = {}
+    for name, text in (("static", STATIC), ("vehicle", VEHICLE)):
+        (folder / f"{name}.toml").write_text(text)
+        out[name] = folder / f"{name}.h5"
+        assert main(["run", str(folder / f"{name}.toml"), "-o", str(out[name]), "-q"]) == 0
+    return out
+
+
+def _digest(folder: pathlib.Path) -> dict[str, str]:
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _delete(path):
+    def change(f):
+        del f[path]
+    return change
+
+
+def _replace(path, fn):
+    def change(f):
+        data = fn(f[path][...])
+        del f[path]
+        f.create_dataset(path, data=data)
+    return change
+
+
+def _attr(key, value):
+    def change(f):
+        f.attrs[key] = value
+    return change
+
+
+def _set(path, value):
+    def change(f):
+        f[path][...] = value
+    return change
+
+
+def _details(old: bytes, new: bytes):
+    def change(f):
+        ds = f["timeline/details"]
+        ds[...] = np.array([v.replace(old, new) for v in ds[...]], dtype=object)
+    return change
+
+
+#: (id, which run, damage, words the one line must hold) for ``rlgsim navigate``
+NAVIGATE = [
+    ("vehicle run", "vehicle", None, "a run on a vehicle (group trajectory)"),
+    ("vehicle run, truth group gone", "vehicle", _delete("truth"), "a run on a vehicle"),
+    ("no truth group", "static", _delete("truth"), "no group 'truth'"),
+    ("no imu group", "static", _delete("imu"), "no group 'imu'"),
+    ("no timeline group", "static", _delete("timeline"), "no group 'timeline'"),
+    ("no thermal group", "static", _delete("thermal"), "no group 'thermal'"),
+    ("no gyro_pulses", "static", _delete("imu/gyro_pulses"), "imu/gyro_pulses"),
+    ("no imu/gyro", "static", _delete("imu/gyro"), "imu/gyro"),
+    ("no truth/coefficient", "static", _delete("truth/coefficient"), "truth/coefficient"),
+    ("no coefficient_units", "static", _delete("truth/coefficient_units"),
+     "truth/coefficient_units"),
+    ("no gyro_bias", "static", _delete("truth/gyro_bias"), "truth/gyro_bias"),
+    ("no power_on", "static", _delete("thermal/power_on"), "thermal/power_on"),
+    ("gyro pulses 2 columns", "static", _replace("imu/gyro_pulses", lambda v: v[:, :2]),
+     "imu/gyro_pulses"),
+    ("gyro pulses 1-D", "static", _replace("imu/gyro_pulses", lambda v: v[:, 0]),
+     "imu/gyro_pulses"),
+    ("gyro pulses strings", "static", _replace("imu/gyro_pulses", lambda v: v.astype("S8")),
+     "numbers of shape"),
+    ("accel pulses 4 columns", "static",
+     _replace("imu/accel_pulses", lambda v: np.hstack([v, v[:, :1]])), "imu/accel_pulses"),
+    ("gyro bias 2 columns", "static", _replace("truth/gyro_bias", lambda v: v[:, :2]),
+     "truth/gyro_bias"),
+    ("gyro bias shorter than its random part", "static",
+     _replace("truth/gyro_bias", lambda v: v[:10]), "truth/gyro_bias_random"),
+    ("scale factor 0", "static", _set("truth/coefficient_value", 0.0), "finite number > 0"),
+    ("latitude 95", "static", _attr("latitude_deg", 95.0), "latitude_deg must be in [-90, 90]"),
+    ("latitude NaN", "static", _attr("latitude_deg", np.nan), "latitude_deg"),
+    ("height inf", "static", _attr("height_m", np.inf), "height_m"),
+    ("height -1e7", "static", _attr("height_m", -1e7), "height_m"),
+    ("latitude missing", "static", lambda f: f.attrs.__delitem__("latitude_deg"),
+     "root attribute latitude_deg = None"),
+    ("turntable kind unknown", "static", _details(b'"kind": "static"', b'"kind": "rate"'),
+     "turntable motion cannot be rebuilt"),
+]
+
+
+@pytest.mark.parametrize("run, damage, words", [c[1:] for c in NAVIGATE],
+                         ids=[c[0] for c in NAVIGATE])
+def test_navigate_damaged_or_vehicle_dataset(runs, tmp_path, capsys, run, damage, words):
+    path = tmp_path / "bad.h5"
+    shutil.copy(runs[run], path)
+    if damage is not None:
+        with h5py.File(path, "r+") as f:
+            damage(f)
+    before = _digest(tmp_path)
+    line = one_line(capsys, ["navigate", str(path), "--align-s", "60", "-q",
+                             "-o", str(tmp_path / "out")])
+    assert words in line and "bad.h5" in line
+    assert _digest(tmp_path) == before                 # nothing rewritten, nothing written
+
+
+#: (id, argv after ``navigate SOURCE --align-s 60 -q``, a file made first, words)
+NAVIGATE_OUTPUT = [
+    ("output folder is a file", ["-o", "{d}/f.txt"], "f.txt", "is a regular file, not a folder"),
+    ("output folder is the input", ["-o", "{src}"], None, "is a regular file, not a folder"),
+    ("output folder under a file", ["-o", "{d}/f.txt/x"], "f.txt", "f.txt/x"),
+    ("output /dev/null", ["-o", "/dev/null"], None, "not a folder"),
+    ("report over the input", ["-o", "{d}"], None, "is also an input of this command"),
+]
+
+
+@pytest.mark.parametrize("argv, made, words", [c[1:] for c in NAVIGATE_OUTPUT],
+                         ids=[c[0] for c in NAVIGATE_OUTPUT])
+def test_navigate_output_checked_before_work(runs, tmp_path, capsys, argv, made, words):
+    src = tmp_path / ("summary.csv" if "{d}" == argv[-1] else "run.h5")
+    if src.suffix == ".csv":                           # a recording named like an output
+        assert main(["export", str(runs["static"]), "-o", str(src), "-q"]) == 0
+    else:
+        shutil.copy(runs["static"], src)
+    if made:
+        (tmp_path / made).write_text("keep me\n")
+    before = _digest(tmp_path)
+    argv = [a.format(d=tmp_path, src=src) for a in argv]
+    line = one_line(capsys, ["navigate", str(src), "--align-s", "60", "-q", *argv])
+    assert words in line
+    assert _digest(tmp_path) == before
