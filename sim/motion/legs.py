@@ -47,6 +47,10 @@ CHANNELS = ("heading", "pitch", "roll", "v_right", "v_forward", "v_up")
 N_CHANNELS = 6
 DEGREE = 5
 
+#: most legs a route may have (a motion file's commands, a table's rows; the turntable's
+#: programmes are held to as many motions): a route's kinematics keep ~2 kB per leg (~0.4 GB at
+#: this count, e.g. a 5.5-h table at 10 Hz); gnss-ins-sim's sample-by-sample demo has 1 000
+MAX_LEGS = 200_000
 #: peak |rate| of a smooth leg = SMOOTH_PEAK_RATE · |Δ| / T
 SMOOTH_PEAK_RATE = 15.0 / 8.0
 #: peak |rate of rate| of a smooth leg = SMOOTH_PEAK_ACCEL · |Δ| / T²

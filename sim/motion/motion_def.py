@@ -26,9 +26,14 @@ The commands (gnss-ins-sim ``pathgen.parse_motion_def``) and how they are read h
   (kp = 5, kd = 10) converges asymptotically, so its legs last longer than these minimum-time
   ones (docs/trajectories.md compares the two).
 
-A command of zero duration is skipped; a negative duration, an unknown type, a non-number or a
-row of the wrong length is one :class:`~rlgsim.ground.errors.UserInputError` line naming file,
-line and column.
+A command of zero duration is skipped; a negative duration, an unknown type, a non-number, an
+empty cell before the row's last number, a row of the wrong length, a GPS visibility other than
+0 or 1, a missing header line (a first or third line of numbers: the file would be read a row
+off), an initial latitude at or past ±89.9° (the ENU frame's singularity, as for the
+``[trajectory]`` table), an initial altitude outside the Earth model's heights
+(:data:`rlgsim.sim.motion.site.MIN_HEIGHT_M` … ``MAX_HEIGHT_M``) and more than
+:data:`rlgsim.sim.motion.legs.MAX_LEGS` commands are one :class:`~rlgsim.ground.errors.UserInputError`
+line naming file, line and column.
 """
 
 from __future__ import annotations
@@ -42,7 +47,9 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import DEG
-from rlgsim.sim.motion.legs import Leg, rate_leg, smooth_leg, smooth_time
+from rlgsim.sim.motion.legs import MAX_LEGS, Leg, rate_leg, smooth_leg, smooth_time
+from rlgsim.sim.motion.position_table import MAX_LATITUDE_DEG
+from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 
 #: gnss-ins-sim's built-in mobility ``high_mobility``: m/s², rad/s², rad/s
 DEFAULT_MOBILITY = (1.0, 0.5, 2.0)
@@ -68,7 +75,12 @@ def _body(frd: np.ndarray) -> np.ndarray:
 
 
 def _numbers(row: list[str], where: str, count: int) -> np.ndarray:
-    cells = [c.strip() for c in row if c.strip() != ""]
+    cells = [c.strip() for c in row]
+    while cells and cells[-1] == "":              # trailing separators: nothing lost
+        cells.pop()
+    if "" in cells:
+        raise UserInputError(f"{where}, column {cells.index('') + 1}: empty cell; expected "
+                             f"{count} numbers")
     if len(cells) != count:
         raise UserInputError(f"{where}: expected {count} numbers, got {len(cells)}")
     out = np.empty(count)
@@ -91,28 +103,50 @@ def read_motion_def(path: str | pathlib.Path, *,
     p = pathlib.Path(path)
     try:
         with open(p, newline="", encoding="utf-8") as fh:
-            rows = [r for r in csv.reader(fh) if any(c.strip() for c in r)]
+            reader = csv.reader(fh)
+            rows, lines = [], []
+            for r in reader:
+                if any(c.strip() for c in r):
+                    rows.append(r)
+                    lines.append(reader.line_num)
+                    if len(rows) > MAX_LEGS + 3:
+                        raise UserInputError(f"{p}: more than {MAX_LEGS} commands; a route "
+                                             f"takes at most {MAX_LEGS} legs")
     except OSError as e:
         raise UserInputError(f"{p}: cannot read the motion definition ({e.strerror})") from None
     except UnicodeDecodeError:
         raise UserInputError(f"{p}: not a text (UTF-8) CSV file") from None
+    except csv.Error as e:
+        raise UserInputError(f"{p}: not a CSV file ({e})") from None
     if len(rows) < 4:
         raise UserInputError(f"{p}: a motion definition needs a header, the initial state, a "
                              f"second header and at least one command ({len(rows)} lines)")
-    init = _numbers(rows[1], f"{p}: line 2 (initial state)", 9)
+    for k, what in ((0, "the header of the initial state"), (2, "the header of the commands")):
+        if all(_is_number(c) for c in rows[k] if c.strip()):
+            raise UserInputError(f"{p}: line {lines[k]}: expected {what} (column names), got "
+                                 f"numbers; gnss-ins-sim's file has a header line before the "
+                                 f"initial state and another before the commands")
+    init = _numbers(rows[1], f"{p}: line {lines[1]} (initial state)", 9)
     lat, lon, alt = init[0], init[1], init[2]
-    if not -90.0 < lat < 90.0:
-        raise UserInputError(f"{p}: line 2, column 1: initial latitude {lat:g}° not allowed; "
-                             f"must be inside (-90, 90)")
+    if not abs(lat) < MAX_LATITUDE_DEG:
+        raise UserInputError(f"{p}: line {lines[1]}, column 1: initial latitude {lat:g}° not "
+                             f"allowed; |latitude| < {MAX_LATITUDE_DEG:g} (the ENU frame is "
+                             f"singular at the poles)")
+    if not MIN_HEIGHT_M <= alt <= MAX_HEIGHT_M:
+        raise UserInputError(f"{p}: line {lines[1]}, column 3: initial altitude {alt:g} m not "
+                             f"allowed; must be in [{MIN_HEIGHT_M:g}, {MAX_HEIGHT_M:g}]")
     state = np.concatenate([init[6:9][[0, 1, 2]] * DEG, _body(init[3:6])])
     max_acc, max_dw, max_w = mobility
     rate_lim = np.array([max_w] * 3 + [np.inf] * 3)
     acc_lim = np.array([max_dw] * 3 + [max_acc] * 3)
     legs: list[Leg] = []
     for i, row in enumerate(rows[3:], start=4):
-        where = f"{p}: line {i}"
+        where = f"{p}: line {lines[i - 1]}"
         c = _numbers(row, where, 9)
-        kind, duration, visible = c[0], c[7], bool(round(c[8]))
+        kind, duration, visible = c[0], c[7], bool(c[8])
+        if c[8] not in (0, 1):
+            raise UserInputError(f"{where}, column 9: GPS visibility {c[8]:g} not allowed; "
+                                 f"0 (no fix) or 1 (visible)")
         if kind not in (1, 2, 3, 4, 5):
             raise UserInputError(f"{where}, column 1: command type {c[0]:g} not allowed; "
                                  f"one of 1, 2, 3, 4, 5")
@@ -140,3 +174,11 @@ def read_motion_def(path: str | pathlib.Path, *,
         raise UserInputError(f"{p}: the motion definition has no command of positive "
                              f"duration")
     return MotionDefinition(lat * DEG, lon * DEG, alt, tuple(legs))
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True

@@ -11,8 +11,11 @@ interval becomes one leg whose last three channels are the geodetic position its
 (:class:`rlgsim.sim.motion.legs.Leg` ``frame = "geodetic"``): the velocity and its rate follow
 from the spline's derivatives through the radii of curvature (sim/motion/trajectory.py).
 
-Refused, one line naming file, row and column: a missing column, a non-number, times not
-strictly increasing, |latitude| ≥ 89.9°, fewer than 4 rows, and a **discontinuous table** — two
+Refused, one line naming file, row and column: a missing column, a non-number (booleans and
+dates included: the columns are numbers in the units their names give), times not strictly
+increasing, |latitude| ≥ 89.9°, a height outside the Earth model's
+(:data:`rlgsim.sim.motion.site.MIN_HEIGHT_M` … ``MAX_HEIGHT_M``), fewer than 4 rows or more
+than :data:`rlgsim.sim.motion.legs.MAX_LEGS` + 1, and a **discontinuous table** — two
 rows whose straight-line distance needs a speed above ``max_speed_m_s`` (default 1000 m/s: a
 judgement, faster than any aircraft an RLG INS flies in) or whose attitude turns faster than
 the gyros' range.
@@ -28,7 +31,8 @@ import numpy as np
 from rlgsim.ground.earth import radii_of_curvature_rad
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import DEG
-from rlgsim.sim.motion.legs import DEGREE, N_CHANNELS, Leg
+from rlgsim.sim.motion.legs import DEGREE, MAX_LEGS, N_CHANNELS, Leg
+from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 
 COLUMNS = ("time_s", "latitude_deg", "longitude_deg", "height_m", "heading_deg", "pitch_deg",
            "roll_deg")
@@ -61,8 +65,14 @@ def read_position_table(path: str | pathlib.Path, *, max_speed_m_s: float = DEFA
     if missing:
         raise UserInputError(f"{p}: missing column {missing[0]!r}; a position table has "
                              f"{', '.join(COLUMNS)}")
+    if len(df) > MAX_LEGS + 1:
+        raise UserInputError(f"{p}: {len(df)} rows; a position table takes at most "
+                             f"{MAX_LEGS + 1}")
     data = np.empty((len(df), len(COLUMNS)))
     for j, c in enumerate(COLUMNS):
+        if df[c].dtype.kind in "bmM":               # booleans, durations, dates: not numbers
+            raise UserInputError(f"{p}: column {c}: {df[c].dtype} values; expected numbers in "
+                                 f"the unit the column's name gives")
         col = df[c].to_numpy()
         try:
             data[:, j] = col.astype(float)
@@ -72,10 +82,16 @@ def read_position_table(path: str | pathlib.Path, *, max_speed_m_s: float = DEFA
                                  f"number") from None
         bad = np.flatnonzero(~np.isfinite(data[:, j]))
         if bad.size:
-            raise UserInputError(f"{p}: row {bad[0] + 1}, column {c}: {data[bad[0], j]!r} is "
-                                 f"not a finite number")
+            value = data[bad[0], j]
+            raise UserInputError(f"{p}: row {bad[0] + 1}, column {c}: "
+                                 f"{'empty or NaN' if np.isnan(value) else f'{value:g}'}; "
+                                 f"expected a finite number")
     if len(df) < 4:
         raise UserInputError(f"{p}: a position table needs at least 4 rows, got {len(df)}")
+    low = np.flatnonzero((data[:, 3] < MIN_HEIGHT_M) | (data[:, 3] > MAX_HEIGHT_M))
+    if low.size:
+        raise UserInputError(f"{p}: row {low[0] + 1}, column height_m: {data[low[0], 3]:g} not "
+                             f"allowed; must be in [{MIN_HEIGHT_M:g}, {MAX_HEIGHT_M:g}]")
     t = data[:, 0]
     step = np.diff(t)
     if np.any(step <= 0):

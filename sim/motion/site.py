@@ -18,6 +18,11 @@ import numpy as np
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG, earth_rate_enu, normal_gravity
 from rlgsim.sim.config import Ctx, check_known_keys, get_float
 
+#: the heights [m] the Earth model is used at (normal gravity's free-air series): from the
+#: deepest ocean trench to the top of the heights aircraft fly — a site, a route's start and
+#: every point of a vehicle's route stay inside
+MIN_HEIGHT_M, MAX_HEIGHT_M = -11000.0, 20000.0
+
 
 @dataclass(frozen=True)
 class Site:
@@ -39,8 +44,9 @@ class Site:
     def __post_init__(self) -> None:
         if not (-90.0 <= self.latitude_deg <= 90.0) or not math.isfinite(self.latitude_deg):
             raise ValueError(f"latitude_deg must be in [-90, 90], got {self.latitude_deg!r}")
-        if not (-11000.0 <= self.height_m <= 20000.0) or not math.isfinite(self.height_m):
-            raise ValueError(f"height_m must be in [-11000, 20000] m, got {self.height_m!r}")
+        if not (MIN_HEIGHT_M <= self.height_m <= MAX_HEIGHT_M) or not math.isfinite(self.height_m):
+            raise ValueError(f"height_m must be in [{MIN_HEIGHT_M:g}, {MAX_HEIGHT_M:g}] m, got "
+                             f"{self.height_m!r}")
         w = earth_rate_enu(self.latitude_deg)
         g = normal_gravity(self.latitude_deg, self.height_m)
         for name, value in (("earth_rate_enu", w), ("gravity", g),
@@ -61,4 +67,5 @@ class Site:
         check_known_keys(table, ("latitude_deg", "height_m"), ctx)
         return cls(latitude_deg=get_float(table, "latitude_deg", ctx, DEFAULT_LATITUDE_DEG,
                                           min=-90.0, max=90.0),
-                   height_m=get_float(table, "height_m", ctx, 0.0, min=-11000.0, max=20000.0))
+                   height_m=get_float(table, "height_m", ctx, 0.0, min=MIN_HEIGHT_M,
+                                       max=MAX_HEIGHT_M))

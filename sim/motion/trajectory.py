@@ -624,6 +624,11 @@ def _dense_extent(rows: np.ndarray, speed: float) -> tuple[float, float, float]:
             speed * float(np.max(rows[:, 1])))
 
 
+#: legs whose chunk radii are found at once (each leg's radius is its own: any batch gives
+#: the same numbers)
+_RADII_BATCH = 4096
+
+
 def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, dense: np.ndarray
                    ) -> np.ndarray:
     """Per leg the length [s] of its fitted chunks (sim/motion/_trajectory_block.py): a leg of
@@ -641,8 +646,10 @@ def _chunk_lengths(coef: np.ndarray, legs_i: np.ndarray, legs_f: np.ndarray, den
     turning = np.flatnonzero((legs_i[:, K.LI_LEVEL] != 2) & (legs_i[:, K.LI_STILL] == 0)
                              & (legs_i[:, K.LI_GEO] == 0) & (legs_i[:, K.LI_POS] == K.POS_DENSE)
                              & (legs_i[:, K.LI_NSEG] > 0))
-    out[turning] = np.minimum(cheb.CHUNK_MAX_S, cheb.RHO_FRACTION * cheb.chunk_radii(
-        coef[turning], legs_f[turning, K.LF_DUR]))
+    for lo in range(0, turning.size, _RADII_BATCH):       # memory: ~25 kB a leg at once
+        part = turning[lo:lo + _RADII_BATCH]
+        out[part] = np.minimum(cheb.CHUNK_MAX_S, cheb.RHO_FRACTION * cheb.chunk_radii(
+            coef[part], legs_f[part, K.LF_DUR]))
     for j, (kind, first, steps, level, still, _) in enumerate(legs_i):
         speed = float(np.linalg.norm(coef[j, 3:, 0]))
         if level != 2 or still or kind != K.POS_DENSE or steps == 0 or speed == 0.0:

@@ -41,18 +41,22 @@ accelerometers ±20–40 g: a judgement from typical data sheets; set your devic
 from __future__ import annotations
 
 import math
+import os
 import pathlib
+import stat
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.paths import file_kind
 from rlgsim.ground.earth import normal_gravity
 from rlgsim.ground.units import DEG
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_list,
                                get_quantity, get_str, unit_keys)
-from rlgsim.sim.motion.legs import Leg, rate_leg, smooth_leg
+from rlgsim.sim.motion.legs import MAX_LEGS, Leg, rate_leg, smooth_leg
+from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 from rlgsim.sim.motion.trajectory import InitialState, Trajectory
 
 _DURATION = unit_keys("duration", TIME_UNITS)
@@ -134,12 +138,15 @@ class TrajectoryProgram:
             raise ctx.error("latitude_deg", f"value {lat:g} not allowed; the ENU frame is "
                                             f"singular at the poles: |latitude| < 89.9")
         lon = get_float(table, "longitude_deg", ctx, 0.0, min=-180.0, max=360.0)
-        height = get_float(table, "height_m", ctx, 0.0, min=-11000.0, max=20000.0)
+        height = get_float(table, "height_m", ctx, 0.0, min=MIN_HEIGHT_M, max=MAX_HEIGHT_M)
         state = np.array([get_float(table, "heading_deg", ctx, 0.0) * DEG,
                           get_float(table, "pitch_deg", ctx, 0.0, min=-90.0, max=90.0) * DEG,
                           get_float(table, "roll_deg", ctx, 0.0, min=-180.0, max=180.0) * DEG,
                           0.0, get_float(table, "speed_m_s", ctx, 0.0), 0.0])
         segs = get_list(table, "segment", ctx, min_len=1)
+        if len(segs) > MAX_LEGS // 3:
+            raise ctx.error("segment", f"{len(segs)} segments; a route takes at most "
+                                       f"{MAX_LEGS // 3}")
         legs: list[Leg] = []
         gamma = normal_gravity(lat, height)
         for i, seg in enumerate(segs):
@@ -155,15 +162,27 @@ class TrajectoryProgram:
                    accel_range, source)
 
 
-def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None
-               ) -> tuple[InitialState, tuple[Leg, ...]]:
-    from rlgsim.sim.motion.motion_def import DEFAULT_MOBILITY, read_motion_def
-    name = get_str(table, "file", ctx)
+def _input_path(table: Mapping[str, Any], key: str, ctx: Ctx, base_dir: pathlib.Path | None
+                ) -> pathlib.Path:
+    """The regular file named by ``table[key]`` (relative to ``base_dir``): a missing file, a
+    folder, a FIFO or a device is one line naming the key."""
+    name = get_str(table, key, ctx)
     path = pathlib.Path(name)
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
-    if not path.is_file():
-        raise ctx.error("file", f"{name!r} not found (looked for {path})")
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        raise ctx.error(key, f"{name!r} not found (looked for {path})") from None
+    if not name or not stat.S_ISREG(mode):
+        raise ctx.error(key, f"{name!r} is {file_kind(mode)} ({path}); expected a file")
+    return path
+
+
+def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None
+               ) -> tuple[InitialState, tuple[Leg, ...]]:
+    from rlgsim.sim.motion.motion_def import DEFAULT_MOBILITY, read_motion_def
+    path = _input_path(table, "file", ctx, base_dir)
     mob = (get_float(table, "max_accel_m_s2", ctx, DEFAULT_MOBILITY[0], min=0.0,
                      min_exclusive=True),
            get_float(table, "max_angular_accel_deg_s2", ctx, DEFAULT_MOBILITY[1] / DEG, min=0.0,
@@ -177,12 +196,7 @@ def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None
 def _from_table(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None,
                 gyro_range: float) -> tuple[InitialState, tuple[Leg, ...]]:
     from rlgsim.sim.motion.position_table import DEFAULT_MAX_SPEED_M_S, read_position_table
-    name = get_str(table, "table", ctx)
-    path = pathlib.Path(name)
-    if not path.is_absolute() and base_dir is not None:
-        path = base_dir / path
-    if not path.is_file():
-        raise ctx.error("table", f"{name!r} not found (looked for {path})")
+    path = _input_path(table, "table", ctx, base_dir)
     speed = get_float(table, "max_speed_m_s", ctx, DEFAULT_MAX_SPEED_M_S, min=0.0,
                       min_exclusive=True)
     (lat, lon, h), legs, _ = read_position_table(path, max_speed_m_s=speed,
@@ -204,6 +218,9 @@ def _segment_legs(seg: Mapping[str, Any], ctx: Ctx, state: np.ndarray, gamma: fl
                              f">= 0")
     gnss = get_bool(seg, "gnss", ctx, True)
     label = get_str(seg, "label", ctx, kind)
+    if any(ord(c) < 32 for c in label):     # the dataset's timeline stores it as a C string
+        raise ctx.error("label", f"{label[:40]!r} not allowed; a label is one line of text "
+                                 f"without control characters")
     if duration == 0:
         return []
     zero = np.zeros(6)

@@ -1,0 +1,134 @@
+"""Hostile vehicle scenarios (issue 26): ``[trajectory]`` tables, gnss-ins-sim motion files,
+position tables and the bay's keys that once gave a traceback, a hang, a silent misreading or a
+message naming the wrong thing — each now one line ``rlgsim: error: ...`` naming the file, key,
+line or column, exit status 2, the old output untouched and no temporary file left. Every case
+is refused before the first block is simulated (well under a second each)."""
+
+from __future__ import annotations
+
+import pathlib
+
+import pytest
+
+from scenario_helpers import one_line
+
+HEAD = 'latitude_deg = 34.0\nlongitude_deg = 108.9\nheight_m = 400.0\nheading_deg = 30.0'
+SEGS = ('[[trajectory.segment]]\nkind = "hold"\nduration_s = 5\n\n'
+        '[[trajectory.segment]]\nkind = "accelerate"\nduration_s = 5\nspeed_m_s = 10.0\n')
+MD_H1 = ("ini lat (deg),ini lon (deg),ini alt (m),ini vx_body (m/s),ini vy_body (m/s),"
+         "ini vz_body (m/s),ini yaw (deg),ini pitch (deg),ini roll (deg)")
+MD_H2 = ("command type,yaw (deg),pitch (deg),roll (deg),vx_body (m/s),vy_body (m/s),"
+         "vz_body (m/s),command duration (s),GPS visibility")
+MD_INIT = "31.9965,120.004,0,10,0,0,315,0,0"
+PT_COLS = "time_s,latitude_deg,longitude_deg,height_m,heading_deg,pitch_deg,roll_deg"
+
+
+def scenario(head: str = HEAD, segs: str = SEGS, extra: str = "") -> str:
+    return ('name = "fz"\ndevice = "rlg_imu_000"\nseed = 1\nduration_s = 20\n\n'
+            '[acquisition]\nsample_rate_hz = 10\n\n[chamber]\nstart_c = 20.0\n\n'
+            '[[chamber.segments]]\ntype = "hold"\nduration_min = 5\n\n'
+            f'{extra}\n[trajectory]\n{head}\n\n{segs}')
+
+
+def seg(kind: str, **keys) -> str:
+    return "\n".join(["", "[[trajectory.segment]]", f'kind = "{kind}"',
+                      *(f"{k} = {v}" for k, v in keys.items())]) + "\n"
+
+
+def motion_file(rows: list[str], init: str = MD_INIT, h1: str = MD_H1) -> dict[str, str]:
+    return {"scen.toml": scenario(head='file = "m.csv"', segs=""),
+            "m.csv": "\n".join([h1, init, MD_H2, *rows]) + "\n"}
+
+
+def table_file(rows: list[str], name: str = "r.csv") -> dict[str, str]:
+    return {"scen.toml": scenario(head=f'table = "{name}"', segs=""),
+            name: "\n".join([PT_COLS, *rows]) + "\n"}
+
+
+def parquet_table(**columns) -> dict:
+    import pandas as pd
+    df = pd.DataFrame({c: [float(i) for i in range(6)] for c in PT_COLS.split(",")})
+    df["latitude_deg"], df["height_m"] = 30.0, 100.0
+    for name, values in columns.items():
+        df[name] = values
+    return {"scen.toml": scenario(head='table = "r.parquet"', segs=""), "r.parquet": df}
+
+
+PT_OK = [f"{i},30,100,100,0,0,0" for i in range(6)]
+
+# (id, files, needles of the one line): what each input gave before its fix is in the comment
+CASES = [
+    # a NUL or newline in a segment's label: h5py's ValueError at the first write (traceback)
+    ("label_control_characters",
+     {"scen.toml": scenario(segs=SEGS + seg("hold", duration_s=5, label='"a\\nb\\u0000c"'))},
+     ["trajectory.segment[2].label", "control characters"]),
+    # a motion file's initial altitude outside the Earth model's heights: Site's ValueError
+    ("motion_file_altitude_deep",
+     motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,-1e6,10,0,0,0,0,0"),
+     ["m.csv: line 2, column 3", "[-11000, 20000]"]),
+    ("motion_file_altitude_space",
+     motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,1e7,10,0,0,0,0,0"),
+     ["m.csv: line 2, column 3", "initial altitude 1e+07"]),
+    # an initial latitude of 89.95°: ran (the segments' and tables' |latitude| < 89.9 skipped)
+    ("motion_file_latitude_past_89_9",
+     motion_file(["1,0,0,0,0,0,0,5,1"], init="89.95,120,0,10,0,0,0,0,0"),
+     ["m.csv: line 2, column 1", "|latitude| < 89.9"]),
+    # an empty cell inside a row: the cells after it moved one column left (duration ← GPS)
+    ("motion_file_empty_cell", motion_file(["1,0,,0,0,0,0,5,1,0"]),
+     ["m.csv: line 4, column 3: empty cell"]),
+    # no header line: the first command was read as the initial state
+    ("motion_file_no_header",
+     {"scen.toml": scenario(head='file = "m.csv"', segs=""),
+      "m.csv": "\n".join([MD_INIT, "1,0,0,0,0,0,0,5,1", "1,3,0,0,0,0,0,5,1",
+                          "2,0,0,0,20,0,0,20,1"]) + "\n"},
+     ["m.csv: line 1: expected the header of the initial state"]),
+    # GPS visibility other than 0/1: rounded to a flag silently (2, -1 visible; 0.5 hidden)
+    ("motion_file_gps_2", motion_file(["1,0,0,0,0,0,0,5,2"]), ["column 9: GPS visibility 2"]),
+    ("motion_file_gps_half", motion_file(["1,0,0,0,0,0,0,5,0.5"]),
+     ["column 9: GPS visibility 0.5"]),
+    # a folder or a device as the motion file / table: "not found"
+    ("motion_file_folder", {"scen.toml": scenario(head='file = "adir"', segs=""), "adir": None},
+     ["trajectory.file: 'adir' is a directory"]),
+    ("table_device", {"scen.toml": scenario(head='table = "/dev/null"', segs="")},
+     ["trajectory.table: '/dev/null' is a character device"]),
+    # a table's height outside the Earth model's: Site's ValueError (traceback)
+    ("table_underground", table_file([f"{i},30,100,{-20000 - i},0,0,0" for i in range(6)]),
+     ["r.csv: row 1, column height_m: -20000 not allowed"]),
+    # a NaN/empty cell: the message showed "np.float64(nan)"
+    ("table_empty_cell", table_file(PT_OK[:3] + ["3,30,100,,0,0,0"] + PT_OK[4:]),
+     ["r.csv: row 4, column height_m: empty or NaN"]),
+    # Parquet columns of dates or booleans: read as numbers (datetime64 → ns since 1970)
+    ("table_time_as_dates",
+     parquet_table(time_s=__import__("pandas").date_range("2020", periods=6, freq="s")),
+     ["r.parquet: column time_s: datetime64"]),
+    ("table_roll_as_booleans", parquet_table(roll_deg=[True] * 6),
+     ["r.parquet: column roll_deg: bool"]),
+    # too many legs: 1e6 type-1 commands took 2.9 GB and ended in numpy's MemoryError
+    ("motion_file_too_many_commands", motion_file(["1,0,0,0,0,0,0,0.001,1"] * 200_001),
+     ["m.csv: more than 200000 commands"]),
+]
+
+
+def _write(folder: pathlib.Path, files: dict) -> None:
+    for name, content in files.items():
+        if name.startswith("/"):
+            continue
+        path = folder / name
+        if content is None:
+            path.mkdir()
+        elif isinstance(content, str):
+            path.write_text(content)
+        else:
+            content.to_parquet(path)
+
+
+@pytest.mark.parametrize("files, needles", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_vehicle_scenario_is_one_line(tmp_path, monkeypatch, capsys, files, needles):
+    monkeypatch.chdir(tmp_path)
+    _write(tmp_path, files)
+    (tmp_path / "out.h5").write_bytes(b"old output")
+    line = one_line(capsys, ["run", "scen.toml", "-o", "out.h5", "--quiet"])
+    for needle in needles:
+        assert needle in line, (needle, line)
+    assert (tmp_path / "out.h5").read_bytes() == b"old output"
+    assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]
