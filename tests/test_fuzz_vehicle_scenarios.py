@@ -103,6 +103,50 @@ CASES = [
      ["r.parquet: column time_s: datetime64"]),
     ("table_roll_as_booleans", parquet_table(roll_deg=[True] * 6),
      ["r.parquet: column roll_deg: bool"]),
+    # a turn of 1e300° in 10 s: DOP853 ran a minute and ended in a MemoryError (2.1 GB)
+    ("turn_by_1e300", {"scen.toml": scenario(segs=SEGS + seg("turn", duration_s=10,
+                                                               by_deg="1e300"))},
+     ["body rate 1.875e+299 °/s", "(leg 2, turn) is past the gyros' range"]),
+    # a smooth turn of 10° in 1e-9 s: ran — the range check's grid (the leg's ends) missed the
+    # peak rate 1.9e10 °/s in its middle
+    ("turn_in_a_nanosecond", {"scen.toml": scenario(segs=SEGS + seg("turn", duration_s=1e-9,
+                                                                     by_deg=10))},
+     ["body rate 1.875e+10 °/s", "past the gyros' range"]),
+    # a start speed of 1e308 m/s: ZeroDivisionError inside DOP853's step control
+    ("speed_1e308", {"scen.toml": scenario(head=HEAD + "\nspeed_m_s = 1e308")},
+     ["leg 0 (hold) at t = 0 s: speed 1e+308 m/s is past 11200 m/s"]),
+    # gnss-ins-sim mobility limits of 1e300: a leg of 4e-149 s whose quintic overflowed to NaN;
+    # DOP853 never ended (hang)
+    ("motion_file_absurd_mobility",
+     {**motion_file(["1,0,0,0,0,0,0,5,1", "2,0,0,0,20,0,0,20,1"]),
+      "scen.toml": scenario(head='file = "m.csv"\nmax_accel_m_s2 = 1e300\n'
+                                 'max_rate_deg_s = 1e300\nmax_angular_accel_deg_s2 = 1e300',
+                            segs="")},
+     ["leg 1 (command 2 (type 2)) at t = 5 s: its rates are not finite numbers"]),
+    # a dive at 300 m/s for 2000 s: ran 590 km under the ellipsoid (normal gravity and all)
+    ("route_underground",
+     {"scen.toml": scenario(head=HEAD + "\nspeed_m_s = 300",
+                            segs=seg("climb", duration_s=10, pitch_deg=-80)
+                            + seg("hold", duration_s=2000)).replace("duration_s = 20\n", "")},
+     ["the route reaches a height of", "outside the Earth model's heights [-11000, 20000] m"]),
+    # a route of 1e12 s and no run duration: the run's "too long" named the key "duration"
+    ("route_too_long", {"scen.toml": scenario(segs=seg("hold", duration_s="1e12")).replace(
+        "duration_s = 20\n", "", 1)},
+     ["scen.toml: trajectory: 1e+12 s at a 1 s thermal step is too long", "duration_s"]),
+    # airflow far past what a 1-s thermal step can carry: the integrator's ValueError (φ = inf,
+    # traceback) or a pulse counter's "not finite" blaming the device preset (φ = 9e16)
+    ("bay_film_overflow", {"scen.toml": scenario(
+        extra="[vehicle_bay]\nfilm_speed_m_s = 1e-300\n")},
+     ["vehicle_bay: the airflow scales the bay's film coefficients by inf"]),
+    ("bay_film_past_the_step", {"scen.toml": scenario(
+        head=HEAD + "\nspeed_m_s = 300", segs=seg("hold", duration_s=20),
+        extra="[vehicle_bay]\nairflow_fraction = 1.0\nfilm_speed_m_s = 1e-6\n"
+              "film_exponent = 2\n")},
+     ["vehicle_bay: the airflow scales the bay's film coefficients by 9e+16 at 300 m/s",
+      "thermal_step_s"]),
+    # film_exponent 0: φ = 2^(1/3) even parked (u^0 = 1), not the still-air film at rest
+    ("bay_film_exponent_0", {"scen.toml": scenario(extra="[vehicle_bay]\nfilm_exponent = 0\n")},
+     ["vehicle_bay.film_exponent: value 0 not allowed; must be > 0"]),
     # too many legs: 1e6 type-1 commands took 2.9 GB and ended in numpy's MemoryError
     ("motion_file_too_many_commands", motion_file(["1,0,0,0,0,0,0,0.001,1"] * 200_001),
      ["m.csv: more than 200000 commands"]),

@@ -263,7 +263,8 @@ def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s, skip,
                 out):  # pragma: no cover - compiled
     """Largest |ω_ib^b| and |f^b| component and the time of the largest rate → ``out`` (3,),
     on each leg's grid of :meth:`rlgsim.sim.motion.trajectory.Trajectory.peak_inputs` (m =
-    max(2, ⌈duration/``step_s``⌉ + 1) points k·duration/(m − 1), the last one the duration):
+    max(3, ⌈duration/``step_s``⌉ + 1), made odd, points k·duration/(m − 1), the last one the
+    duration — the middle, where a smooth leg's rates peak, always on it):
     the sensor inputs of :func:`_piece_hermite`'s formulas at each point, the first largest;
     the legs whose entry of ``skip`` (one per leg) is ≠ 0 left out."""
     a_axis, e2 = earth[0], earth[1]
@@ -273,7 +274,8 @@ def peak_inputs(coef, dcoef, d2coef, legs_i, legs_f, dense, earth, step_s, skip,
         if skip[j] != 0:
             continue
         dur = legs_f[j, LF_DUR]
-        m = max(2, int(np.ceil(dur / step_s)) + 1)
+        m = max(3, int(np.ceil(dur / step_s)) + 1)
+        m += 1 - m % 2                          # odd: the leg's middle (a smooth leg's peak)
         step = dur / (m - 1)
         for k in range(m):
             tau = dur if k == m - 1 else float(k) * step

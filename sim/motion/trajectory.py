@@ -165,6 +165,19 @@ def attitude_from_euler(heading: np.ndarray, pitch: np.ndarray, roll: np.ndarray
     return _rot_z_neg(heading) @ _rot_x(pitch) @ _rot_y(roll)
 
 
+def attitude_rates(x: np.ndarray, xd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C_b^n (k, 3, 3) and ω_nb^b (k, 3) [rad/s] from legs' channels ``x`` (6, k) and their
+    rates ``xd`` (6, k) (the module docstring's ω_nb^b)."""
+    rx, ry = _rot_x(x[1]), _rot_y(x[2])
+    c = _rot_z_neg(x[0]) @ rx @ ry
+    zero = np.zeros(x.shape[1])
+    yaw = np.stack([zero, zero, -xd[0]], -1)
+    pitch = np.stack([xd[1], zero, zero], -1)
+    w = (np.einsum("kji,kj->ki", ry, np.einsum("kji,kj->ki", rx, yaw) + pitch)
+         + np.stack([zero, xd[2], zero], -1))
+    return c, w
+
+
 def quaternion_from_euler(heading: np.ndarray, pitch: np.ndarray, roll: np.ndarray
                           ) -> np.ndarray:
     """The Hamilton quaternion [w, x, y, z] (k, 4) of :func:`attitude_from_euler`."""
@@ -202,6 +215,8 @@ class Trajectory:
             t = np.append(t, until_s)
         self.legs = legs
         self.initial = initial
+        #: the run's end [s] (0: the legs' end); legs starting after it are never sampled
+        self._until = float(until_s) if until_s > 0 else float(t[-1])
         self._t0 = t[:-1]
         self._t1 = t[1:]
         self._end_s = float(t[-1])
@@ -271,14 +286,7 @@ class Trajectory:
 
     def _attitude_rates(self, x: np.ndarray, xd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """C_b^n (k, 3, 3) and ω_nb^b (k, 3) from the Euler channels and their rates."""
-        rx, ry = _rot_x(x[1]), _rot_y(x[2])
-        c = _rot_z_neg(x[0]) @ rx @ ry
-        zero = np.zeros(x.shape[1])
-        yaw = np.stack([zero, zero, -xd[0]], -1)
-        pitch = np.stack([xd[1], zero, zero], -1)
-        w = (np.einsum("kji,kj->ki", ry, np.einsum("kji,kj->ki", rx, yaw) + pitch)
-             + np.stack([zero, xd[2], zero], -1))
-        return c, w
+        return attitude_rates(x, xd)
 
     def _table_velocity(self, j: int, tau: np.ndarray, x: np.ndarray, xd: np.ndarray):
         """:meth:`_velocity` of a leg whose channels 3-5 are the geodetic position (L, λ, h):
@@ -322,7 +330,9 @@ class Trajectory:
                 out.append((None, None))
                 y = leg.end()[3:].copy()
                 continue
-            if self._still[j]:          # standing: DOP853's steps of a zero rate hold y exactly
+            if self._still[j] or self._t0[j] > self._until:
+                # standing: DOP853's steps of a zero rate hold y exactly; after the run's end:
+                # never sampled (its position left at its start)
                 out.append((y.copy(), None))
                 continue
             status, rows, n_new, y_end = R.dop853_leg(
@@ -504,12 +514,18 @@ class Trajectory:
         the full grid's, with its time, for every leg left out is below it; one under it
         only says the run stays under (what the range check asks: the 4-h land route's holds,
         ~3/4 of its grid, cost nothing)."""
-        from rlgsim.sim.motion._trajectory_kernel import peak_inputs
+        from rlgsim.sim.motion import _trajectory_kernel as K
         out = np.empty(3)
         skip = (self._calm_legs(*below) if below is not None
                 else np.zeros(len(self.legs), dtype=np.int64))
-        peak_inputs(self._coef, self._dcoef, self._d2coef, self._legs_i, self._legs_f,
-                    self._dense, _EARTH, float(step_s), skip, out)
+        legs_f = self._legs_f
+        if self._until < self._end_s:       # the sensors never see the legs after the run
+            skip = skip | (self._t0 >= self._until)
+            legs_f = legs_f.copy()
+            legs_f[:, K.LF_DUR] = np.minimum(legs_f[:, K.LF_DUR],
+                                             np.maximum(self._until - self._t0, 0.0))
+        K.peak_inputs(self._coef, self._dcoef, self._d2coef, self._legs_i, legs_f,
+                      self._dense, _EARTH, float(step_s), skip, out)
         return float(out[0]), float(out[1]), float(out[2])
 
     def _calm_legs(self, rate: float, force: float) -> np.ndarray:
@@ -549,6 +565,23 @@ class Trajectory:
             out[j] = int(w_bound < rate and f_bound < force)
         return out
 
+    def height_extent(self) -> tuple[float, float, float, float]:
+        """Lowest and highest height [m] of the route up to the run's end, at its legs' starts
+        and its DOP853 steps' starts (a table's: its rows), with the times [s] they are at."""
+        from rlgsim.sim.motion._trajectory_route import ROW
+        h, t = [], []
+        for j, (y0, steps) in enumerate(self._position):
+            if self._t0[j] > self._until:
+                break
+            y0 = self._channels(j, np.zeros(1))[0][3:, 0] if y0 is None else y0   # a table
+            rows = self._dense[steps[0]:steps[0] + steps[1]] if steps else self._dense[:0]
+            h += [[y0[2]], rows[:, ROW - 1]]
+            t += [[self._t0[j]], self._t0[j] + rows[:, 0]]
+        hs, ts = np.concatenate(h), np.concatenate(t)
+        hs[ts > self._until] = np.nan
+        lo, hi = int(np.nanargmin(hs)), int(np.nanargmax(hs))
+        return float(hs[lo]), float(ts[lo]), float(hs[hi]), float(ts[hi])
+
     def peak_inputs_numpy(self, step_s: float = 0.5) -> tuple[float, float, float]:
         """:meth:`peak_inputs` by the NumPy formulas (:meth:`_inputs`; what the tests compare
         the kernel with).
@@ -559,7 +592,8 @@ class Trajectory:
         the run (~3 MB per hour of it at once before)."""
         best_w, best_f, at = 0.0, 0.0, 0.0
         for j, leg in enumerate(self.legs):
-            m = max(2, int(np.ceil(leg.duration_s / step_s)) + 1)
+            m = max(3, int(np.ceil(leg.duration_s / step_s)) + 1)
+            m += 1 - m % 2                              # odd: the leg's middle on the grid
             step = leg.duration_s / (m - 1)
             for lo in range(0, m, _PEAK_SLICE):
                 tau = np.arange(lo, min(m, lo + _PEAK_SLICE), dtype=float) * step

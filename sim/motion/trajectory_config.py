@@ -51,8 +51,8 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.paths import file_kind
-from rlgsim.ground.earth import normal_gravity
-from rlgsim.ground.units import DEG
+from rlgsim.ground.earth import WGS84_A, WGS84_E2, normal_gravity
+from rlgsim.ground.units import DEG, EARTH_RATE
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_list,
                                get_quantity, get_str, unit_keys)
 from rlgsim.sim.motion.legs import MAX_LEGS, Leg, rate_leg, smooth_leg
@@ -101,10 +101,18 @@ class TrajectoryProgram:
         return cache[until_s]
 
     def _build(self, until_s: float) -> Trajectory:
+        _check_legs(self.legs, until_s, self.gyro_range_rad_s, self.source)
         try:
             traj = Trajectory(self.legs, self.initial, until_s)
         except ValueError as e:
             raise UserInputError(f"{self.source}: trajectory: {e}") from None
+        low, t_low, high, t_high = traj.height_extent()
+        for h, at in ((low, t_low), (high, t_high)):
+            if not MIN_HEIGHT_M <= h <= MAX_HEIGHT_M:
+                raise UserInputError(
+                    f"{self.source}: trajectory: the route reaches a height of {h:.6g} m at "
+                    f"t = {at:.6g} s, outside the Earth model's heights [{MIN_HEIGHT_M:g}, "
+                    f"{MAX_HEIGHT_M:g}] m")
         w, f, at = traj.peak_inputs(below=(self.gyro_range_rad_s, self.accel_range_m_s2))
         if w > self.gyro_range_rad_s:
             raise UserInputError(
@@ -177,6 +185,58 @@ def _input_path(table: Mapping[str, Any], key: str, ctx: Ctx, base_dir: pathlib.
     if not name or not stat.S_ISREG(mode):
         raise ctx.error(key, f"{name!r} is {file_kind(mode)} ({path}); expected a file")
     return path
+
+
+#: fastest a vehicle may move [m/s]: the escape velocity (faster, nothing stays over the
+#: ellipsoid the route is drawn on; the range check refuses far slower routes on its own)
+MAX_SPEED_M_S = 11_200.0
+#: where a leg is probed before the route is built, in parts of its duration: its ends, its
+#: middle (a smooth leg's peak rate) and its rate of rate's peaks (Flash & Hogan's quintic)
+_PROBES = np.array([0.0, 0.5 - math.sqrt(3.0) / 6.0, 0.5, 0.5 + math.sqrt(3.0) / 6.0, 1.0])
+
+
+def _check_legs(legs: tuple[Leg, ...], until_s: float, gyro_range: float, source: str) -> None:
+    """Refuse, before the route's position is integrated, the legs up to ``until_s`` that no
+    vehicle in the sensors' range rides: rates that are not finite numbers, a speed past
+    :data:`MAX_SPEED_M_S`, or a body rate past the gyros' range however the Earth and transport
+    rates add to it — at each probe ω_ib^b = ω_nb^b + C_n^b (ω_ie^n + ω_en^n), so its largest
+    component ≥ that of ω_nb^b − Ω − |v|/((a(1 − e²) + h_min) cos 89.9°) for a route inside the
+    Earth model's heights and latitudes (one outside them is refused after the integration).
+    Without this a turn of 1e300° went to DOP853 and ended in a MemoryError after a minute."""
+    from rlgsim.sim.motion.position_table import MAX_LATITUDE_DEG
+    from rlgsim.sim.motion.trajectory import attitude_rates
+    w_en_per_speed = 1.0 / ((WGS84_A * (1.0 - WGS84_E2) + MIN_HEIGHT_M)
+                            * math.cos(math.radians(MAX_LATITUDE_DEG)))
+    t0 = 0.0
+    for j, leg in enumerate(legs):
+        if t0 > until_s:
+            break
+        where = f"{source}: trajectory: leg {j} ({leg.label}) at t = {t0:.6g} s"
+        if not np.all(np.isfinite(leg.coef)):
+            raise UserInputError(f"{where}: its rates are not finite numbers (the leg lasts "
+                                 f"{leg.duration_s:.6g} s)")
+        t0 += leg.duration_s
+        if leg.frame != "body":
+            continue
+        tau = leg.duration_s * _PROBES
+        with np.errstate(over="ignore", invalid="ignore"):
+            x, xd = leg.values(tau), leg.rates(tau)
+        speed = np.hypot(np.hypot(x[3], x[4]), x[5])
+        if np.max(speed) > MAX_SPEED_M_S:
+            raise UserInputError(f"{where}: speed {np.max(speed):.4g} m/s is past "
+                                 f"{MAX_SPEED_M_S:g} m/s (the escape velocity: no vehicle of "
+                                 f"this model)")
+        with np.errstate(over="ignore", invalid="ignore"):
+            _, w_nb = attitude_rates(x, xd)
+        low = np.max(np.abs(w_nb), axis=1) - EARTH_RATE - speed * w_en_per_speed
+        if not np.all(np.isfinite(low)):
+            raise UserInputError(f"{where}: its body rates are not finite numbers")
+        k = int(np.argmax(low))
+        if low[k] > gyro_range:
+            raise UserInputError(
+                f"{source}: trajectory: body rate {np.max(np.abs(w_nb[k])) / DEG:.4g} °/s at "
+                f"t = {t0 - leg.duration_s + tau[k]:.6g} s (leg {j}, {leg.label}) is past the "
+                f"gyros' range gyro_range_deg_s = {gyro_range / DEG:g}")
 
 
 def _from_file(table: Mapping[str, Any], ctx: Ctx, base_dir: pathlib.Path | None

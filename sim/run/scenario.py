@@ -334,8 +334,9 @@ def parse_scenario(text: str, source: str = "<string>", *,
     turntable = _parse_turntable(get_table(data, "turntable", ctx, None), ctx.child("turntable"))
     step = acquisition.thermal_step_s
     duration = get_quantity(data, "duration", ctx, TIME_UNITS, None, min=0.0, min_exclusive=True)
+    key = "duration"
     if duration is None and trajectory is not None:
-        duration = trajectory.duration_s
+        duration, key = trajectory.duration_s, "trajectory"     # the run lasts the route
     if duration is None:
         rng = generator(seed, 0, "chamber", "programme", 0)
         duration = float(chamber.rate_limited(chamber.setpoint(rng)).end_s)
@@ -345,8 +346,10 @@ def parse_scenario(text: str, source: str = "<string>", *,
                                           "duration_h)")
     steps = max(1, round(duration / step))
     if steps > 10**9:
-        raise ctx.error("duration", f"{duration:g} s at a {step:g} s thermal step is too long "
-                                    f"(more than 1e9 steps)")
+        raise ctx.error(key, f"{duration:g} s at a {step:g} s thermal step is too long "
+                             f"(more than 1e9 steps)"
+                        + ("; the run lasts the route: give the scenario a duration_s, or "
+                           "shorten the segments" if key == "trajectory" else ""))
     return Scenario(name=name, description=description, source=source, text=text, seed=seed,
                     device=device, site=site, acquisition=acquisition, power=power,
                     chamber=chamber, turntable=turntable, duration_s=steps * step, tables=data,

@@ -43,6 +43,10 @@ class ThermalPart:
         if getattr(scenario, "vehicle_bay", None) is not None:
             self.bay = (scenario.vehicle_bay,
                         scenario.trajectory.build(float(timeline.duration_s)))
+            net = self.network
+            self._bay_check = (float(np.max(-np.expm1(
+                -net.ambient_conductance_w_per_k * self.step / net.capacitance_j_per_k))),
+                scenario.source)
 
     @property
     def node_names(self) -> tuple[str, ...]:
@@ -65,7 +69,9 @@ class ThermalPart:
         film = None
         if self.bay is not None:             # φ − 1 at each step's start (held over the step)
             bay, route = self.bay
-            film = bay.factor(np.linalg.norm(route.states(t[:-1]).v_n, axis=1)) - 1.0
+            speed = np.linalg.norm(route.states(t[:-1]).v_n, axis=1)
+            film = bay.factor(speed) - 1.0
+            bay.check_step(film, speed, *self._bay_check, self.step)
         noise = None
         if self.chamber_noise is not None:   # one stream per 600-s block: chunking-invariant
             loop = self.integrator.chamber_loop

@@ -32,6 +32,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from rlgsim.ground.errors import UserInputError
 from rlgsim.sim.config import Ctx, check_known_keys, get_float
 
 KEYS = ("airflow_fraction", "film_speed_m_s", "film_exponent")
@@ -49,7 +50,27 @@ class VehicleBay:
     def factor(self, speed_m_s: Any) -> np.ndarray:
         """φ(v): the scaling of every ambient conductance at ground speeds ``speed_m_s``."""
         u = self.airflow_fraction * np.abs(np.asarray(speed_m_s, dtype=float))
-        return np.cbrt(1.0 + (u / self.film_speed_m_s) ** (3.0 * self.film_exponent))
+        with np.errstate(over="ignore"):          # inf: refused by check_step
+            return np.cbrt(1.0 + (u / self.film_speed_m_s) ** (3.0 * self.film_exponent))
+
+    def check_step(self, film: np.ndarray, speed_m_s: np.ndarray, rate_per_step: float,
+                   source: str, step_s: float) -> None:
+        """Refuse (one :class:`~rlgsim.ground.errors.UserInputError` line) airflow so strong
+        that the residual heat held over a thermal step overshoots the bay's air: for a node
+        with the fraction κ = 1 − exp(−g_i Δt/C_i) of its deviation from the air relaxed per
+        still-air step, the held term (φ − 1)·g_i·(T_air − T_i) moves it by (φ − 1)·κ of that
+        deviation, so the node would cross the air temperature (and oscillate, diverging past
+        1 + e^(−g_i Δt/C_i)) once (φ − 1)·κ ≥ 1 — a one-node bound, applied with the largest κ
+        of the network (``rate_per_step``). ``film`` = φ − 1 at ``speed_m_s``."""
+        worst = int(np.argmax(np.where(np.isfinite(film), film, np.inf)))
+        if np.isfinite(film[worst]) and film[worst] * rate_per_step < 1.0:
+            return
+        raise UserInputError(
+            f"{source}: vehicle_bay: the airflow scales the bay's film coefficients by "
+            f"{film[worst] + 1.0:.4g} at {speed_m_s[worst]:.4g} m/s, too strong for a "
+            f"{step_s:g}-s thermal step (the held airflow heat would carry a node past the "
+            f"air: needs (φ − 1)·{rate_per_step:.3g} < 1); lower airflow_fraction or "
+            f"film_exponent, raise film_speed_m_s, or shorten [acquisition] thermal_step_s")
 
     @classmethod
     def from_config(cls, table: Mapping[str, Any], ctx: Ctx) -> "VehicleBay":
@@ -57,4 +78,5 @@ class VehicleBay:
         check_known_keys(table, KEYS, ctx)
         return cls(get_float(table, "airflow_fraction", ctx, 0.1, min=0.0, max=1.0),
                    get_float(table, "film_speed_m_s", ctx, 0.5, min=0.0, min_exclusive=True),
-                   get_float(table, "film_exponent", ctx, 0.8, min=0.0, max=2.0))
+                   get_float(table, "film_exponent", ctx, 0.8, min=0.0, min_exclusive=True,
+                             max=2.0))    # n = 0: a constant (u/u_eq)^0 = 1, φ ≠ 1 at rest
