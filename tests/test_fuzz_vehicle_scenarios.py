@@ -176,3 +176,29 @@ def test_bad_vehicle_scenario_is_one_line(tmp_path, monkeypatch, capsys, files, 
         assert needle in line, (needle, line)
     assert (tmp_path / "out.h5").read_bytes() == b"old output"
     assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]
+
+
+# extreme but valid: a run far shorter than its route's last leg (the route after the run's
+# end is neither integrated nor checked: the sensors never see it) — each once hung or ran out
+# of memory before the first block
+EXTREME = [
+    # a turn at 1 °/s for 1e9 s, the run 20 s: DOP853 over the whole leg, MemoryError in 40 s
+    ("turning_1e9_s_after_a_20_s_run",
+     scenario(head=HEAD + "\nspeed_m_s = 10", segs=seg("turn", duration_s="1e9", rate_deg_s=1))),
+    # a 1e7-s hold northward, the run 20 s: refused for a pole reached at t = 1.2e6 s
+    ("pole_after_the_run",
+     scenario(head=HEAD.replace("heading_deg = 30.0", "heading_deg = 0") + "\nspeed_m_s = 10",
+              segs=seg("hold", duration_s="1e7"))),
+]
+
+
+@pytest.mark.parametrize("text", [c[1] for c in EXTREME], ids=[c[0] for c in EXTREME])
+def test_route_after_the_run_is_not_built(tmp_path, text):
+    from rlgsim.sim.run.scenario import load_scenario
+    path = tmp_path / "scen.toml"
+    path.write_text(text)
+    s = load_scenario(str(path))
+    route = s.trajectory.build(s.duration_s)
+    assert s.duration_s == 20.0 and len(route._dense) < 1000       # steps up to the run's end
+    w, f, _ = route.peak_inputs()
+    assert w < s.trajectory.gyro_range_rad_s and f < s.trajectory.accel_range_m_s2

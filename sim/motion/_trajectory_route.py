@@ -158,9 +158,11 @@ def _dense_row(coef, dcoef, j, t_old, h, y_old, y, f_new, k, w, e2, a_axis, tmp,
 
 @njit(cache=True, nogil=True)
 def dop853_leg(coef, dcoef, j, t_bound, y0, rtol, atol, earth, max_lat, tab_a, tab_b, tab_c,
-               tab_e3, tab_e5, tab_d, control, rows, n_rows):  # pragma: no cover - compiled
+               tab_e3, tab_e5, tab_d, control, rows, n_rows, t_stop):  # pragma: no cover
     """Integrate leg ``j``'s position over leg time [0, ``t_bound``] from ``y0`` → its dense
-    rows appended to ``rows`` from row ``n_rows`` (grown by doubling as needed).
+    rows appended to ``rows`` from row ``n_rows`` (grown by doubling as needed); it stops after
+    the first step reaching ``t_stop`` (the run's end inside the leg; ``t_bound`` otherwise):
+    the steps, and so the rows, up to there are those of the whole leg's integration.
 
     Returns (status, rows, the new row count, the end position): status 0 done, 1 hand the
     leg to scipy (module docstring). The steps as scipy's ``DOP853.step``: each attempt of
@@ -224,6 +226,6 @@ def dop853_leg(coef, dcoef, j, t_bound, y0, rtol, atol, earth, max_lat, tab_a, t
         f[:] = k[N_STAGES]
         y[:] = y_new
         t = t_new
-        if t - t_bound >= 0:
+        if t - t_bound >= 0 or t >= t_stop:
             break
     return 0, rows, n_rows, y

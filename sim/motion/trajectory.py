@@ -338,7 +338,8 @@ class Trajectory:
             status, rows, n_new, y_end = R.dop853_leg(
                 self._coef, self._dcoef, j, float(leg.duration_s), y, _RTOL, _ATOL_ARRAY,
                 _EARTH, MAX_LATITUDE_RAD, R.TAB_A, R.TAB_B, R.TAB_C, R.TAB_E3, R.TAB_E5,
-                R.TAB_D, R.CONTROL, rows, n_rows)
+                R.TAB_D, R.CONTROL, rows, n_rows,
+                min(float(leg.duration_s), self._until - self._t0[j]))
             if status != 0:                             # the pole, or a step too small
                 y_end, leg_rows = self._solve_ivp_leg(j, y)
                 n_new = n_rows + len(leg_rows)
