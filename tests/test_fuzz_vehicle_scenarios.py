@@ -133,6 +133,12 @@ CASES = [
     ("route_too_long", {"scen.toml": scenario(segs=seg("hold", duration_s="1e12")).replace(
         "duration_s = 20\n", "", 1)},
      ["scen.toml: trajectory: 1e+12 s at a 1 s thermal step is too long", "duration_s"]),
+    # a start heading of 1e20°: ran, and a 30° turn after it was lost to rounding (ulp 16 384 rad)
+    ("heading_1e20", {"scen.toml": scenario(head=HEAD.replace("30.0", "1e20"))},
+     ["trajectory.heading_deg: value 1e+20 not allowed; must be <= 360"]),
+    ("motion_file_yaw_1e20",
+     motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,0,10,0,0,1e20,0,0"),
+     ["m.csv: line 2, column 7: initial yaw 1e+20° not allowed"]),
     # airflow far past what a 1-s thermal step can carry: the integrator's ValueError (φ = inf,
     # traceback) or a pulse counter's "not finite" blaming the device preset (φ = 9e16)
     ("bay_film_overflow", {"scen.toml": scenario(

@@ -135,6 +135,11 @@ def read_motion_def(path: str | pathlib.Path, *,
     if not MIN_HEIGHT_M <= alt <= MAX_HEIGHT_M:
         raise UserInputError(f"{p}: line {lines[1]}, column 3: initial altitude {alt:g} m not "
                              f"allowed; must be in [{MIN_HEIGHT_M:g}, {MAX_HEIGHT_M:g}]")
+    far = np.flatnonzero(np.abs(init[6:9]) > 360.0)
+    if far.size:       # far past a turn the angles lose the commands' changes to rounding
+        raise UserInputError(f"{p}: line {lines[1]}, column {7 + far[0]}: initial "
+                             f"{('yaw', 'pitch', 'roll')[far[0]]} {init[6 + far[0]]:g}° not "
+                             f"allowed; must be in [-360, 360]")
     state = np.concatenate([init[6:9][[0, 1, 2]] * DEG, _body(init[3:6])])
     max_acc, max_dw, max_w = mobility
     rate_lim = np.array([max_w] * 3 + [np.inf] * 3)

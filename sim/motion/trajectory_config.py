@@ -147,7 +147,8 @@ class TrajectoryProgram:
                                             f"singular at the poles: |latitude| < 89.9")
         lon = get_float(table, "longitude_deg", ctx, 0.0, min=-180.0, max=360.0)
         height = get_float(table, "height_m", ctx, 0.0, min=MIN_HEIGHT_M, max=MAX_HEIGHT_M)
-        state = np.array([get_float(table, "heading_deg", ctx, 0.0) * DEG,
+        # a heading far past a turn loses the turns to rounding (1e20°: a 30° turn vanished)
+        state = np.array([get_float(table, "heading_deg", ctx, 0.0, min=-360.0, max=360.0) * DEG,
                           get_float(table, "pitch_deg", ctx, 0.0, min=-90.0, max=90.0) * DEG,
                           get_float(table, "roll_deg", ctx, 0.0, min=-180.0, max=180.0) * DEG,
                           0.0, get_float(table, "speed_m_s", ctx, 0.0), 0.0])
