@@ -139,6 +139,11 @@ CASES = [
     ("motion_file_yaw_1e20",
      motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,0,10,0,0,1e20,0,0"),
      ["m.csv: line 2, column 7: initial yaw 1e+20° not allowed"]),
+    # a segment that is not a table: the message named "trajectory.segment[1]." (a stray dot)
+    ("segment_not_a_table",
+     {"scen.toml": scenario(head=HEAD + '\nsegment = [{kind = "hold", duration_s = 5}, 3]',
+                            segs="")},
+     ["scen.toml: trajectory.segment[1]: expected a table, got 3"]),
     # airflow far past what a 1-s thermal step can carry: the integrator's ValueError (φ = inf,
     # traceback) or a pulse counter's "not finite" blaming the device preset (φ = 9e16)
     ("bay_film_overflow", {"scen.toml": scenario(

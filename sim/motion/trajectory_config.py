@@ -161,7 +161,8 @@ class TrajectoryProgram:
         for i, seg in enumerate(segs):
             sctx = ctx.child("segment").item(i)
             if not isinstance(seg, Mapping):
-                raise sctx.error("", f"expected a table, got {seg!r}")
+                raise UserInputError(f"{source}: {sctx.path}: expected a table, got "
+                                     f"{seg!r:.40}")
             for leg in _segment_legs(seg, sctx, state, gamma):
                 legs.append(leg)
                 state = leg.end()
