@@ -208,3 +208,76 @@ def test_navigate_output_checked_before_work(runs, tmp_path, capsys, argv, made,
     line = one_line(capsys, ["navigate", str(src), "--align-s", "60", "-q", *argv])
     assert words in line
     assert _digest(tmp_path) == before
+
+
+STUDY = """
+[study]
+name = "fuzz_vehicle"
+recipe = "vehicle"
+[train]
+scenario = "static.toml"
+window_s = 30
+[mission]
+scenario = "vehicle.toml"
+[[compensator]]
+name = "LS cubic T"
+inputs = ["T"]
+degree = 3
+[[compensator]]
+name = "LS quadratic T, dT/dt"
+inputs = ["T", "dT/dt"]
+degree = 2
+"""
+
+#: (id, (old, new) replacements of :data:`STUDY`, words of the one line) for ``rlgsim study``;
+#: each is refused before anything is simulated
+STUDY_CASES = [
+    ("name raw", [('"LS cubic T"', '"raw"')], "compensator[0].name: 'raw' not allowed"),
+    ("name truth", [('"LS cubic T"', '"truth"')], "compensator[0].name: 'truth'"),
+    ("name oracle", [('"LS cubic T"', '"oracle"')], "compensator[0].name: 'oracle'"),
+    ("name twice", [('"LS quadratic T, dT/dt"', '"LS cubic T"')],
+     "compensator[1].name: 'LS cubic T' not allowed"),
+    ("name empty", [('"LS cubic T"', '""')], "compensator[0].name: '' not allowed"),
+    ("input twice", [('inputs = ["T"]', 'inputs = ["T", "T"]')],
+     "compensator[0].inputs: ['T', 'T'] names an input twice"),
+    ("window longer than the train run", [("window_s = 30", "window_s = 1e9")],
+     "train.scenario: fuzz_static lasts 180 s, shorter than train.window_s"),
+    ("mission shorter than a window", [('"vehicle.toml"', '"vehicle.toml"\nduration_h = 1e-9')],
+     "mission.scenario: fuzz_vehicle lasts"),
+    ("mission without a trajectory", [('"vehicle.toml"', '"static.toml"')],
+     "mission.scenario: 'static.toml' has no [trajectory]"),
+    ("mission that does not exist", [('"vehicle.toml"', '"no_such_mission"')],
+     "mission.scenario: unknown scenario 'no_such_mission'"),
+    ("mission sample rate past the limit",
+     [('"vehicle.toml"', '"vehicle.toml"\nsample_rate_hz = 1e6')],
+     "acquisition.sample_rate_hz: value 1e+06 not allowed"),
+]
+
+
+@pytest.mark.parametrize("changes, words", [c[1:] for c in STUDY_CASES],
+                         ids=[c[0] for c in STUDY_CASES])
+def test_vehicle_study_refused_before_any_run(tmp_path, capsys, changes, words):
+    (tmp_path / "static.toml").write_text(STATIC)
+    (tmp_path / "vehicle.toml").write_text(VEHICLE)
+    text = STUDY
+    for old, new in changes:
+        assert old in text
+        text = text.replace(old, new, 1)
+    (tmp_path / "s.toml").write_text(text)
+    before = _digest(tmp_path)
+    line = one_line(capsys, ["study", str(tmp_path / "s.toml"), "-q", "-o",
+                             str(tmp_path / "out")])
+    assert words in line
+    assert _digest(tmp_path) == before                 # no run simulated, nothing written
+
+
+@pytest.mark.parametrize("kind", ["dataset", "recording"])
+def test_window_longer_than_the_run_is_one_line(runs, tmp_path, kind):
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.lab.api import window_table
+    source = runs["static"]
+    if kind == "recording":
+        source = tmp_path / "rec.csv"
+        assert main(["export", str(runs["static"]), "-o", str(source), "-q"]) == 0
+    with pytest.raises(UserInputError, match=r"180 s of data hold no complete 1000-s window"):
+        window_table(source, 1000.0, gyro="x")

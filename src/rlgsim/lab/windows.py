@@ -38,6 +38,7 @@ import numpy as np
 from rlgsim.ground.dataset_format import (IMU, PROBES, THERMAL, TRUTH, Dataset, check_finite,
                                           open_dataset)
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG, earth_rate_enu
+from rlgsim.ground.errors import UserInputError
 
 __all__ = ["DEG_PER_H_PER_RAD_PER_S", "READ_BLOCK_SAMPLES", "Where", "bias_deg_per_h",
            "dataset_windows", "earth_on_axis", "gap_windows", "recording_windows",
@@ -153,6 +154,10 @@ def dataset_windows(ds: Dataset, where: Where, n_win: int, m_s: int, m_t: int, w
     ``uhfo`` [V] of the first ``n_win`` windows of an open dataset (module docstring)."""
     step = float(ds.attrs["thermal_step_s"])
     per_block = max(1, READ_BLOCK_SAMPLES // max(m_s, m_t))
+    if n_win < 1:
+        raise UserInputError(f"{ds.path}: {ds.length(IMU, 'gyro_pulses') / m_s * window_s:g} s "
+                             f"of data hold no complete {window_s:g}-s window; a window must "
+                             f"fit in the run (a shorter window or a longer run)")
     blocks = [_window_block(ds, i, min(n_win, i + per_block), m_s, m_t, step, window_s, where)
               for i in range(0, n_win, per_block)]
     return {k: np.concatenate([blk[k] for blk in blocks]) for k in blocks[0]}
@@ -269,6 +274,10 @@ def _recording_table(source, window_s: float, gyro: str | None) -> dict[str, Any
     names = tuple(rec.probe_names)
     w = recording_windows(rec, axis, window_s, names, names, uhfo_column(rec, axis), gaps=True)
     n_win = w["n_win"]
+    if n_win < 1:
+        raise UserInputError(f"{source}: {rec.n_samples / rec.sample_rate_hz:g} s of data hold "
+                             f"no complete {window_s:g}-s window; a window must fit in the "
+                             f"recording (a shorter window or a longer recording)")
     cols: dict[str, Any] = {"time_s": (np.arange(n_win) + 1) * window_s,
                             "bias_deg_per_h": w.get("y", np.zeros(0))}
     for name in names:

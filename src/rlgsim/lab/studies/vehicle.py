@@ -27,6 +27,7 @@ heading error RMS per variant; the report adds the mission's figure.
 
 from __future__ import annotations
 
+import math
 import pathlib
 from dataclasses import dataclass
 from typing import Any
@@ -40,6 +41,9 @@ from rlgsim.sim.config import (check_known_keys, get_float, get_int, get_list, g
                                get_table)
 
 INPUTS = ("T", "dT/dt")
+
+#: the mission's variants beside the compensators (:func:`rlgsim.lab.mission.score_mission`)
+VARIANTS = ("raw", "oracle", "truth")
 
 
 @dataclass(frozen=True)
@@ -74,7 +78,7 @@ def check(study: Study) -> VehicleConfig:
         changes["acquisition.sample_rate_hz"] = get_float(mi, "sample_rate_hz",
                                                           study.ctx("mission"), min=0.0,
                                                           min_exclusive=True)
-    comps = []
+    comps: list[Compensator] = []
     for i, c in enumerate(get_list(t, "compensator", study.ctx(), [])):
         ctx = study.ctx("compensator").item(i)
         check_known_keys(c, ("name", "inputs", "degree"), ctx)
@@ -82,8 +86,16 @@ def check(study: Study) -> VehicleConfig:
         for x in inputs:
             if x not in INPUTS:
                 raise ctx.error("inputs", f"{x!r} not allowed; one of {', '.join(INPUTS)}")
-        comps.append(Compensator(get_str(c, "name", ctx), inputs,
-                                 get_int(c, "degree", ctx, 3, min=1, max=5)))
+        if len(set(inputs)) < len(inputs):
+            raise ctx.error("inputs", f"{list(inputs)} names an input twice; each of "
+                                      f"{', '.join(INPUTS)} at most once")
+        name = get_str(c, "name", ctx)
+        taken = [*VARIANTS, *(k.name for k in comps)]
+        if not name.strip() or name in taken:
+            raise ctx.error("name", f"{name!r} not allowed; a compensator's name is its row in "
+                                    f"the scores, so it must be non-empty and none of "
+                                    f"{', '.join(repr(v) for v in taken)}")
+        comps.append(Compensator(name, inputs, get_int(c, "degree", ctx, 3, min=1, max=5)))
     return VehicleConfig(get_str(tr, "scenario", study.ctx("train")),
                          get_float(tr, "window_s", study.ctx("train"), 100.0, min=1.0),
                          get_str(mi, "scenario", study.ctx("mission")), changes, tuple(comps))
@@ -101,12 +113,22 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
     from rlgsim.lab.api import window_table
     from rlgsim.lab.mission import score_mission
     from rlgsim.sim.run.simulate import simulate
+    train_sc = scenario_for(study, config.train, unit=unit, ctx=study.ctx("train", "scenario"))
+    mission_sc = scenario_for(study, config.mission, unit=unit,
+                              ctx=study.ctx("mission", "scenario"))
+    mission_sc = mission_sc.with_changes(config.mission_changes)   # both checked before a run
+    if mission_sc.trajectory is None:
+        raise study.ctx("mission").error("scenario", f"{config.mission!r} has no [trajectory]; "
+                                                     f"the mission is a run on a vehicle "
+                                                     f"(docs/trajectories.md)")
+    for key, sc in (("train", train_sc), ("mission", mission_sc)):
+        if sc.duration_s < config.window_s:
+            raise study.ctx(key).error("scenario", f"{sc.name} lasts {sc.duration_s:g} s, "
+                                                   f"shorter than train.window_s = "
+                                                   f"{config.window_s:g} s")
     data = workdir / "data"
     data.mkdir(parents=True, exist_ok=True)
-    train = simulate(scenario_for(study, config.train, unit=unit), data / "train.h5",
-                     progress=progress)
-    mission_sc = scenario_for(study, config.mission, unit=unit).with_changes(
-        config.mission_changes)
+    train = simulate(train_sc, data / "train.h5", progress=progress)
     mission = simulate(mission_sc, data / "mission.h5", progress=progress)
     from rlgsim.lab.studies.input_range import outside_range
     w = config.window_s
@@ -115,6 +137,7 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
         ends, preds, ranges = [], [], []
         for axis in "xyz":
             tdf, mdf = window_table(train, w, gyro=axis), window_table(mission, w, gyro=axis)
+            _enough_windows(study, comp, len(tdf), len(mdf), w)
             x_train, x_test = _features(tdf, axis, comp.inputs), _features(mdf, axis, comp.inputs)
             model = PolynomialRegressor(degree=comp.degree).fit(
                 x_train, tdf["bias_deg_per_h"].to_numpy())
@@ -136,6 +159,23 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
             rows.append((name, "outside_excess_pct", outside[name][1]))
     return StudyResult(rows, details={"scores": scores, "mission": mission,
                                       "outside": outside})
+
+
+def _enough_windows(study: Study, comp: Compensator, n_train: int, n_mission: int,
+                    window_s: float) -> None:
+    """One line when the runs' powered windows cannot fit or use ``comp`` (a polynomial of
+    C(degree + inputs, degree) coefficients) — a window too long for a run, a mission cut short."""
+    need = math.comb(comp.degree + len(comp.inputs), comp.degree)
+    if n_train < need:
+        raise study.ctx("train").error("window_s", f"{window_s:g} s leaves {n_train} powered "
+                                                   f"window(s) in the train run; compensator "
+                                                   f"{comp.name!r} has {need} coefficients to "
+                                                   f"fit (a shorter window or a longer run)")
+    if n_mission < 1:
+        raise study.ctx("mission").error("scenario", f"no powered {window_s:g}-s window "
+                                                     f"(train.window_s) in the mission run; the "
+                                                     f"compensators predict window by window "
+                                                     f"(a longer mission or a shorter window)")
 
 
 def _window_function(ends: list, preds: list, window_s: float):
