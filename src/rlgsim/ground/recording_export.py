@@ -277,12 +277,36 @@ def _dataset_sidecar(src: pathlib.Path, p: pathlib.Path, a: dict, rate: float, s
     return tables
 
 
+def _exportable(src: pathlib.Path, ds) -> None:
+    """Refuse (one line) a run on a vehicle — a recording is an IMU at a fixed site, its table
+    angles the only motion (docs/recordings.md): the drive's rotation would read as gyro bias —
+    and pulse variables that are not integer (samples, axes) tables of one length."""
+    from rlgsim.ground.dataset_format import IMU, TRAJECTORY
+    if ds.has(TRAJECTORY):
+        raise UserInputError(f"{src}: a run on a vehicle (group trajectory); a recording holds an "
+                             f"IMU at a fixed site with the turntable's angles as its only "
+                             f"motion, so the drive's rotation would read as gyro bias — give "
+                             f"the dataset itself to rlgsim identify or a study")
+    rows = None
+    for name in ("gyro_pulses", "accel_pulses"):
+        if ds.has(IMU, name):
+            v = ds.read(IMU, name, slice(0, 1))
+            n = ds.length(IMU, name) if v.ndim else 0
+            if v.ndim != 2 or v.dtype.kind not in "iu" or rows not in (None, n):
+                raise UserInputError(f"{src}: imu/{name} is {v.dtype} with {v.ndim} dimension(s)"
+                                     f" and {n} rows; pulses are integer (samples, axes) "
+                                     f"tables, gyro and accelerometer of one length (a damaged "
+                                     f"dataset?)")
+            rows = n
+
+
 def _export_dataset(src: pathlib.Path, fmt: str, outputs: dict) -> Exported:
     import pandas as pd
     p = outputs["table"]
 
     from rlgsim.ground.dataset_format import IMU, TIMELINE
     with _open(src) as ds:
+        _exportable(src, ds)
         a = ds.attrs
         step = float(a.get("thermal_step_s", 1.0))
         has_imu = ds.has(IMU, "gyro_pulses")

@@ -214,8 +214,8 @@ def _check_excitation(source: str, t: np.ndarray, air: np.ndarray, power: np.nda
     """Refuse a recording powered too briefly or whose (bridged) chamber air does not move."""
     powered = power > 0.5
     if t[-1] < MIN_DURATION_S or powered.sum() * step < MIN_DURATION_S:
-        raise _refuse(source, f"too short: {powered.sum() * step / 3600:.2f} h powered of "
-                              f"{t[-1] / 3600:.2f} h")
+        on_h, all_h = powered.sum() * step / 3600, t[-1] / 3600   # 3 digits: 1.997 is no 2
+        raise _refuse(source, f"too short: {on_h:.4g} h powered of {all_h:.4g} h")
     span = float(np.ptp(air))
     if span < MIN_SPAN_K:
         raise _refuse(source, f"no temperature excitation: the chamber air spans only "
