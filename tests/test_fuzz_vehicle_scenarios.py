@@ -189,27 +189,34 @@ def test_bad_vehicle_scenario_is_one_line(tmp_path, monkeypatch, capsys, files, 
     assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]
 
 
-# extreme but valid: a run far shorter than its route's last leg (the route after the run's
-# end is neither integrated nor checked: the sensors never see it) — each once hung or ran out
-# of memory before the first block
+# extreme but valid inputs that once hung, ran out of memory or were refused before the first
+# block; each is now built (the route up to the run's end) in ~0.1 s
 EXTREME = [
     # a turn at 1 °/s for 1e9 s, the run 20 s: DOP853 over the whole leg, MemoryError in 40 s
     ("turning_1e9_s_after_a_20_s_run",
-     scenario(head=HEAD + "\nspeed_m_s = 10", segs=seg("turn", duration_s="1e9", rate_deg_s=1))),
+     {"scen.toml": scenario(head=HEAD + "\nspeed_m_s = 10",
+                            segs=seg("turn", duration_s="1e9", rate_deg_s=1))}),
     # a 1e7-s hold northward, the run 20 s: refused for a pole reached at t = 1.2e6 s
     ("pole_after_the_run",
-     scenario(head=HEAD.replace("heading_deg = 30.0", "heading_deg = 0") + "\nspeed_m_s = 10",
-              segs=seg("hold", duration_s="1e7"))),
+     {"scen.toml": scenario(head=HEAD.replace("30.0", "0") + "\nspeed_m_s = 10",
+                            segs=seg("hold", duration_s="1e7"))}),
+    # a table with a 1e9-s gap after the run: the range check's grid took 2e9 points (hang)
+    ("table_gap_after_the_run",
+     table_file(PT_OK + [f"{1e9 + i},30,100,100,0,0,0" for i in range(3)])),
+    # a CSV table written "time_s, latitude_deg, ...": "missing column 'latitude_deg'"
+    ("table_header_with_spaces", table_file([", ".join(r.split(",")) for r in PT_OK])
+     | {"r.csv": ", ".join(PT_COLS.split(",")) + "\n"
+        + "\n".join(", ".join(r.split(",")) for r in PT_OK) + "\n"}),
 ]
 
 
-@pytest.mark.parametrize("text", [c[1] for c in EXTREME], ids=[c[0] for c in EXTREME])
-def test_route_after_the_run_is_not_built(tmp_path, text):
+@pytest.mark.parametrize("files", [c[1] for c in EXTREME], ids=[c[0] for c in EXTREME])
+def test_extreme_valid_route_is_built(tmp_path, files):
     from rlgsim.sim.run.scenario import load_scenario
-    path = tmp_path / "scen.toml"
-    path.write_text(text)
-    s = load_scenario(str(path))
+    _write(tmp_path, {**files, "scen.toml": files["scen.toml"].replace("duration_s = 20",
+                                                                      "duration_s = 4")})
+    s = load_scenario(str(tmp_path / "scen.toml"))
     route = s.trajectory.build(s.duration_s)
-    assert s.duration_s == 20.0 and len(route._dense) < 1000       # steps up to the run's end
+    assert s.duration_s == 4.0 and len(route._dense) < 1000     # DOP853 steps to the run's end
     w, f, _ = route.peak_inputs()
     assert w < s.trajectory.gyro_range_rad_s and f < s.trajectory.accel_range_m_s2

@@ -47,7 +47,8 @@ def _read(path: pathlib.Path):
             from rlgsim.ground.recording_columns import need_pyarrow
             need_pyarrow(path, "reading")           # an optional dependency: one line
             return pd.read_parquet(path)
-        return pd.read_csv(path)
+        df = pd.read_csv(path, skipinitialspace=True)        # "time_s, latitude_deg, ..."
+        return df.rename(columns=lambda c: c.strip() if isinstance(c, str) else c)
     except (OSError, ValueError, UnicodeDecodeError) as e:
         raise UserInputError(f"{path}: cannot read the position table "
                              f"({str(e).splitlines()[0] if str(e) else type(e).__name__})"
