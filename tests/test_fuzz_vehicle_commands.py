@@ -7,6 +7,7 @@ few representatives; two small runs (a static 3-min run and a 4-min drive) are m
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import pathlib
 import shutil
@@ -310,3 +311,20 @@ def test_export_refuses_vehicle_and_damaged_pulses(runs, tmp_path, capsys, run, 
     line = one_line(capsys, ["export", str(path), "--format", fmt, "-q"])
     assert words in line and "bad.h5" in line
     assert _digest(tmp_path) == before                 # no table, no sidecar rewritten
+
+
+@pytest.mark.parametrize("offset_c, rate_rel", [(1e6, 0.0), (0.0, 1000.0)])
+def test_montecarlo_chamber_spread_past_the_chamber_is_refused(tmp_path, offset_c, rate_rel):
+    """``--chamber-offset-c 1e6`` put a unit's chamber at ~1e5 °C (overflow warnings, exit 0);
+    ``--chamber-rate-rel 1000`` an infinite or zero ramp rate factor: the unit is refused."""
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.sim.run.scenario import load_scenario
+    from rlgsim.sim.run.unit_variations import ChamberVariation, apply, varied
+    (tmp_path / "static.toml").write_text(STATIC)
+    sc = load_scenario(str(tmp_path / "static.toml"))
+    with varied(ChamberVariation(offset_c=offset_c, rate_rel=rate_rel)):
+        with pytest.raises(UserInputError, match=r"holds -100 to 200 °C with a finite rate"):
+            for unit in range(16):                     # a draw past the limits in 16 units
+                apply(dataclasses.replace(sc, unit=unit))
+    with varied(ChamberVariation(offset_c=2.0, rate_rel=0.1)):
+        assert apply(sc).chamber.start_c != sc.chamber.start_c   # a sane spread still runs

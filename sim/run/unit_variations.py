@@ -31,7 +31,9 @@ import math
 from dataclasses import dataclass
 from typing import Iterator
 
-from rlgsim.sim.thermal.chamber import ChamberProgram, Hold, RandomProfile, Ramp, Repeat, Step
+from rlgsim.ground.errors import UserInputError
+from rlgsim.sim.thermal.chamber import (MAX_TEMPERATURE_C, MIN_TEMPERATURE_C, ChamberProgram,
+                                        Hold, RandomProfile, Ramp, Repeat, Step)
 from rlgsim.sim.rng import generator
 
 
@@ -70,7 +72,8 @@ def varied(variation: ChamberVariation | None) -> Iterator[None]:
 def draw(seed: int, unit: int, variation: ChamberVariation) -> tuple[float, float]:
     """(offset [K], rate factor) of run ``seed`` for unit ``unit``."""
     z = generator(seed, unit, "chamber", "variation", 0).standard_normal(2)
-    return float(variation.offset_c * z[0]), float(math.exp(variation.rate_rel * z[1]))
+    e = float(variation.rate_rel * z[1])
+    return float(variation.offset_c * z[0]), math.exp(e) if e < 709.0 else math.inf
 
 
 def vary_program(program: ChamberProgram, offset_c: float, rate_factor: float
@@ -104,4 +107,28 @@ def apply(scenario):
     if variation is None or not variation.active:
         return scenario
     offset, factor = draw(scenario.seed, scenario.unit, variation)
-    return dataclasses.replace(scenario, chamber=vary_program(scenario.chamber, offset, factor))
+    program = vary_program(scenario.chamber, offset, factor)
+    hot = max(_temperatures(program), key=lambda t: abs(t - 50.0), default=None)
+    if not (0.0 < factor < math.inf) or (hot is not None and not
+                                         MIN_TEMPERATURE_C <= hot <= MAX_TEMPERATURE_C):
+        raise UserInputError(
+            f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber variation "
+            f"(offset {offset:+.4g} K from --chamber-offset-c {variation.offset_c:g}, rate factor "
+            f"{factor:.4g} from --chamber-rate-rel {variation.rate_rel:g}) takes the chamber to "
+            f"{hot:.4g} °C; the chamber holds {MIN_TEMPERATURE_C:g} to {MAX_TEMPERATURE_C:g} °C "
+            f"with a finite rate — give smaller spreads")
+    return dataclasses.replace(scenario, chamber=program)
+
+
+def _temperatures(program: ChamberProgram) -> Iterator[float]:
+    """Every temperature a chamber programme names [°C] (start, targets, random bounds)."""
+    def walk(segments) -> Iterator[float]:
+        for s in segments:
+            if isinstance(s, (Ramp, Step)):
+                yield s.to_c
+            elif isinstance(s, RandomProfile):
+                yield from (s.min_c, s.max_c)
+            elif isinstance(s, Repeat):
+                yield from walk(s.segments)
+    yield program.start_c
+    yield from walk(program.segments)
