@@ -155,6 +155,13 @@ CASES = [
               "film_exponent = 2\n")},
      ["vehicle_bay: the airflow scales the bay's film coefficients by 9e+16 at 300 m/s",
       "thermal_step_s"]),
+    # the same, reached after 40 min of standing: was refused in the block where it happened,
+    # now before the first (an upper bound of the route's speed, then its exact speeds)
+    ("bay_film_past_the_step_later", {"scen.toml": scenario(
+        segs=seg("hold", duration_s=2400) + seg("accelerate", duration_s=60, speed_m_s=300),
+        extra="[vehicle_bay]\nairflow_fraction = 1.0\nfilm_speed_m_s = 1e-3\n"
+              "film_exponent = 2\n").replace("duration_s = 20\n", "", 1)},
+     ["vehicle_bay: the airflow scales the bay's film coefficients by 8.99", "thermal_step_s"]),
     # film_exponent 0: φ = 2^(1/3) even parked (u^0 = 1), not the still-air film at rest
     ("bay_film_exponent_0", {"scen.toml": scenario(extra="[vehicle_bay]\nfilm_exponent = 0\n")},
      ["vehicle_bay.film_exponent: value 0 not allowed; must be > 0"]),

@@ -47,6 +47,30 @@ class ThermalPart:
             self._bay_check = (float(np.max(-np.expm1(
                 -net.ambient_conductance_w_per_k * self.step / net.capacitance_j_per_k))),
                 scenario.source)
+            self._check_bay_before_the_run(float(timeline.duration_s))
+
+    def _check_bay_before_the_run(self, duration_s: float) -> None:
+        """Refuse an airflow too strong for the thermal step before the first block: where an
+        upper bound of the route's speed (each body leg's channels lie between their start and
+        end values: linear or the monotone quintic) could be refused, the speeds of every
+        thermal step's start are checked now, as :meth:`block` checks each block's."""
+        bay, route = self.bay
+        top = 0.0
+        for leg, t0 in zip(route.legs, route.leg_starts):
+            if t0 > duration_s:
+                break
+            if leg.frame != "body":                        # a table of positions: no bound
+                top = np.inf
+                break
+            ends = np.abs(np.stack([leg.coef[3:, 0], leg.end()[3:]]))
+            top = max(top, float(np.linalg.norm(np.max(ends, axis=0))))
+        if (bay.factor(np.array([top]))[0] - 1.0) * self._bay_check[0] < 1.0:
+            return
+        steps = max(1, int(round(duration_s / self.step)))
+        for lo in range(0, steps, 100_000):
+            t = np.arange(lo, min(steps, lo + 100_000)) * self.step
+            speed = np.linalg.norm(route.states(t).v_n, axis=1)
+            bay.check_step(bay.factor(speed) - 1.0, speed, *self._bay_check, self.step)
 
     @property
     def node_names(self) -> tuple[str, ...]:
