@@ -33,7 +33,8 @@ if os.environ.get("CI"):
 #: Their first test compiles the same large numba kernels (the vehicle trajectory's: about 8 s
 #: of CPU on a cold cache, the suite's costliest compile); on two workers at once each compiled
 #: them, where the second now loads the first one's cache.
-SHARED_COMPILE_MODULES = ("tests/test_trajectory.py", "tests/test_trajectory_runs.py")
+SHARED_COMPILE_MODULES = ("tests/test_trajectory.py", "tests/test_trajectory_runs.py",
+                          "tests/test_fuzz_vehicle_scenarios.py")
 
 
 @pytest.hookimpl(optionalhook=True)
