@@ -249,6 +249,10 @@ STUDY_CASES = [
      "mission.scenario: 'static.toml' has no [trajectory]"),
     ("mission that does not exist", [('"vehicle.toml"', '"no_such_mission"')],
      "mission.scenario: unknown scenario 'no_such_mission'"),
+    ("window of one thermal step", [("window_s = 30", "window_s = 1")],
+     "train.window_s: 1 s not allowed; a window holds a whole number"),
+    ("window not a whole number of samples", [("window_s = 30", "window_s = 97.35")],
+     "train.window_s: 97.35 s not allowed"),
     ("mission sample rate past the limit",
      [('"vehicle.toml"', '"vehicle.toml"\nsample_rate_hz = 1e6')],
      "acquisition.sample_rate_hz: value 1e+06 not allowed"),
@@ -328,3 +332,41 @@ def test_montecarlo_chamber_spread_past_the_chamber_is_refused(tmp_path, offset_
                 apply(dataclasses.replace(sc, unit=unit))
     with varied(ChamberVariation(offset_c=2.0, rate_rel=0.1)):
         assert apply(sc).chamber.start_c != sc.chamber.start_c   # a sane spread still runs
+
+
+#: (id, change of the exported table (a DataFrame), of its sidecar (text), words) for
+#: ``rlgsim navigate`` of a recording
+RECORDING = [
+    ("orientation NaN", None, lambda t: t + "\n[orientation]\nx = [nan, 0.0, 0.0]\n",
+     "orientation.x: value [nan, 0.0, 0.0] not allowed"),
+    ("orientation of an unknown axis", None, lambda t: t + "\n[orientation]\nw = [1.0, 0, 0]\n",
+     "orientation.w: unknown axis"),
+    ("two axes along east", None,
+     lambda t: t + "\n[orientation]\nx = [1.0, 0, 0]\ny = [1.0, 0, 0]\n",
+     "is not a right-handed orthonormal triad"),
+    ("left-handed axes", None,
+     lambda t: t + "\n[orientation]\nx = [0, 1.0, 0]\ny = [1.0, 0, 0]\n",
+     "is not a right-handed orthonormal triad"),
+    ("a dropout row", lambda df: df.assign(dropout=(df.index == 500).astype(int)), None,
+     "row 501 is a dropout"),
+    ("accelerometer pulses past 100 g", lambda df: df.assign(accel_x_pulses=-2 ** 62), None,
+     "pulses per sample is over 100 g"),
+]
+
+
+@pytest.mark.parametrize("table, sidecar, words", [c[1:] for c in RECORDING],
+                         ids=[c[0] for c in RECORDING])
+def test_navigate_bad_recording(runs, tmp_path, capsys, table, sidecar, words):
+    import pandas as pd
+    src = tmp_path / "rec.csv"
+    assert main(["export", str(runs["static"]), "-o", str(src), "-q"]) == 0
+    if table is not None:
+        table(pd.read_csv(src)).to_csv(src, index=False)
+    side = tmp_path / "rec.toml"
+    if sidecar is not None:
+        side.write_text(sidecar(side.read_text()))
+    before = _digest(tmp_path)
+    line = one_line(capsys, ["navigate", str(src), "--align-s", "60", "-q",
+                             "-o", str(tmp_path / "out")])
+    assert words in line
+    assert _digest(tmp_path) == before

@@ -239,6 +239,12 @@ def check_range(std, kind, unit, v, mask, where, sc) -> None:
             if bad.size:
                 fail(bad[0], f"more than {limit:.6g} pulses per sample is over "
                              f"{GYRO_RATE_LIMIT_DEG_PER_S:g} deg/s at the nominal scale factor")
+        if kind == "accel" and sc.accel_sf_pulse_per_s_per_g:
+            limit = ACCEL_LIMIT_M_PER_S2 / G0 * sc.accel_sf_pulse_per_s_per_g / f
+            bad = np.flatnonzero(np.abs(x) > limit)
+            if bad.size:
+                fail(bad[0], f"more than {limit:.6g} pulses per sample is over "
+                             f"{ACCEL_LIMIT_M_PER_S2 / G0:g} g at the nominal scale factor")
     elif kind == "gyro":
         limit = GYRO_RATE_LIMIT_DEG_PER_S * DEG
         bad = np.flatnonzero(np.abs(rate_rad_per_s(x, unit)) > limit)

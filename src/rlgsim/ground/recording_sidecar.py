@@ -196,9 +196,13 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
     for axis, vec in data.get("orientation", {}).items():
         a = np.asarray(vec, dtype=float) if isinstance(vec, list) and len(vec) == 3 and all(
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in vec) else None
-        if a is None or abs(np.linalg.norm(a) - 1) > 1e-6:
+        if a is None or not abs(np.linalg.norm(a) - 1) <= 1e-6:      # NaN fails too
             raise _fail(f"{p}: orientation.{axis}", f"value {vec!r} not allowed; must be a unit "
                                                     f"vector [east, north, up]")
+        named = [*sc.gyro_axes, *sc.accel_axes]
+        if named and axis not in named:
+            raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
+                                                    f"{', '.join(dict.fromkeys(named))}")
         sc.orientation[axis] = a
     for key, v in data.get("noise", {}).items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:

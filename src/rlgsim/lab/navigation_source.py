@@ -207,12 +207,24 @@ def _from_recording(path: pathlib.Path) -> NavSource:
     if len(rec.accel_axes) < 3:
         raise UserInputError(f"{sc.path}: {len(rec.accel_axes)} accelerometer column(s); "
                              "navigation needs three accelerometers (x, y, z)")
+    gaps = np.flatnonzero(rec.dropout)
+    if gaps.size:
+        raise UserInputError(f"{path}: row {int(gaps[0]) + 1} is a dropout (dropout = 1; "
+                             f"{gaps.size} row(s)); free-inertial navigation needs every "
+                             f"sample's increments — cut the recording before the first gap")
     k_g = rec._need_sf("gyro")
     k_a = rec._need_sf("accel")
     g, a = rec.gyro_pulses()[:, :3], rec.accel_pulses()[:, :3]
     default = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
-    c_nb = np.array([sc.orientation.get(ax, default.get(ax)) for ax in rec.gyro_axes[:3]],
+    rows = [sc.orientation.get(ax, default.get(ax)) for ax in rec.gyro_axes[:3]]
+    c_nb = np.array([r if r is not None else [np.nan] * 3 for r in rows],
                     dtype=float)                        # rows: body axes in ENU → C_n^b
+    if not (np.allclose(c_nb @ c_nb.T, np.eye(3), atol=1e-6)
+            and np.linalg.det(c_nb) > 0):
+        raise UserInputError(f"{sc.path}: [orientation] of gyro axes "
+                             f"{', '.join(rec.gyro_axes[:3])} is not a right-handed orthonormal "
+                             f"triad (got {c_nb.tolist()}); navigation needs the body frame "
+                             "(give each axis its unit vector [east, north, up])")
 
     def attitude(t: np.ndarray) -> np.ndarray:
         return np.broadcast_to(c_nb.T, (len(t), 3, 3))

@@ -126,6 +126,7 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
             raise study.ctx(key).error("scenario", f"{sc.name} lasts {sc.duration_s:g} s, "
                                                    f"shorter than train.window_s = "
                                                    f"{config.window_s:g} s")
+        _window_fits(study, key, sc, config.window_s)
     data = workdir / "data"
     data.mkdir(parents=True, exist_ok=True)
     train = simulate(train_sc, data / "train.h5", progress=progress)
@@ -159,6 +160,23 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
             rows.append((name, "outside_excess_pct", outside[name][1]))
     return StudyResult(rows, details={"scores": scores, "mission": mission,
                                       "outside": outside})
+
+
+def _window_fits(study: Study, key: str, sc: Any, window_s: float) -> None:
+    """One line unless ``window_s`` is a whole number of ``sc``'s IMU samples and of at least
+    two thermal steps (a window's temperature slope needs two probe readings)."""
+    from rlgsim.estimators.features import samples_per_window
+    acq = sc.acquisition
+    try:
+        samples_per_window(acq.sample_rate_hz, window_s)
+        steps = samples_per_window(1.0 / acq.thermal_step_s, window_s)
+    except ValueError:
+        steps = 0
+    if steps < 2:
+        raise study.ctx("train").error(
+            "window_s", f"{window_s:g} s not allowed; a window holds a whole number of the "
+                        f"{key} run's samples ({acq.sample_rate_hz:g} Hz) and of its "
+                        f"{acq.thermal_step_s:g}-s thermal steps, at least two of them")
 
 
 def _enough_windows(study: Study, comp: Compensator, n_train: int, n_mission: int,
