@@ -259,6 +259,8 @@ STUDY_CASES = [
      "train.window_s: 1 s not allowed; a window holds a whole number"),
     ("window not a whole number of samples", [("window_s = 30", "window_s = 97.35")],
      "train.window_s: 97.35 s not allowed"),
+    ("export_models", [('recipe = "vehicle"', 'recipe = "vehicle"\nexport_models = true')],
+     "study.export_models: the vehicle recipe does not export its compensators"),
     ("mission sample rate past the limit",
      [('"vehicle.toml"', '"vehicle.toml"\nsample_rate_hz = 1e6')],
      "acquisition.sample_rate_hz: value 1e+06 not allowed"),

@@ -193,7 +193,8 @@ def run_study(study: Study, out_dir: str | pathlib.Path, *, progress: bool = Tru
     models_hook = getattr(recipe, "fitted_models", None)
     if export and models_hook is None:
         raise UserInputError(f"{study.source}: study.export_models: the {study.recipe} recipe "
-                             "has no fitted compensators to export")
+                             "does not export its compensators (their fits stay inside the "
+                             "study); leave out --export-models / export_models")
     result = recipe.run(study, config, out_dir, unit=0, progress=progress)
     hook = getattr(recipe, "report", None)
     report = hook(study, config, result) if hook is not None else _rows_report(study, result)
