@@ -227,3 +227,23 @@ def test_extreme_valid_route_is_built(tmp_path, files):
     assert s.duration_s == 4.0 and len(route._dense) < 1000     # DOP853 steps to the run's end
     w, f, _ = route.peak_inputs()
     assert w < s.trajectory.gyro_range_rad_s and f < s.trajectory.accel_range_m_s2
+
+
+def test_sidecar_orientation_without_axes_and_a_six_decimal_mount(tmp_path, capsys):
+    """Valid inputs a review of the recordings' checks found refused: a sidecar with an
+    [orientation] and no ``axes`` lists (they are optional) was a TypeError traceback in every
+    command reading it; a mount's direction cosines written to 6 decimals (unit to 1e-6, so the
+    sidecar takes them) are orthogonal to ~1e-6 only, which navigate's 1e-6 check refused for
+    2.5 % of random mounts (this one among them). A repeated axis is still refused."""
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.lab.cli.main import main
+    from rlgsim.lab.navigation_source import body_frame
+    (tmp_path / "r.csv").write_text("time_s,gyro_x_rate_deg_per_s\n0,0\n0.1,0\n")
+    (tmp_path / "r.toml").write_text('[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n'
+                                     '[orientation]\nx = [1, 0, 0]\n')
+    assert main(["info", str(tmp_path / "r.toml")]) == 0, capsys.readouterr().err
+    mount = {"x": [-0.600023, 0.563793, -0.567547], "y": [0.742249, 0.127729, -0.657838],
+             "z": [-0.298393, -0.815979, -0.495116]}
+    assert body_frame(mount, ["x", "y", "z"], "r.toml").shape == (3, 3)
+    with pytest.raises(UserInputError, match="not a right-handed orthonormal triad"):
+        body_frame({"x": [1.0, 0, 0], "y": [1.0, 0, 0]}, ["x", "y", "z"], "r.toml")

@@ -199,7 +199,7 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
         if a is None or not abs(np.linalg.norm(a) - 1) <= 1e-6:      # NaN fails too
             raise _fail(f"{p}: orientation.{axis}", f"value {vec!r} not allowed; must be a unit "
                                                     f"vector [east, north, up]")
-        named = [*sc.gyro_axes, *sc.accel_axes]
+        named = [*(sc.gyro_axes or []), *(sc.accel_axes or [])]     # axes are optional
         if named and axis not in named:
             raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
                                                     f"{', '.join(dict.fromkeys(named))}")

@@ -194,6 +194,22 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
         raise
 
 
+def body_frame(orientation: dict, axes: list[str], where: Any) -> np.ndarray:
+    """C_n^b (rows: the gyro ``axes``' unit vectors in ENU, from a sidecar's ``orientation``;
+    x, y, z east, north, up by default), or one line if they are not a right-handed orthonormal
+    triad — to 1e-5: direction cosines written to 6 decimals (each unit to 1e-6, as the sidecar
+    checks) are orthogonal to ~2e-6 only, a repeated or swapped axis is off by ~1."""
+    default = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
+    rows = [orientation.get(ax, default.get(ax)) for ax in axes]
+    c_nb = np.array([r if r is not None else [np.nan] * 3 for r in rows], dtype=float)
+    if not (np.allclose(c_nb @ c_nb.T, np.eye(3), atol=1e-5) and np.linalg.det(c_nb) > 0):
+        raise UserInputError(f"{where}: [orientation] of gyro axes {', '.join(axes)} is not a "
+                             f"right-handed orthonormal triad (got {c_nb.tolist()}); navigation "
+                             "needs the body frame (give each axis its unit vector "
+                             "[east, north, up])")
+    return c_nb
+
+
 def _from_recording(path: pathlib.Path) -> NavSource:
     from rlgsim.ground.recording import load_recording
     rec = load_recording(path)
@@ -215,16 +231,7 @@ def _from_recording(path: pathlib.Path) -> NavSource:
     k_g = rec._need_sf("gyro")
     k_a = rec._need_sf("accel")
     g, a = rec.gyro_pulses()[:, :3], rec.accel_pulses()[:, :3]
-    default = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
-    rows = [sc.orientation.get(ax, default.get(ax)) for ax in rec.gyro_axes[:3]]
-    c_nb = np.array([r if r is not None else [np.nan] * 3 for r in rows],
-                    dtype=float)                        # rows: body axes in ENU → C_n^b
-    if not (np.allclose(c_nb @ c_nb.T, np.eye(3), atol=1e-6)
-            and np.linalg.det(c_nb) > 0):
-        raise UserInputError(f"{sc.path}: [orientation] of gyro axes "
-                             f"{', '.join(rec.gyro_axes[:3])} is not a right-handed orthonormal "
-                             f"triad (got {c_nb.tolist()}); navigation needs the body frame "
-                             "(give each axis its unit vector [east, north, up])")
+    c_nb = body_frame(sc.orientation, rec.gyro_axes[:3], sc.path)
 
     def attitude(t: np.ndarray) -> np.ndarray:
         return np.broadcast_to(c_nb.T, (len(t), 3, 3))
