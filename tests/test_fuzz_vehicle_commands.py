@@ -172,6 +172,10 @@ NAVIGATE = [
      "root attribute latitude_deg = None"),
     ("turntable kind unknown", "static", _details(b'"kind": "static"', b'"kind": "rate"'),
      "turntable motion cannot be rebuilt"),
+    ("a lost IMU frame", "static",
+     lambda f: f["imu"].create_dataset("sample_valid", data=(np.arange(1800) != 1000)
+                                       .astype(np.int8)),
+     "imu/sample_valid: frame 1000 (100 s) was lost"),
 ]
 
 

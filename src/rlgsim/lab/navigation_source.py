@@ -167,6 +167,14 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
         if on.size == 0:
             raise UserInputError(f"{path}: the IMU is never powered (thermal/power_on)")
         start = int(math.ceil(on[0] * step * rate))
+        if need_imu and ds.has(fmt.IMU, "sample_valid"):
+            lost = np.flatnonzero(np.asarray(ds.read(fmt.IMU, "sample_valid"))[start:] == 0)
+            if lost.size:
+                raise UserInputError(
+                    f"{path}: imu/sample_valid: frame {start + int(lost[0])} "
+                    f"({(start + int(lost[0])) / rate:g} s) was lost ({lost.size} lost frame(s) "
+                    f"after power-on, counted 0 in the pulses); free-inertial navigation needs "
+                    f"every sample's increments (a device without [anomalies.imu_dropouts])")
         t_start = start / rate
         static_end = start
         for seg in segments:
