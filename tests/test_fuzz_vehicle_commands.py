@@ -192,6 +192,7 @@ def test_navigate_damaged_or_vehicle_dataset(runs, tmp_path, capsys, run, damage
                              "-o", str(tmp_path / "out")])
     assert words in line and "bad.h5" in line
     assert _digest(tmp_path) == before                 # nothing rewritten, nothing written
+    assert not (tmp_path / "out").exists()             # not even the output folder
 
 
 #: (id, argv after ``navigate SOURCE --align-s 60 -q``, a file made first, words)
@@ -200,6 +201,9 @@ NAVIGATE_OUTPUT = [
     ("output folder is the input", ["-o", "{src}"], None, "is a regular file, not a folder"),
     ("output folder under a file", ["-o", "{d}/f.txt/x"], "f.txt", "f.txt/x"),
     ("output /dev/null", ["-o", "/dev/null"], None, "not a folder"),
+    ("output a dangling link", ["-o", "{d}/link"], "link", "which does not exist"),
+    ("output under /proc", ["-o", "/proc/rlgsim-navigation"], None,
+     "cannot create the output folder"),
     ("report over the input", ["-o", "{d}"], None, "is also an input of this command"),
 ]
 
@@ -212,7 +216,9 @@ def test_navigate_output_checked_before_work(runs, tmp_path, capsys, argv, made,
         assert main(["export", str(runs["static"]), "-o", str(src), "-q"]) == 0
     else:
         shutil.copy(runs["static"], src)
-    if made:
+    if made == "link":
+        (tmp_path / made).symlink_to(tmp_path / "nowhere")
+    elif made:
         (tmp_path / made).write_text("keep me\n")
     before = _digest(tmp_path)
     argv = [a.format(d=tmp_path, src=src) for a in argv]

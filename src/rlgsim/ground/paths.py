@@ -145,6 +145,10 @@ def output_folder(path: str | os.PathLike, *, inputs: Iterable[str | os.PathLike
     """An output folder: created if missing, written through if a symlink to a folder; an
     existing non-folder, an input or an over-long name is refused."""
     p, st = _output(path, "use it as the output folder", follow=True)
+    if st is None and os.path.islink(p):
+        raise UserInputError(f"{p}: is a symbolic link to {os.readlink(p)}, which does not "
+                             f"exist; create its target or choose another output folder with "
+                             f"{option}")
     if st is not None and not stat.S_ISDIR(st.st_mode):
         what = "a regular file" if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
         raise UserInputError(f"{p}: is {what}, not a folder; choose another output folder "

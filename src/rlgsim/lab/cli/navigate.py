@@ -65,16 +65,24 @@ def run(args: argparse.Namespace) -> int:
     from rlgsim.lab.navigation_models import load_models
     from rlgsim.lab.navigation_report import markdown_table, write
     from rlgsim.lab.navigation_source import open_source
+    from rlgsim.lab.report import output_folder
     src = pathlib.Path(args.source)
     out = _output(args, src)
-    source = open_source(src)          # checked (one line) before the models read it
+    made = not out.exists()
+    output_folder(out)                 # made before the work (one line if it cannot be)
     try:
-        models = (load_models(args.models, src, temperature_probe=args.temperature_probe)
-                  if args.models else None)
-        ds = navigate_source(source, models=models, align_s=args.align_s,
-                             span_s=None if args.span_h is None else args.span_h * 3600)
-    finally:
-        source.close()
+        source = open_source(src)      # checked (one line) before the models read it
+        try:
+            models = (load_models(args.models, src, temperature_probe=args.temperature_probe)
+                      if args.models else None)
+            ds = navigate_source(source, models=models, align_s=args.align_s,
+                                 span_s=None if args.span_h is None else args.span_h * 3600)
+        finally:
+            source.close()
+    except BaseException:
+        if made:                       # a refused input leaves no empty folder behind
+            out.rmdir()
+        raise
     paths = write(ds, out, args.format)
     if not args.quiet:
         print(markdown_table(ds))
