@@ -220,3 +220,15 @@ def test_other_os_errors_keep_their_traceback(monkeypatch):
                         lambda *a: (_ for _ in ()).throw(OSError(5, "Input/output error")))
     with pytest.raises(OSError):
         cli_main._main(["run", "quickstart", "-o", "x.h5"])
+
+
+@pytest.mark.parametrize("named, shown", [
+    ("/d/q.h5.tmp-123", "/d/q.h5"),                 # a dataset's temporary file, named by HDF5
+    ("/d/.nav.png.tmp-77", "/d/nav.png"),           # rlgsim.ground.atomic's
+    ("/d/.a.h5.tmp5", "/d/a.h5"),                   # a derived dataset's
+    ("/d/report.md", "/d/report.md"),
+])
+def test_the_full_disk_line_names_the_output_not_its_temporary_file(named, shown):
+    from rlgsim.lab.cli.main import format_no_space
+    line = format_no_space(_no_space(named))
+    assert line.startswith(f"rlgsim: error: {shown}: the disk filled up while writing (No space")

@@ -11,6 +11,7 @@ import pathlib
 import tomllib
 from typing import Any, Mapping
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.ground.toml_text import dumps
 
 __all__ = ["write_sidecar", "write_table"]
@@ -22,16 +23,8 @@ def write_sidecar(path: str | os.PathLike, tables: Mapping[str, Mapping[str, Any
     p = pathlib.Path(path)
     text = dumps({name: dict(table) for name, table in tables.items() if table}, header=comment)
     tomllib.loads(text)                  # never write a sidecar that does not read back
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    try:
+    with atomic_file(p) as tmp:
         tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    except OSError as exc:
-        if exc.filename is None:             # a write's error names no file
-            exc.filename = str(p)
-        raise
-    finally:
-        tmp.unlink(missing_ok=True)
     return p
 
 
@@ -43,33 +36,27 @@ def write_table(path: str | os.PathLike, blocks, fmt: str) -> pathlib.Path:
     if fmt == "parquet":
         from rlgsim.ground.recording_columns import need_pyarrow
         need_pyarrow(p, "writing")
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
     writer = None
-    try:
-        if fmt == "csv":
-            with open(tmp, "w", newline="") as fh:
-                first = True
+    with atomic_file(p) as tmp:
+        try:
+            if fmt == "csv":
+                with open(tmp, "w", newline="") as fh:
+                    first = True
+                    for df in blocks:
+                        df.to_csv(fh, index=False, header=first, na_rep="", float_format=None,
+                                  lineterminator="\n")
+                        first = False
+            elif fmt == "parquet":
+                import pyarrow as pa
+                import pyarrow.parquet as pq
                 for df in blocks:
-                    df.to_csv(fh, index=False, header=first, na_rep="", float_format=None,
-                              lineterminator="\n")
-                    first = False
-        elif fmt == "parquet":
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-            for df in blocks:
-                table = pa.Table.from_pandas(df, preserve_index=False)
-                if writer is None:
-                    writer = pq.ParquetWriter(tmp, table.schema)
-                writer.write_table(table)
+                    table = pa.Table.from_pandas(df, preserve_index=False)
+                    if writer is None:
+                        writer = pq.ParquetWriter(tmp, table.schema)
+                    writer.write_table(table)
+            else:
+                raise ValueError(f"unknown table format {fmt!r}")
+        finally:
             if writer is not None:
                 writer.close()
-                writer = None
-        else:
-            raise ValueError(f"unknown table format {fmt!r}")
-        os.replace(tmp, p)
-    finally:
-        if writer is not None:
-            writer.close()
-        if tmp.exists():
-            tmp.unlink()
     return p

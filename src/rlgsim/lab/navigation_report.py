@@ -17,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from rlgsim.ground.atomic import atomic_file
+from rlgsim.lab.report import write_atomic
+
 COLUMNS = [("error_1h_m", "error at 1 h [m]", "{:.4g}"),
            ("error_end_m", "error at end [m]", "{:.4g}"),
            ("radial_error_rate_nmi_per_h", "radial rate [nmi/h]", "{:.3g}"),
@@ -103,7 +106,8 @@ def figure(ds, path: pathlib.Path) -> pathlib.Path:
         ax.grid(alpha=0.3)
     fig.suptitle(f"free-inertial navigation, {ds.attrs['source']}")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
     return path
 
@@ -135,15 +139,15 @@ def write(ds, out_dir: str | pathlib.Path, fmt: str = "csv") -> dict[str, Any]:
     df = series.to_dataframe().reset_index()
     df = df.rename(columns={"time": "time_s"})
     sol = out / f"solution.{fmt}"
-    tmp = sol.with_suffix(sol.suffix + ".tmp")
-    if fmt == "parquet":
-        df.to_parquet(tmp, index=False)
-    else:
-        df.to_csv(tmp, index=False)
-    tmp.replace(sol)
+    with atomic_file(sol) as tmp:          # each file whole or not at all
+        if fmt == "parquet":
+            df.to_parquet(tmp, index=False)
+        else:
+            df.to_csv(tmp, index=False)
     summ = out / "summary.csv"
-    summary_frame(ds).to_csv(summ)
+    with atomic_file(summ) as tmp:
+        summary_frame(ds).to_csv(tmp)
     fig = figure(ds, out / "navigation.png")
     rep = out / "report.md"
-    rep.write_text(f"# Navigation: {ds.attrs['source']}\n\n{report_text(ds)}\n", encoding="utf-8")
+    write_atomic(rep, f"# Navigation: {ds.attrs['source']}\n\n{report_text(ds)}\n")
     return {"solution": sol, "summary": summ, "figure": fig, "report": rep}

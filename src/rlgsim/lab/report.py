@@ -23,25 +23,19 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.ground.provenance import versions_line
 
 
 def write_atomic(path: pathlib.Path, data: bytes | str) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and rename. On a
-    failure (a full disk) the temporary file is deleted and the error names ``path``."""
-    path = pathlib.Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    mode = "wb" if isinstance(data, bytes) else "w"
-    try:
-        with open(tmp, mode, **({} if isinstance(data, bytes) else {"encoding": "utf-8", "newline": ""})) as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        if exc.filename is None:             # a write's error names no file
-            exc.filename = str(path)
-        raise
-    finally:
-        tmp.unlink(missing_ok=True)
+    """Write ``data`` to ``path`` whole or not at all (:func:`rlgsim.ground.atomic.atomic_file`;
+    the temporary file is ``.<name>.tmp<pid>``)."""
+    with atomic_file(path, sep="") as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                fh.write(data)
 
 
 def output_folder(path: str | os.PathLike) -> pathlib.Path:

@@ -138,18 +138,23 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 #: the file named in an HDF5 error's text (h5py's OSError carries no ``filename``)
 _HDF5_FILENAME = re.compile(r"filename = '([^']*)'")
 
-#: the suffix of the temporary file a dataset is written to before it is moved into place
-_TMP_SUFFIX = re.compile(r"\.tmp-\d+$")
+#: the name of a temporary file an output is written through before it is moved into place:
+#: ``<name>.tmp-<pid>`` (a dataset) or ``.<name>.tmp[-]<pid>`` (rlgsim.ground.atomic, derived datasets)
+_TMP_NAME = re.compile(r"^(?:\.(?P<hidden>.+)|(?P<plain>.+))\.tmp-?\d+$")
 
 
 def format_no_space(exc: OSError) -> str:
-    """The one line printed when the disk fills up during a write: the output's path (the
-    temporary file's name without its ``.tmp-<pid>`` suffix) and the system's reason."""
+    """The one line printed when the disk fills up during a write: the output's path (a
+    temporary file named by HDF5 is given as the file it becomes) and the system's reason."""
     name = exc.filename
     if name is None:
         found = _HDF5_FILENAME.search(str(exc))
         name = found.group(1) if found else None
-    where = f"{_TMP_SUFFIX.sub('', os.fsdecode(name))}: " if name else ""
+    where = ""
+    if name:
+        path = pathlib.Path(os.fsdecode(name))
+        tmp = _TMP_NAME.match(path.name)
+        where = f"{path.with_name(tmp['hidden'] or tmp['plain']) if tmp else path}: "
     reason = os.strerror(exc.errno) if exc.errno is not None else "no space left"
     return (f"{PROG}: error: {where}the disk filled up while writing ({reason}); the file being "
             f"written was removed — free some space or write elsewhere")
@@ -266,14 +271,12 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:              # e.g. `rlgsim list | head`: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except OSError as exc:
+    except Exception as exc:
+        # the SIGTERM's SystemExit raised inside a C extension's callback, which turned it into
+        # another exception (h5py: SystemError); the run has cleaned up already
         if _stop_signal:
             return 128 + _stop_signal[0]
-        if exc.errno in _NO_SPACE:
+        if isinstance(exc, OSError) and exc.errno in _NO_SPACE:
             print(format_no_space(exc), file=sys.stderr)
             return 1
         raise
-    except Exception:
-        if _stop_signal:    # the SIGTERM's SystemExit raised inside a C extension's callback,
-            return 128 + _stop_signal[0]    # which turned it into another exception (h5py:
-        raise                               # SystemError); the run has cleaned up already
