@@ -269,6 +269,8 @@ STUDY_CASES = [
      "train.window_s: 1 s not allowed; a window holds a whole number"),
     ("window not a whole number of samples", [("window_s = 30", "window_s = 97.35")],
      "train.window_s: 97.35 s not allowed"),
+    ("single-gyro train device", [('"static.toml"', '"single.toml"')],
+     "train.scenario: fuzz_static's device trplg_001 has gyro axes z, no accelerometers"),
     ("export_models", [('recipe = "vehicle"', 'recipe = "vehicle"\nexport_models = true')],
      "study.export_models: the vehicle recipe does not export its compensators"),
     ("mission sample rate past the limit",
@@ -282,6 +284,7 @@ STUDY_CASES = [
 def test_vehicle_study_refused_before_any_run(tmp_path, capsys, changes, words):
     (tmp_path / "static.toml").write_text(STATIC)
     (tmp_path / "vehicle.toml").write_text(VEHICLE)
+    (tmp_path / "single.toml").write_text(STATIC.replace('"rlg_imu_000"', '"trplg_001"'))
     text = STUDY
     for old, new in changes:
         assert old in text

@@ -127,6 +127,13 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
                                                    f"shorter than train.window_s = "
                                                    f"{config.window_s:g} s")
         _window_fits(study, key, sc, config.window_s)
+        axes = list(sc.device.tables.get("gyro", {}).get("axes", ["x", "y", "z"]))
+        has_acc = "accelerometer" in sc.device.tables
+        if sorted(axes) != ["x", "y", "z"] or (key == "mission" and not has_acc):
+            what = f"gyro axes {', '.join(axes)}" + ("" if has_acc else ", no accelerometers")
+            raise study.ctx(key).error("scenario", f"{sc.name}'s device {sc.device.name} has "
+                                                   f"{what}; the recipe needs three gyros x, y, "
+                                                   f"z (and on the mission three accelerometers)")
     data = workdir / "data"
     data.mkdir(parents=True, exist_ok=True)
     train = simulate(train_sc, data / "train.h5", progress=progress)
