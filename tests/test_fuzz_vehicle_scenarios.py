@@ -65,7 +65,7 @@ CASES = [
     # a motion file's initial altitude outside the Earth model's heights: Site's ValueError
     ("motion_file_altitude_deep",
      motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,-1e6,10,0,0,0,0,0"),
-     ["m.csv: line 2, column 3", "[-11000, 20000]"]),
+     ["m.csv: line 2, column 3", "[-11000, 50000]"]),
     ("motion_file_altitude_space",
      motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,1e7,10,0,0,0,0,0"),
      ["m.csv: line 2, column 3", "initial altitude 1e+07"]),
@@ -128,7 +128,7 @@ CASES = [
      {"scen.toml": scenario(head=HEAD + "\nspeed_m_s = 300",
                             segs=seg("climb", duration_s=10, pitch_deg=-80)
                             + seg("hold", duration_s=2000)).replace("duration_s = 20\n", "")},
-     ["the route reaches a height of", "outside the Earth model's heights [-11000, 20000] m"]),
+     ["the route reaches a height of", "outside the Earth model's heights [-11000, 50000] m"]),
     # a route of 1e12 s and no run duration: the run's "too long" named the key "duration"
     ("route_too_long", {"scen.toml": scenario(segs=seg("hold", duration_s="1e12")).replace(
         "duration_s = 20\n", "", 1)},
@@ -214,6 +214,15 @@ EXTREME = [
     ("table_header_with_spaces", table_file([", ".join(r.split(",")) for r in PT_OK])
      | {"r.csv": ", ".join(PT_COLS.split(",")) + "\n"
         + "\n".join(", ".join(r.split(",")) for r in PT_OK) + "\n"}),
+    # routes above 20 km (U-2 and HALE drones ~21 km, balloons ~40 km): refused as outside the
+    # Earth model's heights, which then ended at 20 km
+    ("aircraft_at_25_km", {"scen.toml": scenario(head=HEAD.replace("400.0", "25000.0")
+                                                 + "\nspeed_m_s = 200",
+                                                 segs=seg("climb", duration_s=10, pitch_deg=5)
+                                                 + seg("hold", duration_s=60))}),
+    ("motion_file_at_25_km",
+     motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,25000,200,0,0,0,0,0")),
+    ("balloon_table_at_40_km", table_file([f"{i},30,100,{40000 + i},0,0,0" for i in range(6)])),
 ]
 
 
