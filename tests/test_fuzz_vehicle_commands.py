@@ -391,3 +391,14 @@ def test_navigate_bad_recording(runs, tmp_path, capsys, table, sidecar, words):
                              "-o", str(tmp_path / "out")])
     assert words in line
     assert _digest(tmp_path) == before
+
+
+def test_montecarlo_unreachable_scheduler_leaves_no_folder(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    (tmp_path / "static.toml").write_text(STATIC)
+    (tmp_path / "vehicle.toml").write_text(VEHICLE)
+    (tmp_path / "s.toml").write_text(STUDY)
+    line = one_line(capsys, ["montecarlo", str(tmp_path / "s.toml"), "--units", "1", "-q",
+                             "--scheduler", "tcp://127.0.0.1:1", "-o", str(tmp_path / "mc")])
+    assert "--scheduler: cannot connect" in line
+    assert not (tmp_path / "mc").exists()

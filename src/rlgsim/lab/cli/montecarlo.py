@@ -183,11 +183,11 @@ def run(payload: dict[str, Any], n_units: int, out_dir: str | os.PathLike, *,
     if workers < 1:
         raise UserInputError(f"--workers: value {workers} not allowed; must be >= 1")
     from rlgsim.lab.report import output_folder
-    out = output_folder(out_dir)
     _blas_one_thread_env()
-    client = connect(scheduler) if scheduler and executor is None else None
-    t0 = time.perf_counter()
+    client = connect(scheduler) if scheduler and executor is None else None   # before the
+    t0 = time.perf_counter()                     # folder: an unreachable one leaves none
     try:
+        out = output_folder(out_dir)
         if client is not None:
             executor = client.get_executor()
         records = run_campaign(unit_fn, payload, n_units, out, executor=executor,
