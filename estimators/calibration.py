@@ -58,6 +58,7 @@ from rlgsim.estimators.kalman_calibration import (ACCEL_MIS, BA, BG, GYRO_MIS, M
                                            WindowResult, calibrate_window)
 from rlgsim.estimators.strapdown import SensorModel
 from rlgsim.ground import dataset_format as fmt
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.ground.dataset_format import open_dataset
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
@@ -576,18 +577,12 @@ class CampaignResult:
         ``units_in_names``: the headers of :meth:`table_columns` (``rlgsim calibrate``'s
         table), else the row keys :attr:`columns` (a study's working files)."""
         path = pathlib.Path(path)
-        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
         pairs = self.table_columns() if units_in_names else [(c, c) for c in self.columns]
-        try:
-            with open(tmp, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow([h for h, _ in pairs])
-                for r in self.rows:
-                    w.writerow([_csv_value(r.get(c, "")) for _, c in pairs])
-            os.replace(tmp, path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
+        with atomic_file(path) as tmp, open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow([h for h, _ in pairs])
+            for r in self.rows:
+                w.writerow([_csv_value(r.get(c, "")) for _, c in pairs])
         return path
 
 

@@ -26,6 +26,7 @@ import os
 import pathlib
 from typing import Iterable, Mapping
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.ground.errors import UserInputError
 
 __all__ = ["PROGRAMME_COLUMNS", "read_programme", "write_programme", "programme_rows"]
@@ -138,16 +139,10 @@ def programme_rows(segments: Iterable[Mapping]) -> list[dict]:
 def write_programme(path: str | os.PathLike, segments: Iterable[Mapping]) -> pathlib.Path:
     """Write the turntable track of ``segments`` as a programme CSV (full float precision)."""
     p = pathlib.Path(path)
-    tmp = p.with_name(f".{p.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, PROGRAMME_COLUMNS, lineterminator="\n")
-            w.writeheader()
-            for r in programme_rows(segments):
-                w.writerow({k: repr(float(v)) if isinstance(v, float) else v  # np.float64 too
-                            for k, v in r.items()})
-        os.replace(tmp, p)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_file(p) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, PROGRAMME_COLUMNS, lineterminator="\n")
+        w.writeheader()
+        for r in programme_rows(segments):
+            w.writerow({k: repr(float(v)) if isinstance(v, float) else v  # np.float64 too
+                        for k, v in r.items()})
     return p
