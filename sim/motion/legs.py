@@ -47,10 +47,13 @@ CHANNELS = ("heading", "pitch", "roll", "v_right", "v_forward", "v_up")
 N_CHANNELS = 6
 DEGREE = 5
 
-#: most legs a route may have (a motion file's commands, a table's rows; the turntable's
-#: programmes are held to as many motions): a route's kinematics keep ~2 kB per leg (~0.4 GB at
-#: this count, e.g. a 5.5-h table at 10 Hz); gnss-ins-sim's sample-by-sample demo has 1 000
-MAX_LEGS = 200_000
+#: most legs a route may have (a motion file's commands, a table's rows): building a route
+#: peaks at ~3 kB per leg (gnss-ins-sim's sample-by-sample commands at 0.01 s, one hour: 360 000
+#: legs, read in 8 s, built in 15 s, 1.1 GB peak), ~3 GB at this count — a 27-h table at 10 Hz
+MAX_LEGS = 1_000_000
+#: what to do with a route past :data:`MAX_LEGS` (the refusals' advice)
+TOO_MANY_LEGS_ADVICE = ("resample a position table to a lower rate, or merge a motion file's "
+                        "consecutive commands into longer ones")
 #: peak |rate| of a smooth leg = SMOOTH_PEAK_RATE · |Δ| / T
 SMOOTH_PEAK_RATE = 15.0 / 8.0
 #: peak |rate of rate| of a smooth leg = SMOOTH_PEAK_ACCEL · |Δ| / T²

@@ -47,7 +47,8 @@ import numpy as np
 
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import DEG
-from rlgsim.sim.motion.legs import MAX_LEGS, Leg, rate_leg, smooth_leg, smooth_time
+from rlgsim.sim.motion.legs import (MAX_LEGS, TOO_MANY_LEGS_ADVICE, Leg, rate_leg, smooth_leg,
+                                    smooth_time)
 from rlgsim.sim.motion.position_table import MAX_LATITUDE_DEG
 from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 
@@ -111,7 +112,8 @@ def read_motion_def(path: str | pathlib.Path, *,
                     lines.append(reader.line_num)
                     if len(rows) > MAX_LEGS + 3:
                         raise UserInputError(f"{p}: more than {MAX_LEGS} commands; a route "
-                                             f"takes at most {MAX_LEGS} legs")
+                                             f"takes at most {MAX_LEGS} legs: "
+                                             f"{TOO_MANY_LEGS_ADVICE}")
     except OSError as e:
         raise UserInputError(f"{p}: cannot read the motion definition ({e.strerror})") from None
     except UnicodeDecodeError:

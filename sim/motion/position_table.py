@@ -31,7 +31,7 @@ import numpy as np
 from rlgsim.ground.earth import radii_of_curvature_rad
 from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import DEG
-from rlgsim.sim.motion.legs import DEGREE, MAX_LEGS, N_CHANNELS, Leg
+from rlgsim.sim.motion.legs import DEGREE, MAX_LEGS, N_CHANNELS, TOO_MANY_LEGS_ADVICE, Leg
 from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 
 COLUMNS = ("time_s", "latitude_deg", "longitude_deg", "height_m", "heading_deg", "pitch_deg",
@@ -68,7 +68,7 @@ def read_position_table(path: str | pathlib.Path, *, max_speed_m_s: float = DEFA
                              f"{', '.join(COLUMNS)}")
     if len(df) > MAX_LEGS + 1:
         raise UserInputError(f"{p}: {len(df)} rows; a position table takes at most "
-                             f"{MAX_LEGS + 1}")
+                             f"{MAX_LEGS + 1}: {TOO_MANY_LEGS_ADVICE}")
     data = np.empty((len(df), len(COLUMNS)))
     for j, c in enumerate(COLUMNS):
         if df[c].dtype.kind in "bmM":               # booleans, durations, dates: not numbers
