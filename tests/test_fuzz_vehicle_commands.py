@@ -309,22 +309,24 @@ def test_window_longer_than_the_run_is_one_line(runs, tmp_path, kind):
         window_table(source, 1000.0, gyro="x")
 
 
-#: (id, which run, damage, words) for ``rlgsim export`` of a dataset
+#: (id, which run, damage, table format, words) for ``rlgsim export`` of a dataset
 EXPORT = [
-    ("vehicle run", "vehicle", None, "a run on a vehicle (group trajectory)"),
-    ("vehicle run as parquet", "vehicle", None, "the drive's rotation would read as gyro bias"),
-    ("gyro pulses 1-D", "static", _replace("imu/gyro_pulses", lambda v: v[:, 0]),
+    ("vehicle run", "vehicle", None, "csv", "a run on a vehicle (group trajectory)"),
+    ("vehicle run as parquet", "vehicle", None, "parquet",
+     "the drive's rotation would read as gyro bias"),
+    ("gyro pulses 1-D", "static", _replace("imu/gyro_pulses", lambda v: v[:, 0]), "csv",
      "imu/gyro_pulses is int32 with 1 dimension(s)"),
     ("accel pulses float", "static", _replace("imu/accel_pulses", lambda v: v.astype(float)),
-     "imu/accel_pulses is float64"),
+     "csv", "imu/accel_pulses is float64"),
     ("gyro pulses shorter than accel", "static", _replace("imu/gyro_pulses", lambda v: v[:100]),
-     "gyro and accelerometer of one length"),
+     "csv", "gyro and accelerometer of one length"),
 ]
 
 
-@pytest.mark.parametrize("run, damage, words", [c[1:] for c in EXPORT],
+@pytest.mark.parametrize("run, damage, fmt, words", [c[1:] for c in EXPORT],
                          ids=[c[0] for c in EXPORT])
-def test_export_refuses_vehicle_and_damaged_pulses(runs, tmp_path, capsys, run, damage, words):
+def test_export_refuses_vehicle_and_damaged_pulses(runs, tmp_path, capsys, run, damage, fmt,
+                                                   words):
     path = tmp_path / "bad.h5"
     shutil.copy(runs[run], path)
     if damage is not None:
@@ -332,7 +334,6 @@ def test_export_refuses_vehicle_and_damaged_pulses(runs, tmp_path, capsys, run, 
             damage(f)
     (tmp_path / "bad.toml").write_text("# the user's notes beside the dataset\n")
     before = _digest(tmp_path)
-    fmt = "parquet" if "parquet" in words or "rotation" in words else "csv"
     line = one_line(capsys, ["export", str(path), "--format", fmt, "-q"])
     assert words in line and "bad.h5" in line
     assert _digest(tmp_path) == before                 # no table, no sidecar rewritten
