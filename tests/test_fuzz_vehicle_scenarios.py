@@ -84,10 +84,9 @@ CASES = [
       "m.csv": "\n".join([MD_INIT, "1,0,0,0,0,0,0,5,1", "1,3,0,0,0,0,0,5,1",
                           "2,0,0,0,20,0,0,20,1"]) + "\n"},
      ["m.csv: line 1: expected the header of the initial state"]),
-    # GPS visibility other than 0/1: rounded to a flag silently (2, -1 visible; 0.5 hidden)
-    ("motion_file_gps_2", motion_file(["1,0,0,0,0,0,0,5,2"]), ["column 9: GPS visibility 2"]),
-    ("motion_file_gps_half", motion_file(["1,0,0,0,0,0,0,5,0.5"]),
-     ["column 9: GPS visibility 0.5"]),
+    # a negative GPS visibility: read as visible (a fix type 2, 4 … is visible: valid below)
+    ("motion_file_gps_negative", motion_file(["1,0,0,0,0,0,0,5,-1"]),
+     ["column 9: GPS visibility -1 not allowed; 0 (no fix) or a positive number"]),
     # a folder or a device as the motion file / table: "not found"
     ("motion_file_folder", {"scen.toml": scenario(head='file = "adir"', segs=""), "adir": None},
      ["trajectory.file: 'adir' is a directory"]),
@@ -231,6 +230,8 @@ EXTREME = [
                                                  + seg("hold", duration_s=60))}),
     ("motion_file_at_25_km",
      motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,25000,200,0,0,0,0,0")),
+    # gnss-ins-sim's Aceinna demo passes a fix type as the GPS visibility: 2 and 4 were refused
+    ("motion_file_gps_fix_types", motion_file(["1,0,0,0,0,0,0,5,2", "1,0,0,0,0,0,0,5,4"])),
     ("balloon_table_at_40_km", table_file([f"{i},30,100,{40000 + i},0,0,0" for i in range(6)])),
 ]
 
@@ -247,6 +248,7 @@ def test_extreme_valid_route_is_built(tmp_path, files):
     s = load_scenario(str(tmp_path / "scen.toml"))
     route = s.trajectory.build(s.duration_s)
     assert s.duration_s == 4.0 and len(route._dense) < 1000     # DOP853 steps to the run's end
+    assert all(leg.gnss for leg in s.trajectory.legs)            # the sky visible throughout
     w, f, _ = route.peak_inputs()
     assert w < s.trajectory.gyro_range_rad_s and f < s.trajectory.accel_range_m_s2
 

@@ -4,7 +4,8 @@ The file (gnss-ins-sim, Aceinna, MIT licence; its ``demo_motion_def_files/``) ha
 one line of the initial state — latitude, longitude [°], altitude [m], velocity in its body axes
 (forward, right, down) [m/s], yaw, pitch, roll [°] — a second header line, then one command per
 line: type, yaw, pitch, roll [°, or °/s], vx, vy, vz [m/s, or m/s²], the command's duration [s]
-and the GPS visibility (0/1). Its navigation frame is NED with body axes forward–right–down;
+and the GPS visibility (0: no fix, else visible — gnss-ins-sim never reads it itself and its
+Aceinna demo passes a fix type 2, 4 … there). Its navigation frame is NED with body axes forward–right–down;
 here ENU with right–forward–up, so its body velocity (x_f, y_r, z_d) is (y_r, x_f, −z_d) here and
 its yaw, pitch and roll are the same physical angles as heading, pitch and roll
 (:mod:`rlgsim.sim.motion.legs`).
@@ -27,8 +28,8 @@ The commands (gnss-ins-sim ``pathgen.parse_motion_def``) and how they are read h
   ones (docs/trajectories.md compares the two).
 
 A command of zero duration is skipped; a negative duration, an unknown type, a non-number, an
-empty cell before the row's last number, a row of the wrong length, a GPS visibility other than
-0 or 1, a missing header line (a first or third line of numbers: the file would be read a row
+empty cell before the row's last number, a row of the wrong length, a negative GPS
+visibility, a missing header line (a first or third line of numbers: the file would be read a row
 off), an initial latitude at or past ±89.9° (the ENU frame's singularity, as for the
 ``[trajectory]`` table), an initial altitude outside the Earth model's heights
 (:data:`rlgsim.sim.motion.site.MIN_HEIGHT_M` … ``MAX_HEIGHT_M``) and more than
@@ -150,10 +151,10 @@ def read_motion_def(path: str | pathlib.Path, *,
     for i, row in enumerate(rows[3:], start=4):
         where = f"{p}: line {lines[i - 1]}"
         c = _numbers(row, where, 9)
-        kind, duration, visible = c[0], c[7], bool(c[8])
-        if c[8] not in (0, 1):
+        kind, duration, visible = c[0], c[7], bool(c[8] != 0)
+        if not c[8] >= 0:      # gnss-ins-sim's demos pass a fix type (2, 4 …): visible ≠ 0
             raise UserInputError(f"{where}, column 9: GPS visibility {c[8]:g} not allowed; "
-                                 f"0 (no fix) or 1 (visible)")
+                                 f"0 (no fix) or a positive number (visible)")
         if kind not in (1, 2, 3, 4, 5):
             raise UserInputError(f"{where}, column 1: command type {c[0]:g} not allowed; "
                                  f"one of 1, 2, 3, 4, 5")
