@@ -230,24 +230,34 @@ EXTREME = [
                                                  + seg("hold", duration_s=60))}),
     ("motion_file_at_25_km",
      motion_file(["1,0,0,0,0,0,0,5,1"], init="30,120,25000,200,0,0,0,0,0")),
+    # a 20-s run, a 19-s hold, then a smooth 7200° turn in 10 s: refused for its 1350 °/s at
+    # t = 24 s, after the run's end (175 °/s at most inside it)
+    ("turn_peak_after_a_20_s_run",
+     {"scen.toml": scenario(segs=seg("hold", duration_s=19)
+                            + seg("turn", duration_s=10, by_deg=7200))}),
     # gnss-ins-sim's Aceinna demo passes a fix type as the GPS visibility: 2 and 4 were refused
     ("motion_file_gps_fix_types", motion_file(["1,0,0,0,0,0,0,5,2", "1,0,0,0,0,0,0,5,4"])),
     ("balloon_table_at_40_km", table_file([f"{i},30,100,{40000 + i},0,0,0" for i in range(6)])),
 ]
 
 
-@pytest.mark.parametrize("files", [c[1] for c in EXTREME], ids=[c[0] for c in EXTREME])
-def test_extreme_valid_route_is_built(tmp_path, files):
+#: the run's length [s] of the extreme cases that need one other than 4 s
+EXTREME_RUN_S = {"turn_peak_after_a_20_s_run": 20.0}
+
+
+@pytest.mark.parametrize("case, files", EXTREME, ids=[c[0] for c in EXTREME])
+def test_extreme_valid_route_is_built(tmp_path, case, files):
     from rlgsim.sim.motion.legs import MAX_LEGS
     from rlgsim.sim.run.scenario import load_scenario
     # the legs' cap (200 000 refused an hour of gnss-ins-sim's sample-by-sample 0.01-s commands,
     # 360 000, and a 10-Hz table past 5.5 h): too slow to build here, its constant is checked
     assert MAX_LEGS >= max(360_000, 24 * 36_000 + 1)
-    _write(tmp_path, {**files, "scen.toml": files["scen.toml"].replace("duration_s = 20",
-                                                                      "duration_s = 4")})
+    run_s = EXTREME_RUN_S.get(case, 4.0)
+    _write(tmp_path, {**files, "scen.toml": files["scen.toml"].replace(
+        "duration_s = 20\n", f"duration_s = {run_s}\n", 1)})
     s = load_scenario(str(tmp_path / "scen.toml"))
     route = s.trajectory.build(s.duration_s)
-    assert s.duration_s == 4.0 and len(route._dense) < 1000     # DOP853 steps to the run's end
+    assert s.duration_s == run_s and len(route._dense) < 1000   # DOP853 steps to the run's end
     assert all(leg.gnss for leg in s.trajectory.legs)            # the sky visible throughout
     w, f, _ = route.peak_inputs()
     assert w < s.trajectory.gyro_range_rad_s and f < s.trajectory.accel_range_m_s2

@@ -207,14 +207,19 @@ def _check_legs(legs: tuple[Leg, ...], until_s: float, gyro_range: float, source
     Without this a turn of 1e300° went to DOP853 and ended in a MemoryError after a minute.
     The legs are screened :data:`_SCREEN` at a time (200 000 legs in ~1 s instead of ~20 s one
     by one); a leg the screen flags is checked alone (:func:`_check_leg`), which words the
-    line."""
+    line. The leg the run ends in is probed up to the run's end only (its probes past it moved
+    to the end), as :meth:`Trajectory.peak_inputs` checks it: a turn's peak rate after the run
+    is never simulated."""
     dur = np.array([leg.duration_s for leg in legs])
     t0 = np.concatenate([[0.0], np.cumsum(dur)[:-1]])
     m = int(np.searchsorted(t0, until_s, side="right"))        # the legs up to the run's end
+    upto = np.minimum(dur[:m], until_s - t0[:m])               # each one's time in the run
     for lo in range(0, m, _SCREEN):
-        part = legs[lo:min(m, lo + _SCREEN)]
-        for k in np.flatnonzero(_screen(part, gyro_range)):
-            _check_leg(lo + int(k), part[k], float(t0[lo + k]), gyro_range, source)
+        hi = min(m, lo + _SCREEN)
+        part = legs[lo:hi]
+        for k in np.flatnonzero(_screen(part, upto[lo:hi], gyro_range)):
+            _check_leg(lo + int(k), part[k], float(t0[lo + k]), float(upto[lo + k]),
+                       gyro_range, source)
 
 
 #: legs screened at once by :func:`_check_legs` (~10 kB each)
@@ -236,13 +241,15 @@ def _probe_speed_rate(x: np.ndarray, xd: np.ndarray) -> tuple[np.ndarray, np.nda
     return speed, w_nb, low
 
 
-def _screen(legs: tuple[Leg, ...], gyro_range: float) -> np.ndarray:
+def _screen(legs: tuple[Leg, ...], upto: np.ndarray, gyro_range: float) -> np.ndarray:
     """Per leg: True where :func:`_check_leg` may refuse it (its conditions on all legs at
-    once; the probes evaluated as power sums, so a leg at the bound is flagged either way)."""
+    once, each probed up to ``upto`` [s] from its start; the probes evaluated as power sums, so
+    a leg at the bound is flagged either way)."""
     coef = np.stack([leg.coef for leg in legs])                          # (k, 6, 6)
     finite = np.isfinite(coef).all(axis=(1, 2))
     body = np.array([leg.frame == "body" for leg in legs]) & finite
-    tau = np.array([leg.duration_s for leg in legs])[:, None] * _PROBES   # (k, p)
+    tau = np.minimum(np.array([leg.duration_s for leg in legs])[:, None] * _PROBES,
+                     upto[:, None])                                       # (k, p)
     powers = tau[:, :, None] ** np.arange(coef.shape[2])                 # (k, p, n)
     dpow = powers[:, :, :-1] * np.arange(1, coef.shape[2])
     c = np.where(body[:, None, None], coef, 0.0)
@@ -256,15 +263,17 @@ def _screen(legs: tuple[Leg, ...], gyro_range: float) -> np.ndarray:
     return ~finite | (body & bad.any(axis=1))
 
 
-def _check_leg(j: int, leg: Leg, t0: float, gyro_range: float, source: str) -> None:
-    """:func:`_check_legs` of leg ``j`` starting at ``t0`` [s]: one line if it is refused."""
+def _check_leg(j: int, leg: Leg, t0: float, upto: float, gyro_range: float, source: str
+               ) -> None:
+    """:func:`_check_legs` of leg ``j`` starting at ``t0`` [s], probed up to ``upto`` [s] from
+    its start: one line if it is refused."""
     where = f"{source}: trajectory: leg {j} ({leg.label}) at t = {t0:.6g} s"
     if not np.all(np.isfinite(leg.coef)):
         raise UserInputError(f"{where}: its rates are not finite numbers (the leg lasts "
                              f"{leg.duration_s:.6g} s)")
     if leg.frame != "body":
         return
-    tau = leg.duration_s * _PROBES
+    tau = np.minimum(leg.duration_s * _PROBES, upto)
     with np.errstate(over="ignore", invalid="ignore"):
         x, xd = leg.values(tau), leg.rates(tau)
     speed, w_nb, low = _probe_speed_rate(x, xd)
