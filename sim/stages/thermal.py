@@ -53,7 +53,8 @@ class ThermalPart:
         """Refuse an airflow too strong for the thermal step before the first block: where an
         upper bound of the route's speed (each body leg's channels lie between their start and
         end values: linear or the monotone quintic) could be refused, the speeds of every
-        thermal step's start are checked now, as :meth:`block` checks each block's."""
+        thermal step's start are checked now — the steps :meth:`block` holds the film over, so
+        no block checks them again."""
         bay, route = self.bay
         top = 0.0
         for leg, t0 in zip(route.legs, route.leg_starts):
@@ -95,7 +96,6 @@ class ThermalPart:
             bay, route = self.bay
             speed = np.linalg.norm(route.states(t[:-1]).v_n, axis=1)
             film = bay.factor(speed) - 1.0
-            bay.check_step(film, speed, *self._bay_check, self.step)
         noise = None
         if self.chamber_noise is not None:   # one stream per 600-s block: chunking-invariant
             loop = self.integrator.chamber_loop
