@@ -27,7 +27,10 @@ class Ctx:
     path: str = ""
 
     def key(self, key: str) -> str:
-        """Dotted key for messages, e.g. ``chamber.segments[2].rate_c_per_min``."""
+        """Dotted key for messages, e.g. ``chamber.segments[2].rate_c_per_min``; ``key`` ""
+        names the table itself (``chamber.segments[2]``, no stray dot)."""
+        if not key:
+            return self.path
         return f"{self.path}.{key}" if self.path else key
 
     def child(self, key: str) -> "Ctx":

@@ -161,8 +161,7 @@ class TrajectoryProgram:
         for i, seg in enumerate(segs):
             sctx = ctx.child("segment").item(i)
             if not isinstance(seg, Mapping):
-                raise UserInputError(f"{source}: {sctx.path}: expected a table, got "
-                                     f"{seg!r:.40}")
+                raise sctx.error("", f"expected a table, got {seg!r:.40}")
             for leg in _segment_legs(seg, sctx, state, gamma):
                 legs.append(leg)
                 state = leg.end()
