@@ -111,12 +111,14 @@ def apply(scenario):
     hot = max(_temperatures(program), key=lambda t: abs(t - 50.0), default=None)
     if not (0.0 < factor < math.inf) or (hot is not None and not
                                          MIN_TEMPERATURE_C <= hot <= MAX_TEMPERATURE_C):
-        raise UserInputError(
-            f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber variation "
-            f"(offset {offset:+.4g} K from --chamber-offset-c {variation.offset_c:g}, rate factor "
-            f"{factor:.4g} from --chamber-rate-rel {variation.rate_rel:g}) takes the chamber to "
-            f"{hot:.4g} °C; the chamber holds {MIN_TEMPERATURE_C:g} to {MAX_TEMPERATURE_C:g} °C "
-            f"with a finite rate — give smaller spreads")
+        why = (f"a rate factor of {factor:.4g} (from --chamber-rate-rel {variation.rate_rel:g});"
+               f" ramp rates are scaled by a finite factor > 0"
+               if not 0.0 < factor < math.inf else
+               f"an offset of {offset:+.4g} K (from --chamber-offset-c {variation.offset_c:g}), "
+               f"which takes the chamber to {hot:.4g} °C; it holds {MIN_TEMPERATURE_C:g} to "
+               f"{MAX_TEMPERATURE_C:g} °C")
+        raise UserInputError(f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber "
+                             f"variation has {why} — give smaller spreads")
     return dataclasses.replace(scenario, chamber=program)
 
 

@@ -200,9 +200,10 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
             raise _fail(f"{p}: orientation.{axis}", f"value {vec!r} not allowed; must be a unit "
                                                     f"vector [east, north, up]")
         named = [*(sc.gyro_axes or []), *(sc.accel_axes or [])]     # axes are optional
-        if named and axis not in named:
+        if named and axis not in named and axis not in ("x", "y", "z"):  # a whole mount table
             raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
-                                                    f"{', '.join(dict.fromkeys(named))}")
+                                                    f"{', '.join(dict.fromkeys(named))} "
+                                                    f"(and x, y, z are always allowed)")
         sc.orientation[axis] = a
     for key, v in data.get("noise", {}).items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
