@@ -87,11 +87,15 @@ CASES = [
     # a negative GPS visibility: read as visible (a fix type 2, 4 … is visible: valid below)
     ("motion_file_gps_negative", motion_file(["1,0,0,0,0,0,0,5,-1"]),
      ["column 9: GPS visibility -1 not allowed; 0 (no fix) or a positive number"]),
-    # a folder or a device as the motion file / table: "not found"
+    # a folder or a device as the motion file / table: "not found"; an unreadable file too
     ("motion_file_folder", {"scen.toml": scenario(head='file = "adir"', segs=""), "adir": None},
-     ["trajectory.file: 'adir' is a directory"]),
+     ["trajectory.file: ", "adir: is a directory, expected a motion definition"]),
     ("table_device", {"scen.toml": scenario(head='table = "/dev/null"', segs="")},
-     ["trajectory.table: '/dev/null' is a character device"]),
+     ["trajectory.table: /dev/null: is a character device"]),
+    ("table_name_too_long", {"scen.toml": scenario(head=f'table = "{"r" * 300}.csv"', segs="")},
+     ["trajectory.table: ", "file name too long"]),
+    ("table_name_empty", {"scen.toml": scenario(head='table = ""', segs="")},
+     ["trajectory.table: '' not allowed; expected a file name"]),
     # a table's height outside the Earth model's: Site's ValueError (traceback)
     ("table_underground", table_file([f"{i},30,100,{-20000 - i},0,0,0" for i in range(6)]),
      ["r.csv: row 1, column height_m: -20000 not allowed"]),

@@ -41,16 +41,14 @@ accelerometers ±20–40 g: a judgement from typical data sheets; set your devic
 from __future__ import annotations
 
 import math
-import os
 import pathlib
-import stat
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
 from rlgsim.ground.errors import UserInputError
-from rlgsim.ground.paths import file_kind
+from rlgsim.ground.paths import input_file
 from rlgsim.ground.earth import WGS84_A, WGS84_E2, normal_gravity
 from rlgsim.ground.units import DEG, EARTH_RATE
 from rlgsim.sim.config import (TIME_UNITS, Ctx, check_known_keys, get_bool, get_float, get_list,
@@ -171,21 +169,26 @@ class TrajectoryProgram:
                    accel_range, source)
 
 
+#: what ``[trajectory]``'s file keys name (for messages)
+_INPUT_KINDS = {"file": "a motion definition (.csv)",
+                "table": "a position table (.csv or .parquet)"}
+
+
 def _input_path(table: Mapping[str, Any], key: str, ctx: Ctx, base_dir: pathlib.Path | None
                 ) -> pathlib.Path:
-    """The regular file named by ``table[key]`` (relative to ``base_dir``): a missing file, a
-    folder, a FIFO or a device is one line naming the key."""
+    """The regular file named by ``table[key]`` (relative to ``base_dir``):
+    :func:`rlgsim.ground.paths.input_file`'s refusals (missing, a folder, a FIFO or a device,
+    unreadable, a name too long) in one line that names the key."""
     name = get_str(table, key, ctx)
+    if not name or "\0" in name:
+        raise ctx.error(key, f"{name!r} not allowed; expected a file name")
     path = pathlib.Path(name)
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
     try:
-        mode = os.stat(path).st_mode
-    except (OSError, ValueError):
-        raise ctx.error(key, f"{name!r} not found (looked for {path})") from None
-    if not name or not stat.S_ISREG(mode):
-        raise ctx.error(key, f"{name!r} is {file_kind(mode)} ({path}); expected a file")
-    return path
+        return input_file(path, _INPUT_KINDS[key])
+    except UserInputError as e:
+        raise ctx.error(key, str(e)) from None
 
 
 #: fastest a vehicle may move [m/s]: the escape velocity (faster, nothing stays over the
