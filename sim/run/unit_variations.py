@@ -108,18 +108,18 @@ def apply(scenario):
         return scenario
     offset, factor = draw(scenario.seed, scenario.unit, variation)
     program = vary_program(scenario.chamber, offset, factor)
-    hot = max(_temperatures(program), key=lambda t: abs(t - 50.0), default=None)
-    if not (0.0 < factor < math.inf) or (hot is not None and not
-                                         MIN_TEMPERATURE_C <= hot <= MAX_TEMPERATURE_C):
+    bad = [t for t in _temperatures(program) if not MIN_TEMPERATURE_C <= t <= MAX_TEMPERATURE_C]
+    if not 0.0 < factor < math.inf:
         why = (f"a rate factor of {factor:.4g} (from --chamber-rate-rel {variation.rate_rel:g});"
-               f" ramp rates are scaled by a finite factor > 0"
-               if not 0.0 < factor < math.inf else
-               f"an offset of {offset:+.4g} K (from --chamber-offset-c {variation.offset_c:g}), "
-               f"which takes the chamber to {hot:.4g} °C; it holds {MIN_TEMPERATURE_C:g} to "
+               f" ramp rates are scaled by a finite factor > 0")
+    elif bad:
+        why = (f"an offset of {offset:+.4g} K (from --chamber-offset-c {variation.offset_c:g}), "
+               f"which takes the chamber to {bad[0]:.4g} °C; it holds {MIN_TEMPERATURE_C:g} to "
                f"{MAX_TEMPERATURE_C:g} °C")
-        raise UserInputError(f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber "
-                             f"variation has {why} — give smaller spreads")
-    return dataclasses.replace(scenario, chamber=program)
+    else:
+        return dataclasses.replace(scenario, chamber=program)
+    raise UserInputError(f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber "
+                         f"variation has {why} — give smaller spreads")
 
 
 def _temperatures(program: ChamberProgram) -> Iterator[float]:
