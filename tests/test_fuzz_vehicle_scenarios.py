@@ -40,9 +40,9 @@ def motion_file(rows: list[str], init: str = MD_INIT, h1: str = MD_H1) -> dict[s
             "m.csv": "\n".join([h1, init, MD_H2, *rows]) + "\n"}
 
 
-def table_file(rows: list[str], name: str = "r.csv") -> dict[str, str]:
+def table_file(rows: list[str], name: str = "r.csv", cols: str = PT_COLS) -> dict[str, str]:
     return {"scen.toml": scenario(head=f'table = "{name}"', segs=""),
-            name: "\n".join([PT_COLS, *rows]) + "\n"}
+            name: "\n".join([cols, *rows]) + "\n"}
 
 
 def parquet_table(**columns) -> dict:
@@ -223,9 +223,8 @@ EXTREME = [
     ("table_gap_after_the_run",
      table_file(PT_OK + [f"{1e9 + i},30,100,100,0,0,0" for i in range(3)])),
     # a CSV table written "time_s, latitude_deg, ...": "missing column 'latitude_deg'"
-    ("table_header_with_spaces", table_file([", ".join(r.split(",")) for r in PT_OK])
-     | {"r.csv": ", ".join(PT_COLS.split(",")) + "\n"
-        + "\n".join(", ".join(r.split(",")) for r in PT_OK) + "\n"}),
+    ("table_header_with_spaces", table_file([", ".join(r.split(",")) for r in PT_OK],
+                                            cols=", ".join(PT_COLS.split(",")))),
     # routes above 20 km (U-2 and HALE drones ~21 km, balloons ~40 km): refused as outside the
     # Earth model's heights, which then ended at 20 km
     ("aircraft_at_25_km", {"scen.toml": scenario(head=HEAD.replace("400.0", "25000.0")
