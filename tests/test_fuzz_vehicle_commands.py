@@ -94,7 +94,12 @@ def runs(tmp_path_factory) -> dict[str, pathlib.Path]:
     assert main(["run", str(folder / "static.toml"), "-o", str(out["static"]), "-q"]) == 0
     shutil.copy(out["static"], out["vehicle"])
     with h5py.File(out["vehicle"], "r+") as f:
-        f.create_group(TRAJECTORY).create_dataset("latitude", data=np.full(1800, 34.25))
+        g = f.create_group(TRAJECTORY)
+        for name, value in (("latitude", 34.25), ("longitude", 108.95), ("height", 400.0),
+                            ("heading", 90.0), ("pitch", 0.0), ("roll", 0.0)):
+            g.create_dataset(name, data=np.full(1800, value))
+        g.create_dataset("velocity", data=np.zeros((1800, 3)))
+        g.create_dataset("gnss_visible", data=np.ones(1800, dtype=np.int8))
     return out
 
 
@@ -311,9 +316,9 @@ def test_window_longer_than_the_run_is_one_line(runs, tmp_path, kind):
 
 #: (id, which run, damage, table format, words) for ``rlgsim export`` of a dataset
 EXPORT = [
-    ("vehicle run", "vehicle", None, "csv", "a run on a vehicle (group trajectory)"),
-    ("vehicle run as parquet", "vehicle", None, "parquet",
-     "the drive's rotation would read as gyro bias"),
+    ("vehicle run, truth misshapen", "vehicle",
+     _replace("trajectory/velocity", lambda v: v[:, :2]), "csv",
+     "trajectory/velocity is not one value per IMU sample"),
     ("gyro pulses 1-D", "static", _replace("imu/gyro_pulses", lambda v: v[:, 0]), "csv",
      "imu/gyro_pulses is int32 with 1 dimension(s)"),
     ("accel pulses float", "static", _replace("imu/accel_pulses", lambda v: v.astype(float)),
@@ -407,3 +412,28 @@ def test_montecarlo_unreachable_scheduler_leaves_no_folder(tmp_path, capsys):
                              "--scheduler", "tcp://127.0.0.1:1", "-o", str(tmp_path / "mc")])
     assert "--scheduler: cannot connect" in line
     assert not (tmp_path / "mc").exists()
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_exported_drive_is_marked_and_refused_by_fixed_site_readers(runs, tmp_path, capsys,
+                                                                     fmt):
+    """A drive exports (pulses, and its truth as a table of the same format) with
+    ``platform = "vehicle"`` in the sidecar; the readers that take a recording's IMU at a fixed
+    site refuse it naming that key (the drive's rotation would read as gyro bias)."""
+    import tomllib
+
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.lab.api import window_table
+    table = tmp_path / f"drive.{fmt}"
+    assert main(["export", str(runs["vehicle"]), "--format", fmt, "-o", str(table), "-q"]) == 0
+    side = tomllib.loads((tmp_path / "drive.toml").read_text())["recording"]
+    assert side["platform"] == "vehicle" and side["trajectory"] == f"drive_trajectory.{fmt}"
+    assert (tmp_path / side["trajectory"]).is_file()
+    words = "recording.platform = 'vehicle'"
+    for argv in (["navigate", str(table), "-q", "-o", str(tmp_path / "nav")],
+                 ["identify", str(table), "--device-template", "rlg_imu_000", "-q", "-o",
+                  str(tmp_path / "twin")],
+                 ["calibrate", str(table), "--programme", str(tmp_path / "p.csv"), "-q"]):
+        assert words in one_line(capsys, argv)
+    with pytest.raises(UserInputError, match=words):
+        window_table(table, 60.0, gyro="x")

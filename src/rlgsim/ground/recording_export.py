@@ -10,7 +10,9 @@ sidecar (sample rate, site, axes, nominal scale factors and noise levels of the 
 and, when the run has calibration windows, the commanded programme ``<stem>_programme.csv``.
 Every value is written exactly (pulses as integers, floats with full precision), so importing
 the export gives the dataset's arrays bit for bit. The truth is not exported: a recording has
-none.
+none — except a drive's (a run on a vehicle), whose trajectory goes into a table of its own
+beside the pulses (:mod:`rlgsim.ground.recording_trajectory`), the sidecar marked
+``platform = "vehicle"``.
 
 Written block by block (:data:`BLOCK_ROWS` samples), so memory does not grow with the run.
 
@@ -33,6 +35,7 @@ import numpy as np
 
 from rlgsim.ground.earth import DEFAULT_LATITUDE_DEG
 from rlgsim.ground.errors import UserInputError
+from rlgsim.ground.recording_trajectory import check_trajectory, trajectory_blocks
 from rlgsim.ground.paths import input_file, output_files
 from rlgsim.ground.recording_formats import EXPORT_FORMATS
 from rlgsim.ground.recording import (RECORDING_FORMAT, RECORDING_VERSION, Sidecar, is_sidecar,
@@ -54,6 +57,7 @@ class Exported:
     sidecar: pathlib.Path
     programme: pathlib.Path | None
     rows: int
+    trajectory: pathlib.Path | None = None      #: a drive's truth table (a vehicle run)
 
 
 def _text(v) -> str:
@@ -122,8 +126,19 @@ def planned_outputs(source: str | os.PathLike, fmt: str = "csv",
         inputs.append(sidecar_path(src))
     elif _has_calibration_windows(src):
         outputs["programme"] = p.with_name(f"{p.stem}_programme.csv")
+    if not is_recording(src) and _has_group(src, "trajectory"):
+        outputs["trajectory"] = p.with_name(f"{p.stem}_trajectory{FORMATS[fmt]}")
     return output_files(outputs, inputs=inputs, overwrite=overwrite,
                         own=lambda role, path: _exported_sidecar_of(p))
+
+
+def _has_group(src: pathlib.Path, group: str) -> bool:
+    """Whether the dataset has ``group`` (a file that is no dataset: False)."""
+    try:
+        with _open(src) as ds:
+            return ds.has(group)
+    except UserInputError:
+        return False
 
 
 def _has_calibration_windows(src: pathlib.Path) -> bool:
@@ -161,6 +176,10 @@ def _sidecar_tables(sc: Sidecar, data_name: str, rec) -> dict:
     if sc.temperature_rate_hz is not None:
         rec_t["temperature_rate_hz"] = sc.temperature_rate_hz
     rec_t["source"] = sc.source or str(rec.path)
+    if sc.platform != "fixed":
+        rec_t["platform"] = sc.platform
+    if sc.trajectory:                                   # where the drive's truth stays
+        rec_t["trajectory"] = sc.trajectory
     tables = {"recording": rec_t,
               "site": {"latitude_deg": sc.latitude_deg, "height_m": sc.height_m}}
     g = {}
@@ -278,15 +297,9 @@ def _dataset_sidecar(src: pathlib.Path, p: pathlib.Path, a: dict, rate: float, s
 
 
 def _exportable(src: pathlib.Path, ds) -> None:
-    """Refuse (one line) a run on a vehicle — a recording is an IMU at a fixed site, its table
-    angles the only motion (docs/recordings.md): the drive's rotation would read as gyro bias —
-    and pulse variables that are not integer (samples, axes) tables of one length."""
-    from rlgsim.ground.dataset_format import IMU, TRAJECTORY
-    if ds.has(TRAJECTORY):
-        raise UserInputError(f"{src}: a run on a vehicle (group trajectory); a recording holds an "
-                             f"IMU at a fixed site with the turntable's angles as its only "
-                             f"motion, so the drive's rotation would read as gyro bias — give "
-                             f"the dataset itself to rlgsim identify or a study")
+    """Refuse (one line) pulse variables that are not integer (samples, axes) tables of one
+    length."""
+    from rlgsim.ground.dataset_format import IMU
     rows = None
     for name in ("gyro_pulses", "accel_pulses"):
         if ds.has(IMU, name):
@@ -348,13 +361,19 @@ def _export_dataset(src: pathlib.Path, fmt: str, outputs: dict) -> Exported:
                     data[col] = v
                 yield pd.DataFrame(data)
 
+        if "trajectory" in outputs:
+            check_trajectory(ds, n)
         write_table(p, blocks(), fmt)
-        side = write_sidecar(outputs["sidecar"],
-                             _dataset_sidecar(src, p, a, rate, step, bool(slow), has_imu,
-                                              gyro_axes, accel_axes),
+        tables = _dataset_sidecar(src, p, a, rate, step, bool(slow), has_imu, gyro_axes,
+                                  accel_axes)
+        if "trajectory" in outputs:                     # a drive: its truth beside the pulses
+            write_table(outputs["trajectory"], trajectory_blocks(ds, n, rate, BLOCK_ROWS), fmt)
+            tables["recording"].update(platform="vehicle",
+                                       trajectory=outputs["trajectory"].name)
+        side = write_sidecar(outputs["sidecar"], tables,
                              comment="rlgsim recording sidecar (docs/recordings.md)")
         programme = None
         if "programme" in outputs and ds.has(TIMELINE, "t0"):
             from rlgsim.ground.programme import write_programme
             programme = write_programme(outputs["programme"], ds.segments())
-    return Exported(p, side, programme, n)
+    return Exported(p, side, programme, n, outputs.get("trajectory"))

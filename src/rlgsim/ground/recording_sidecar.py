@@ -34,10 +34,13 @@ RECORDING_FORMAT = "rlgsim recording"
 #: ``[recording] version``; readers refuse newer versions.
 RECORDING_VERSION = 1
 
+#: ``[recording] platform``: what carried the IMU (``vehicle``: an export of a drive)
+PLATFORMS = ("fixed", "vehicle")
+
 _SIDECAR_TABLES = {
     "recording": {"format", "version", "description", "data", "sample_rate_hz",
                   "temperature_rate_hz", "hdf5_group", "ignore_columns", "source",
-                  "delimiter", "decimal"},
+                  "delimiter", "decimal", "platform", "trajectory"},
     "site": {"latitude_deg", "height_m"},
     "gyro": {"axes", "scale_factor_pulses_per_arcsec"},
     "accelerometer": {"axes", "scale_factor_pulses_per_s_per_g"},
@@ -103,6 +106,10 @@ class Sidecar:
     decimal: str = "."                    # CSV decimal mark
     ignore_columns: list[str] = field(default_factory=list)
     source: str = ""
+    #: ``fixed`` (a site, a turntable: every reader) or ``vehicle`` (an export of a drive; the
+    #: trajectory truth in the table ``trajectory`` names): see :func:`need_fixed_site`
+    platform: str = "fixed"
+    trajectory: str | None = None
     latitude_deg: float = DEFAULT_LATITUDE_DEG
     height_m: float = 0.0
     site_given: bool = False          # the sidecar has [site] latitude_deg (navigation needs it)
@@ -118,6 +125,15 @@ class Sidecar:
     #: ``[identify]``: device_template / thermal_template (preset name or path, relative to the
     #: sidecar's folder when it names a file there) and gyro (the axis to identify)
     identify: dict[str, str] = field(default_factory=dict)
+
+
+def need_fixed_site(sc: Sidecar, what: str) -> None:
+    """Refuse (one line naming the key) a recording whose IMU moved with a vehicle for
+    ``what``, a reader that takes the recording's site and orientation as the IMU's motion."""
+    if sc.platform != "fixed":
+        raise UserInputError(f"{sc.path}: recording.platform = {sc.platform!r}: {what} takes "
+                             f"the IMU at a fixed site, so the drive's rotation would read as "
+                             f"gyro bias — give the dataset itself (its truth holds the motion)")
 
 
 def read_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -160,7 +176,11 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
                                                  required=True))
     sc.temperature_rate_hz = _number(rec, "temperature_rate_hz", w, lo=0, lo_open=True,
                                      hi=sc.sample_rate_hz)
-    for key in ("description", "data", "hdf5_group", "source"):
+    sc.platform = rec.get("platform", "fixed")
+    if sc.platform not in PLATFORMS:
+        raise _fail(f"{w}.platform", f"value {sc.platform!r} not allowed; one of "
+                                     f"{', '.join(map(repr, PLATFORMS))}")
+    for key in ("description", "data", "hdf5_group", "source", "trajectory"):
         if key in rec:
             if not isinstance(rec[key], str):
                 raise _fail(f"{w}.{key}", f"value {rec[key]!r} not allowed; must be a string")

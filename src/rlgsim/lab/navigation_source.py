@@ -220,8 +220,10 @@ def body_frame(orientation: dict, axes: list[str], where: Any) -> np.ndarray:
 
 def _from_recording(path: pathlib.Path) -> NavSource:
     from rlgsim.ground.recording import load_recording
+    from rlgsim.ground.recording_sidecar import need_fixed_site
     rec = load_recording(path)
     sc = rec.sidecar
+    need_fixed_site(sc, "rlgsim navigate")
     if not sc.site_given:
         raise UserInputError(f"{sc.path}: [site] latitude_deg missing; navigation needs the "
                              "site's latitude and height in the sidecar")

@@ -52,7 +52,9 @@ def calibration_source(path: str | os.PathLike, programme: str | os.PathLike | N
         raise UserInputError(f"{path}: --programme is for recordings (a .csv, .parquet or .h5 "
                              f"table with a .toml sidecar); a simulated dataset keeps its own "
                              f"programme")
-    load_recording(path)                 # validate once here: one line before any work
+    from rlgsim.ground.recording_sidecar import need_fixed_site
+    need_fixed_site(load_recording(path).sidecar,    # validate once here: one line before
+                    "rlgsim calibrate")                # any work
     return RecordingSource(str(pathlib.Path(path)), programme_segments(programme))
 
 

@@ -270,6 +270,8 @@ def _recording_table(source, window_s: float, gyro: str | None) -> dict[str, Any
     """The columns of :func:`window_table` for a recording, and which windows to keep."""
     from rlgsim.ground.recording import load_recording
     rec = load_recording(source)
+    from rlgsim.ground.recording_sidecar import need_fixed_site
+    need_fixed_site(rec.sidecar, "the window table (identify, the studies, navigate --models)")
     axis = _axis(rec.gyro_axes, gyro, source)
     names = tuple(rec.probe_names)
     w = recording_windows(rec, axis, window_s, names, names, uhfo_column(rec, axis), gaps=True)

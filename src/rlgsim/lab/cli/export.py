@@ -42,4 +42,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"sidecar: {done.sidecar}")
         if done.programme is not None:
             print(f"programme: {done.programme}")
+        if done.trajectory is not None:
+            print(f"trajectory: {done.trajectory} (the drive's truth; the sidecar says "
+                  f"platform = \"vehicle\")")
     return 0

@@ -54,6 +54,8 @@ def sidecar_choices(source: str, device_template: str | None, thermal_template: 
     if not is_recording(source):
         return Choices(device_template, thermal_template, gyro)
     sc = read_sidecar(sidecar_path(source))
+    from rlgsim.ground.recording_sidecar import need_fixed_site
+    need_fixed_site(sc, "rlgsim identify")
     folder = sc.path.parent
     side = sc.identify
     notes = []
