@@ -43,6 +43,7 @@ def test_run_then_info(tmp_path, capsys):
     (["run", "no_such_scenario"], "unknown scenario 'no_such_scenario'"),
     (["run", "quickstart", "--chunk-s", "-5"], "must be a number of seconds > 0"),
     (["info", "/no/such/file.h5"], "no such file"),
+    (["info", "a\0b.h5"], "a file name cannot contain a NUL character"),
     (["frobnicate"], "invalid choice"),
     ([], "required"),
 ])

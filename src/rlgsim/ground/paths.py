@@ -89,6 +89,9 @@ def input_file(path: str | os.PathLike, what: str = "an rlgsim dataset", *,
         raise UserInputError(f"{p}: {missing}") from None
     except OSError as exc:
         raise _os_error(p, exc, "read it") from None
+    except ValueError:                          # os.stat: "embedded null byte"
+        raise UserInputError(f"{str(p)!r}: a file name cannot contain a NUL character; "
+                             f"expected {what}") from None
     if stat.S_ISDIR(st.st_mode):
         raise UserInputError(f"{p}: is a directory, expected {what}")
     if not stat.S_ISREG(st.st_mode):
