@@ -437,3 +437,6 @@ def test_exported_drive_is_marked_and_refused_by_fixed_site_readers(runs, tmp_pa
         assert words in one_line(capsys, argv)
     with pytest.raises(UserInputError, match=words):
         window_table(table, 60.0, gyro="x")
+    assert main(["info", str(table)]) == 0
+    assert f"platform: vehicle (the IMU moved; its truth: drive_trajectory.{fmt})" in \
+        capsys.readouterr().out

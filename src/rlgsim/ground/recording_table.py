@@ -216,6 +216,9 @@ class Recording:
         lines.append(f"  dropouts: {n_drop} sample(s)"
                      + (f" ({n_drop / f:.6g} s)" if n_drop else ""))
         lines.append(f"  site: latitude {sc.latitude_deg:g} deg, height {sc.height_m:g} m")
+        if sc.platform != "fixed":
+            lines.append(f"  platform: {sc.platform} (the IMU moved; its truth: "
+                         f"{sc.trajectory or 'not given'}) — the fixed-site readers refuse it")
         if self.gyro_axes:
             k = sc.gyro_sf_pulse_per_arcsec
             rates = self.gyro_rate_deg_per_h() if k is not None or all(
