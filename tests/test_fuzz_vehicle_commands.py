@@ -278,6 +278,8 @@ STUDY_CASES = [
      "train.scenario: fuzz_static's device trplg_001 has gyro axes z, no accelerometers"),
     ("export_models", [('recipe = "vehicle"', 'recipe = "vehicle"\nexport_models = true')],
      "study.export_models: the vehicle recipe does not export its compensators"),
+    ("mission route past the gyro range", [('"vehicle.toml"', '"fast_turn.toml"')],
+     "trajectory: body rate"),
     ("mission sample rate past the limit",
      [('"vehicle.toml"', '"vehicle.toml"\nsample_rate_hz = 1e6')],
      "acquisition.sample_rate_hz: value 1e+06 not allowed"),
@@ -290,6 +292,7 @@ def test_vehicle_study_refused_before_any_run(tmp_path, capsys, changes, words):
     (tmp_path / "static.toml").write_text(STATIC)
     (tmp_path / "vehicle.toml").write_text(VEHICLE)
     (tmp_path / "single.toml").write_text(STATIC.replace('"rlg_imu_000"', '"trplg_001"'))
+    (tmp_path / "fast_turn.toml").write_text(VEHICLE.replace("by_deg = 90.0", "by_deg = 9e4"))
     text = STUDY
     for old, new in changes:
         assert old in text

@@ -134,6 +134,9 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
             raise study.ctx(key).error("scenario", f"{sc.name}'s device {sc.device.name} has "
                                                    f"{what}; the recipe needs three gyros x, y, "
                                                    f"z (and on the mission three accelerometers)")
+    # the mission's route built and checked against the sensors' ranges (cached on the scenario
+    # for its run): a route past the gyro range is refused before the train run, not after it
+    mission_sc.trajectory.build(float(mission_sc.duration_s))
     data = workdir / "data"
     data.mkdir(parents=True, exist_ok=True)
     train = simulate(train_sc, data / "train.h5", progress=progress)
