@@ -121,3 +121,15 @@ def test_a_write_that_fails_leaves_no_temporary_file_and_names_its_path(kind, tm
             recording_write.write_sidecar(target, {"recording": {"rate_hz": 100.0}})
     assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(target)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_input_error_inside_an_atomic_write_keeps_its_file_name(tmp_path):
+    """Only a write's error (no file named) or the temporary file's is relabelled as the
+    target; an input read inside the block (a dataset's blocks) keeps its own name."""
+    import errno
+    from rlgsim.ground.atomic import atomic_file
+    with pytest.raises(OSError) as caught:
+        with atomic_file(tmp_path / "out.csv"):
+            raise OSError(errno.EIO, "Input/output error", str(tmp_path / "in.h5"))
+    assert caught.value.filename == str(tmp_path / "in.h5")
+    assert list(tmp_path.iterdir()) == []

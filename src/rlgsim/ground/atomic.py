@@ -19,16 +19,17 @@ from typing import Iterator
 @contextlib.contextmanager
 def atomic_file(path: str | os.PathLike, sep: str = "-") -> Iterator[pathlib.Path]:
     """Yield the temporary path to write ``path`` through; on leaving the block normally it is
-    renamed onto ``path``, otherwise deleted. An ``OSError`` raised inside (a write's names no
-    file, an ``open`` of the temporary file names that) is made to name ``path``, the file the
-    user asked for."""
+    renamed onto ``path``, otherwise deleted. An ``OSError`` raised inside that names no file
+    (a write's) or the temporary file (its ``open``) is made to name ``path``, the file the user
+    asked for; one naming another file (an input read inside the block) keeps it."""
     target = pathlib.Path(path)
     tmp = target.with_name(f".{target.name}.tmp{sep}{os.getpid()}")
     try:
         yield tmp
         os.replace(tmp, target)
     except OSError as exc:
-        exc.filename = str(target)
+        if exc.filename is None or os.fsdecode(exc.filename) == str(tmp):
+            exc.filename = str(target)       # an input's error inside the block keeps its name
         raise
     finally:
         tmp.unlink(missing_ok=True)
