@@ -193,11 +193,11 @@ def test_navigate_damaged_or_vehicle_dataset(runs, tmp_path, capsys, run, damage
         with h5py.File(path, "r+") as f:
             damage(f)
     before = _digest(tmp_path)
-    line = one_line(capsys, ["navigate", str(path), "--align-s", "60", "-q",
-                             "-o", str(tmp_path / "out")])
+    out = tmp_path / "out" / "p2" / "p3"               # -o p1/p2/p3 left p1/p2 (review 5)
+    line = one_line(capsys, ["navigate", str(path), "--align-s", "60", "-q", "-o", str(out)])
     assert words in line and "bad.h5" in line
     assert _digest(tmp_path) == before                 # nothing rewritten, nothing written
-    assert not (tmp_path / "out").exists()             # not even the output folder
+    assert not (tmp_path / "out").exists()             # not even the output folders
 
 
 #: (id, argv after ``navigate SOURCE --align-s 60 -q``, a file made first, words)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import pathlib
 
 __all__ = ["add_subparser", "run"]
@@ -59,6 +60,18 @@ def _output(args: argparse.Namespace, src: pathlib.Path) -> pathlib.Path:
     return out
 
 
+def _missing_folders(out: pathlib.Path) -> list[pathlib.Path]:
+    """The folders making ``out`` will create, deepest first (``out`` and each missing
+    parent), so a refusal after it can remove them all again."""
+    missing = []
+    out = pathlib.Path(os.path.abspath(out))
+    for folder in (out, *out.parents):
+        if folder.exists() or folder.is_symlink():
+            break
+        missing.append(folder)
+    return missing
+
+
 def run(args: argparse.Namespace) -> int:
     """Navigate for parsed ``args``; returns the exit code."""
     from rlgsim.lab.navigation import navigate_source
@@ -68,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     from rlgsim.lab.report import output_folder
     src = pathlib.Path(args.source)
     out = _output(args, src)
-    made = not out.exists()
+    made = _missing_folders(out)
     output_folder(out)                 # made before the work (one line if it cannot be)
     try:
         source = open_source(src)      # checked (one line) before the models read it
@@ -80,8 +93,11 @@ def run(args: argparse.Namespace) -> int:
         finally:
             source.close()
     except BaseException:
-        if made:                       # a refused input leaves no empty folder behind
-            out.rmdir()
+        for folder in made:            # a refused input leaves no empty folder behind
+            try:                       # (each level -o made: p1/p2/p3 made p1 and p2 too)
+                folder.rmdir()
+            except OSError:            # not empty after all (another process): left alone
+                break
         raise
     paths = write(ds, out, args.format)
     if not args.quiet:
