@@ -443,3 +443,26 @@ def test_exported_drive_is_marked_and_refused_by_fixed_site_readers(runs, tmp_pa
     assert main(["info", str(table)]) == 0
     assert f"platform: vehicle (the IMU moved; its truth: drive_trajectory.{fmt})" in \
         capsys.readouterr().out
+    # re-exported (review item 6): the truth table is not copied, so the sidecar names it only
+    # where it still lies beside the new table; platform stays either way
+    (tmp_path / "other").mkdir()
+    for out, kept in ((tmp_path / "other" / "again.csv", False), (tmp_path / "again.csv", True)):
+        assert main(["export", str(table), "-o", str(out), "-q"]) == 0
+        again = tomllib.loads(out.with_suffix(".toml").read_text())["recording"]
+        assert again["platform"] == "vehicle"
+        assert again.get("trajectory") == (f"drive_trajectory.{fmt}" if kept else None)
+
+
+@pytest.mark.parametrize("run", ["static", "vehicle"])
+def test_export_plan_opens_the_dataset_once(runs, tmp_path, monkeypatch, run):
+    """planned_outputs opened the dataset twice (calibration windows, then the trajectory
+    group) before the export opened it again (review item 9): one open answers both."""
+    import rlgsim.ground.dataset_format as dataset_format
+    from rlgsim.ground.recording_export import planned_outputs
+    opened = []
+    real = dataset_format.open_dataset
+    monkeypatch.setattr(dataset_format, "open_dataset",
+                        lambda path, *a, **k: opened.append(path) or real(path, *a, **k))
+    outputs = planned_outputs(runs[run], "csv", tmp_path / "r.csv")
+    assert len(opened) == 1
+    assert ("trajectory" in outputs) == (run == "vehicle")

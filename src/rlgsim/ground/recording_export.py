@@ -124,33 +124,32 @@ def planned_outputs(source: str | os.PathLike, fmt: str = "csv",
                              f"--overwrite")
     if is_recording(src):
         inputs.append(sidecar_path(src))
-    elif _has_calibration_windows(src):
-        outputs["programme"] = p.with_name(f"{p.stem}_programme.csv")
-    if not is_recording(src) and _has_group(src, "trajectory"):
-        outputs["trajectory"] = p.with_name(f"{p.stem}_trajectory{FORMATS[fmt]}")
+    else:
+        windows, drive = _dataset_extras(src)
+        if windows:
+            outputs["programme"] = p.with_name(f"{p.stem}_programme.csv")
+        if drive:
+            outputs["trajectory"] = p.with_name(f"{p.stem}_trajectory{FORMATS[fmt]}")
     return output_files(outputs, inputs=inputs, overwrite=overwrite,
                         own=lambda role, path: _exported_sidecar_of(p))
 
 
-def _has_group(src: pathlib.Path, group: str) -> bool:
-    """Whether the dataset has ``group`` (a file that is no dataset: False)."""
+def _dataset_extras(src: pathlib.Path) -> tuple[bool, bool]:
+    """Whether the dataset's timeline has calibration windows (then the programme is written
+    too) and whether it has the group ``trajectory`` (a drive: its truth table too), from one
+    open; a file that is no dataset: (False, False) (the export says why)."""
+    from rlgsim.ground.dataset_format import TIMELINE, TRAJECTORY
     try:
         with _open(src) as ds:
-            return ds.has(group)
+            drive = ds.has(TRAJECTORY)
+            try:
+                windows = ds.has(TIMELINE, "t0") and any(s["track"] == "calibration"
+                                                          for s in ds.segments())
+            except UserInputError:          # a damaged timeline: no programme, still a drive
+                windows = False
+            return windows, drive
     except UserInputError:
-        return False
-
-
-def _has_calibration_windows(src: pathlib.Path) -> bool:
-    """Whether the dataset's timeline has calibration windows (then the programme is
-    written too); a file that is no dataset: False (the export says why)."""
-    from rlgsim.ground.dataset_format import TIMELINE
-    try:
-        with _open(src) as ds:
-            return ds.has(TIMELINE, "t0") and any(s["track"] == "calibration"
-                                                   for s in ds.segments())
-    except UserInputError:
-        return False
+        return False, False
 
 
 def export(source: str | os.PathLike, fmt: str = "csv",
@@ -167,7 +166,19 @@ def export(source: str | os.PathLike, fmt: str = "csv",
 
 # ---------------------------------------------------------------------------- recordings
 
-def _sidecar_tables(sc: Sidecar, data_name: str, rec) -> dict:
+def _same_file(a: pathlib.Path, b: pathlib.Path) -> bool:
+    """Whether ``a`` and ``b`` name one existing file."""
+    try:
+        return a.samefile(b)
+    except (OSError, ValueError):
+        return False
+
+
+def _sidecar_tables(sc: Sidecar, data_name: str, rec, side: pathlib.Path) -> dict:
+    """The sidecar of a recording re-exported with the sidecar ``side``: the source's, but a
+    drive's ``trajectory`` key only while that table is beside the new sidecar too (it is not
+    copied: re-exported to another folder the key would name a missing table; ``platform``
+    stays, so the fixed-site readers still refuse it)."""
     rec_t = {"format": RECORDING_FORMAT, "version": RECORDING_VERSION}
     if sc.description:
         rec_t["description"] = sc.description
@@ -178,8 +189,8 @@ def _sidecar_tables(sc: Sidecar, data_name: str, rec) -> dict:
     rec_t["source"] = sc.source or str(rec.path)
     if sc.platform != "fixed":
         rec_t["platform"] = sc.platform
-    if sc.trajectory:                                   # where the drive's truth stays
-        rec_t["trajectory"] = sc.trajectory
+    if sc.trajectory and _same_file(sc.path.parent / sc.trajectory, side.parent / sc.trajectory):
+        rec_t["trajectory"] = sc.trajectory             # the drive's truth, still beside it
     tables = {"recording": rec_t,
               "site": {"latitude_deg": sc.latitude_deg, "height_m": sc.height_m}}
     g = {}
@@ -203,7 +214,8 @@ def _export_recording(src: pathlib.Path, fmt: str, outputs: dict) -> Exported:
     rec = load_recording(src)
     df = rec.to_dataframe()
     write_table(p, [df], fmt)
-    side = write_sidecar(outputs["sidecar"], _sidecar_tables(rec.sidecar, p.name, rec),
+    side = write_sidecar(outputs["sidecar"], _sidecar_tables(rec.sidecar, p.name, rec,
+                                                          outputs["sidecar"]),
                          comment=f"rlgsim recording sidecar (docs/recordings.md), exported from "
                                  f"{rec.path.name}")
     return Exported(p, side, None, len(df))
