@@ -466,3 +466,98 @@ def test_export_plan_opens_the_dataset_once(runs, tmp_path, monkeypatch, run):
     outputs = planned_outputs(runs[run], "csv", tmp_path / "r.csv")
     assert len(opened) == 1
     assert ("trajectory" in outputs) == (run == "vehicle")
+
+
+def _nav(path, **kw):
+    """The navigation errors of ``path`` (in-process, no report): 60-s alignment."""
+    from rlgsim.lab.navigation import navigate
+    ds = navigate(path, align_s=60.0, **kw)
+    return {k: np.asarray(ds[k]) for k in ds.data_vars}
+
+
+def test_recording_columns_are_navigated_by_axis_name(runs, tmp_path):
+    """Review item 1: a table listing gyro_z, gyro_y, gyro_x (default mount: the identity) was
+    refused as not a right-handed triad, and accelerometers z, y, x beside gyros x, y, z were
+    paired by column order (heading error ~57 times the true one). Any column order now
+    navigates to exactly the errors of the x, y, z table."""
+    import pandas as pd
+    src = tmp_path / "rec.csv"
+    assert main(["export", str(runs["static"]), "-o", str(src), "-q"]) == 0
+    want = _nav(src, span_s=60.0)
+    table = pd.read_csv(src)
+    g, a = [f"gyro_{x}_pulses" for x in "xyz"], [f"accel_{x}_pulses" for x in "xyz"]
+    for order in (g[::-1] + a, a[::-1] + [g[1], g[2], g[0]]):
+        table[["time_s", *order]].to_csv(src, index=False)       # the pulses only
+        got = _nav(src, span_s=60.0)
+        assert [k for k in want if not np.array_equal(got[k], want[k], equal_nan=True)] == [], order
+
+
+def test_rounded_direction_cosines_are_taken(tmp_path, capsys):
+    """Review item 2: a 45° mount written to 4 decimals ([0.7071, 0.7071, 0]) was refused as
+    "not a unit vector" by every command, info too. The sidecar normalises each vector (norm
+    within 1e-3) and the navigation's body frame is the nearest rotation (to the rounding:
+    ~1e-4); a norm 1 % off and a repeated axis are still refused."""
+    from rlgsim.ground.errors import UserInputError
+    from rlgsim.ground.recording_sidecar import read_sidecar
+    from rlgsim.lab.navigation_mount import body_frame
+    (tmp_path / "r.csv").write_text("time_s,gyro_x_rate_deg_per_s\n0,0\n0.1,0\n")
+    head = '[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n[orientation]\n'
+    (tmp_path / "r.toml").write_text(head + "x = [0.7071, 0.7071, 0]\n"
+                                     "y = [-0.7071, 0.7071, 0]\nz = [0, 0, 1]\n")
+    assert main(["info", str(tmp_path / "r.toml")]) == 0, capsys.readouterr().err
+    sc = read_sidecar(tmp_path / "r.toml")
+    c = body_frame(sc.orientation, ["x", "y", "z"], "r.toml")
+    s = np.sqrt(0.5)
+    exact = np.array([[s, s, 0], [-s, s, 0], [0, 0, 1]])
+    np.testing.assert_allclose(c @ c.T, np.eye(3), atol=1e-14)
+    np.testing.assert_allclose(c, exact, atol=2e-5)       # the 4th decimal's rounding
+    assert np.linalg.det(c) > 0
+    (tmp_path / "r.toml").write_text(head + "x = [1.01, 0, 0]\n")
+    with pytest.raises(UserInputError, match=r"orientation.x: .* must be a unit vector"):
+        read_sidecar(tmp_path / "r.toml")
+    with pytest.raises(UserInputError, match="not a right-handed orthonormal triad"):
+        body_frame({"x": [1.0, 0, 0], "y": [0.9999, 0.0141, 0]}, ["x", "y", "z"], "r.toml")
+
+
+@pytest.mark.parametrize("kind", ["dataset", "recording"])
+def test_a_dropout_after_the_navigated_span_is_no_matter(runs, tmp_path, kind):
+    """Review item 3: a lost sample anywhere refused the whole run, even past the span asked
+    (a 24-h recording with a dropout at 20 h navigated for 8 h). The static run (3 min, 10 Hz,
+    alignment 60 s) loses sample 1500 (150 s): a 60-s span (to 120 s) navigates to exactly the
+    errors of the intact run; the rest of the run (to 180 s) is refused naming it."""
+    import pandas as pd
+
+    from rlgsim.ground.errors import UserInputError
+    if kind == "dataset":
+        path = tmp_path / "lost.h5"
+        shutil.copy(runs["static"], path)
+        want = _nav(path, span_s=60.0)
+        with h5py.File(path, "r+") as f:
+            f["imu"].create_dataset("sample_valid", data=(np.arange(1800) != 1500)
+                                    .astype(np.int8))
+        words = r"imu/sample_valid: frame 1500 \(150 s\) was lost .* end the span before 150 s"
+    else:
+        path = tmp_path / "rec.csv"
+        assert main(["export", str(runs["static"]), "-o", str(path), "-q"]) == 0
+        want = _nav(path, span_s=60.0)
+        table = pd.read_csv(path)
+        table.assign(dropout=(table.index == 1500).astype(int)).to_csv(path, index=False)
+        words = r"row 1501 is a dropout .* end the span before 150 s"
+    got = _nav(path, span_s=60.0)
+    assert [k for k in want if not np.array_equal(got[k], want[k], equal_nan=True)] == []
+    with pytest.raises(UserInputError, match=words):
+        _nav(path)
+
+
+def test_navigate_advises_the_vehicle_study_for_an_exported_drive(runs, tmp_path, capsys):
+    """Review item 4: navigate refused an exported drive saying "give the dataset itself",
+    which navigate refuses too; it now says what identify cannot: the vehicle study's aided
+    navigator scores a drive (identify and calibrate keep "the dataset itself")."""
+    table = tmp_path / "drive.csv"
+    assert main(["export", str(runs["vehicle"]), "-o", str(table), "-q"]) == 0
+    line = one_line(capsys, ["navigate", str(table), "-q", "-o", str(tmp_path / "nav")])
+    assert "recording.platform = 'vehicle'" in line and "dataset itself" not in line
+    assert "aided navigator of the vehicle study" in line
+    line = one_line(capsys, ["identify", str(table), "--device-template", "rlg_imu_000", "-q",
+                             "-o", str(tmp_path / "twin")])
+    assert "give the dataset itself" in line

@@ -274,7 +274,7 @@ def test_sidecar_orientation_without_axes_and_a_six_decimal_mount(tmp_path, caps
     2.5 % of random mounts (this one among them). A repeated axis is still refused."""
     from rlgsim.ground.errors import UserInputError
     from rlgsim.lab.cli.main import main
-    from rlgsim.lab.navigation_source import body_frame
+    from rlgsim.lab.navigation_mount import body_frame
     (tmp_path / "r.csv").write_text("time_s,gyro_x_rate_deg_per_s\n0,0\n0.1,0\n")
     (tmp_path / "r.toml").write_text('[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n'
                                      '[orientation]\nx = [1, 0, 0]\n')

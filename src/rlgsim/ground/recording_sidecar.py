@@ -34,6 +34,11 @@ RECORDING_FORMAT = "rlgsim recording"
 #: ``[recording] version``; readers refuse newer versions.
 RECORDING_VERSION = 1
 
+#: How far from 1 the norm of an ``[orientation]`` vector may be: direction cosines written
+#: to 4 decimals ([0.7071, 0.7071, 0]: norm 0.99998) are taken and normalised; a mistyped
+#: cosine is off by far more.
+UNIT_TOL = 1e-3
+
 #: ``[recording] platform``: what carried the IMU (``vehicle``: an export of a drive)
 PLATFORMS = ("fixed", "vehicle")
 
@@ -127,13 +132,17 @@ class Sidecar:
     identify: dict[str, str] = field(default_factory=dict)
 
 
-def need_fixed_site(sc: Sidecar, what: str) -> None:
+def need_fixed_site(sc: Sidecar, what: str,
+                    advice: str = "give the dataset itself (its truth holds the motion)"
+                    ) -> None:
     """Refuse (one line naming the key) a recording whose IMU moved with a vehicle for
-    ``what``, a reader that takes the recording's site and orientation as the IMU's motion."""
+    ``what``, a reader that takes the recording's site and orientation as the IMU's motion;
+    ``advice`` is the caller's (what to do instead: identify and calibrate read the vehicle
+    dataset itself, navigate does not)."""
     if sc.platform != "fixed":
         raise UserInputError(f"{sc.path}: recording.platform = {sc.platform!r}: {what} takes "
                              f"the IMU at a fixed site, so the drive's rotation would read as "
-                             f"gyro bias — give the dataset itself (its truth holds the motion)")
+                             f"gyro bias — {advice}")
 
 
 def read_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -213,18 +222,7 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
     sc.accel_axes = _axes(acc, f"{p}: accelerometer")
     sc.accel_sf_pulse_per_s_per_g = _number(acc, "scale_factor_pulses_per_s_per_g",
                                             f"{p}: accelerometer", lo=0, lo_open=True)
-    for axis, vec in data.get("orientation", {}).items():
-        a = np.asarray(vec, dtype=float) if isinstance(vec, list) and len(vec) == 3 and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) for x in vec) else None
-        if a is None or not abs(np.linalg.norm(a) - 1) <= 1e-6:      # NaN fails too
-            raise _fail(f"{p}: orientation.{axis}", f"value {vec!r} not allowed; must be a unit "
-                                                    f"vector [east, north, up]")
-        named = [*(sc.gyro_axes or []), *(sc.accel_axes or [])]     # axes are optional
-        if named and axis not in named and axis not in ("x", "y", "z"):  # a whole mount table
-            raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
-                                                    f"{', '.join(dict.fromkeys(named))} "
-                                                    f"(and x, y, z are always allowed)")
-        sc.orientation[axis] = a
+    _orientation(data, p, sc)
     for key, v in data.get("noise", {}).items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
             raise _fail(f"{p}: noise.{key}", f"value {v!r} not allowed; must be a number >= 0")
@@ -236,6 +234,24 @@ def read_sidecar(path: str | os.PathLike) -> Sidecar:
         sc.columns[src] = dst
     _identify_tables(data, p, sc)
     return sc
+
+
+def _orientation(data: Mapping, p: pathlib.Path, sc: Sidecar) -> None:
+    """``[orientation]``: each body axis's unit vector [east, north, up], its norm 1 to
+    :data:`UNIT_TOL` (then normalised), of one of the sidecar's axes or x, y, z."""
+    for axis, vec in data.get("orientation", {}).items():
+        a = np.asarray(vec, dtype=float) if isinstance(vec, list) and len(vec) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in vec) else None
+        if a is None or not abs(np.linalg.norm(a) - 1) <= UNIT_TOL:    # NaN fails too
+            raise _fail(f"{p}: orientation.{axis}", f"value {vec!r} not allowed; must be a unit "
+                                                    f"vector [east, north, up] (norm 1 to "
+                                                    f"{UNIT_TOL:g})")
+        named = [*(sc.gyro_axes or []), *(sc.accel_axes or [])]     # axes are optional
+        if named and axis not in named and axis not in ("x", "y", "z"):  # a whole mount table
+            raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
+                                                    f"{', '.join(dict.fromkeys(named))} "
+                                                    f"(and x, y, z are always allowed)")
+        sc.orientation[axis] = a / np.linalg.norm(a)
 
 
 def _identify_tables(data: Mapping, p: pathlib.Path, sc: Sidecar) -> None:

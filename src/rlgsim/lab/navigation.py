@@ -66,14 +66,16 @@ def _corrections(src: NavSource, models: Mapping[str, ModelPrediction] | None
     return out
 
 
-def _other(src: NavSource, name: str, spec: Mapping[str, Any]) -> Callable:
+def _other(src: NavSource, name: str, spec: Mapping[str, Any], a0: int, end: int) -> Callable:
     """A variant whose pulses come from another dataset on the same sample grid (e.g. a
-    compensated copy), minus constant biases ``gyro_bias`` [rad/s] / ``accel_bias`` [m/s²]."""
+    compensated copy), minus constant biases ``gyro_bias`` [rad/s] / ``accel_bias`` [m/s²];
+    refused if it lost a sample of the navigated span a0..end−1."""
     other = open_source(spec["path"])
     src.closers.append(other.close)
     if other.n != src.n or other.rate_hz != src.rate_hz:
         raise UserInputError(f"variant {name!r}: {other.name} has {other.n} samples at "
                              f"{other.rate_hz:g} Hz; {src.name} has {src.n} at {src.rate_hz:g} Hz")
+    other.refuse_lost(a0, end)
     bg = np.asarray(spec.get("gyro_bias", np.zeros(3)), float)
     ba = np.asarray(spec.get("accel_bias", np.zeros(3)), float)
 
@@ -131,6 +133,7 @@ def _span(src: NavSource, span_s: float | None, align_s: float, every: int
         raise UserInputError(f"{src.name}: nothing left to navigate after the alignment "
                              f"({a1 * dt:g} s of {src.n * dt:g} s; it takes the first static "
                              f"segment after power-on, at most align_s = {align_s:g} s)")
+    src.refuse_lost(a0, end)                           # a dropout after the span is no matter
     return a0, a1, end
 
 
@@ -209,7 +212,7 @@ def navigate_source(src: NavSource, *, models: Mapping[str, ModelPrediction] | N
     a0, a1, end = _span(src, span_s, align_s, every)
     variants = _corrections(src, models)
     for name, spec in (others or {}).items():
-        variants[name] = _other(src, name, spec)
+        variants[name] = _other(src, name, spec, a0, end)
     if others:                                          # keep raw, the others, then the rest
         order = ["raw", *others, *[v for v in variants if v != "raw" and v not in others]]
         variants = {v: variants[v] for v in order}

@@ -3,7 +3,8 @@
 A :class:`NavSource` hands out, chunk by chunk, the IMU's pulse counts and (for a simulated
 dataset) the true per-sample increments and the true temperature laws of the biases, plus the
 site, the nominal pulse weights, the alignment segment and the true attitude. The datasets'
-layout is docs/dataset.md; recordings docs/recordings.md (a recording must name its site).
+layout is docs/dataset.md; recordings docs/recordings.md (a recording must name its site;
+its mount's body frame: :mod:`rlgsim.lab.navigation_mount`).
 
 Alignment segment: the first static turntable motion after power-on (a recording: the start of
 the data, the sidecar's orientation), at most ``align_s`` long; navigation starts where it ends.
@@ -45,6 +46,11 @@ class NavSource:
     law_gyro: np.ndarray | None = None
     law_accel: np.ndarray | None = None
     closers: list = field(default_factory=list)
+    #: sample indices whose increments were lost (a dropout: counted 0), sorted; the
+    #: navigation refuses a span that holds one (:meth:`refuse_lost`)
+    lost: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    #: the one line for the first lost sample ``k`` of a span and the span's count of them
+    lost_line: Callable[[int, int], str] | None = None
 
     @property
     def dt(self) -> float:
@@ -58,6 +64,26 @@ class NavSource:
     def close(self) -> None:
         for c in self.closers:
             c()
+
+    def refuse_lost(self, k0: int, k1: int) -> None:
+        """Refuse (one line) if a sample of k0..k1−1 was lost: free-inertial navigation
+        integrates every increment, and a lost one is a wrong attitude and velocity from there
+        on. A loss outside the span (after it, or before power-on) does not matter."""
+        inside = self.lost[(self.lost >= k0) & (self.lost < k1)]
+        if inside.size:
+            k = int(inside[0])
+            line = (self.lost_line(k, int(inside.size)) if self.lost_line is not None
+                    else f"{self.name}: sample {k} ({k / self.rate_hz:g} s) was lost")
+            raise UserInputError(f"{line}; free-inertial navigation needs every sample's "
+                                 f"increments of the span ({k0 / self.rate_hz:g} s to "
+                                 f"{k1 / self.rate_hz:g} s) — end the span before "
+                                 f"{k / self.rate_hz:g} s (--span-h) or navigate a run "
+                                 f"without gaps")
+
+
+#: What navigate says of a run on a vehicle (a dataset with a trajectory, an exported drive).
+VEHICLE_ADVICE = ("a vehicle's mission is scored by the aided navigator of the vehicle study "
+                  "(recipe vehicle, docs/trajectories.md)")
 
 
 def _text(v: Any) -> str:
@@ -120,9 +146,7 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
         if ds.has(fmt.TRAJECTORY):
             raise UserInputError(
                 f"{path}: a run on a vehicle (group trajectory); navigate aligns on a static "
-                f"segment at a fixed site and scores the drift from it — a vehicle's mission is "
-                f"scored by the aided navigator of the vehicle study (recipe vehicle, "
-                f"docs/trajectories.md)")
+                f"segment at a fixed site and scores the drift from it — {VEHICLE_ADVICE}")
         gyros = ds.strings(fmt.IMU, "gyro")
         if need_imu and len(gyros) < 3:
             raise UserInputError(f"{path}: imu/gyro has {len(gyros)} gyro(s) ({', '.join(gyros)});"
@@ -167,14 +191,15 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
         if on.size == 0:
             raise UserInputError(f"{path}: the IMU is never powered (thermal/power_on)")
         start = int(math.ceil(on[0] * step * rate))
+        lost = np.zeros(0, dtype=np.intp)
         if need_imu and ds.has(fmt.IMU, "sample_valid"):
-            lost = np.flatnonzero(np.asarray(ds.read(fmt.IMU, "sample_valid"))[start:] == 0)
-            if lost.size:
-                raise UserInputError(
-                    f"{path}: imu/sample_valid: frame {start + int(lost[0])} "
-                    f"({(start + int(lost[0])) / rate:g} s) was lost ({lost.size} lost frame(s) "
-                    f"after power-on, counted 0 in the pulses); free-inertial navigation needs "
-                    f"every sample's increments (a device without [anomalies.imu_dropouts])")
+            lost = start + np.flatnonzero(np.asarray(ds.read(fmt.IMU, "sample_valid"))[start:]
+                                          == 0)
+
+        def lost_line(k: int, count: int) -> str:
+            return (f"{path}: imu/sample_valid: frame {k} ({k / rate:g} s) was lost ({count} "
+                    f"lost frame(s) in the navigated span, counted 0 in the pulses; a device "
+                    f"with [anomalies.imu_dropouts])")
         t_start = start / rate
         static_end = start
         for seg in segments:
@@ -196,34 +221,22 @@ def _from_dataset(path: pathlib.Path, need_imu: bool = True) -> NavSource:
 
         return NavSource(path.name, rate, latitude, height, n,
                          1.0 / k_g, 1.0 / k_a, start, max(static_end, start), read,
-                         motion.attitude, truth, step, law_g, law_a, [ds.close])
+                         motion.attitude, truth, step, law_g, law_a, [ds.close],
+                         lost, lost_line)
     except BaseException:
         ds.close()
         raise
 
 
-def body_frame(orientation: dict, axes: list[str], where: Any) -> np.ndarray:
-    """C_n^b (rows: the gyro ``axes``' unit vectors in ENU, from a sidecar's ``orientation``;
-    x, y, z east, north, up by default), or one line if they are not a right-handed orthonormal
-    triad — to 1e-5: direction cosines written to 6 decimals (each unit to 1e-6, as the sidecar
-    checks) are orthogonal to ~2e-6 only, a repeated or swapped axis is off by ~1."""
-    default = {"x": [1.0, 0, 0], "y": [0, 1.0, 0], "z": [0, 0, 1.0]}
-    rows = [orientation.get(ax, default.get(ax)) for ax in axes]
-    c_nb = np.array([r if r is not None else [np.nan] * 3 for r in rows], dtype=float)
-    if not (np.allclose(c_nb @ c_nb.T, np.eye(3), atol=1e-5) and np.linalg.det(c_nb) > 0):
-        raise UserInputError(f"{where}: [orientation] of gyro axes {', '.join(axes)} is not a "
-                             f"right-handed orthonormal triad (got {c_nb.tolist()}); navigation "
-                             "needs the body frame (give each axis its unit vector "
-                             "[east, north, up])")
-    return c_nb
-
-
 def _from_recording(path: pathlib.Path) -> NavSource:
+    """A recording (table + sidecar) as a :class:`NavSource`: the site, the pulses of the
+    three body axes picked by name, the fixed mount's attitude, the dropout rows."""
     from rlgsim.ground.recording import load_recording
     from rlgsim.ground.recording_sidecar import need_fixed_site
+    from rlgsim.lab.navigation_mount import body_axes, body_frame
     rec = load_recording(path)
     sc = rec.sidecar
-    need_fixed_site(sc, "rlgsim navigate")
+    need_fixed_site(sc, "rlgsim navigate", VEHICLE_ADVICE)
     if not sc.site_given:
         raise UserInputError(f"{sc.path}: [site] latitude_deg missing; navigation needs the "
                              "site's latitude and height in the sidecar")
@@ -233,22 +246,24 @@ def _from_recording(path: pathlib.Path) -> NavSource:
     if len(rec.accel_axes) < 3:
         raise UserInputError(f"{sc.path}: {len(rec.accel_axes)} accelerometer column(s); "
                              "navigation needs three accelerometers (x, y, z)")
-    gaps = np.flatnonzero(rec.dropout)
-    if gaps.size:
-        raise UserInputError(f"{path}: row {int(gaps[0]) + 1} is a dropout (dropout = 1; "
-                             f"{gaps.size} row(s)); free-inertial navigation needs every "
-                             f"sample's increments — cut the recording before the first gap")
+    axes = body_axes(rec.gyro_axes, rec.accel_axes, sc.path)
     k_g = rec._need_sf("gyro")
     k_a = rec._need_sf("accel")
-    g, a = rec.gyro_pulses()[:, :3], rec.accel_pulses()[:, :3]
-    c_nb = body_frame(sc.orientation, rec.gyro_axes[:3], sc.path)
+    g = rec.gyro_pulses()[:, [rec.gyro_axes.index(ax) for ax in axes]]
+    a = rec.accel_pulses()[:, [rec.accel_axes.index(ax) for ax in axes]]
+    c_nb = body_frame(sc.orientation, axes, sc.path)
 
     def attitude(t: np.ndarray) -> np.ndarray:
         return np.broadcast_to(c_nb.T, (len(t), 3, 3))
 
+    def lost_line(k: int, count: int) -> str:
+        return (f"{path}: row {k + 1} is a dropout (dropout = 1; {count} row(s) in the "
+                f"navigated span)")
+
     return NavSource(path.name, rec.sample_rate_hz, sc.latitude_deg, sc.height_m,
                      rec.n_samples, np.full(3, 1.0 / k_g), np.full(3, 1.0 / k_a), 0,
-                     rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude)
+                     rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude,
+                     lost=np.flatnonzero(rec.dropout), lost_line=lost_line)
 
 
 def gyro_units_source(units: Sequence[tuple[str | os.PathLike, str | None, int]]
