@@ -280,6 +280,9 @@ STUDY_CASES = [
      "study.export_models: the vehicle recipe does not export its compensators"),
     ("mission route past the gyro range", [('"vehicle.toml"', '"fast_turn.toml"')],
      "trajectory: body rate"),
+    ("too few windows for a compensator", [("window_s = 30", "window_s = 60")],
+     "train.window_s: 60 s leaves at most 3 powered window(s) in the train run; compensator "
+     "'LS cubic T' has 4 coefficients"),
     ("mission sample rate past the limit",
      [('"vehicle.toml"', '"vehicle.toml"\nsample_rate_hz = 1e6')],
      "acquisition.sample_rate_hz: value 1e+06 not allowed"),

@@ -134,6 +134,10 @@ def run(study: Study, config: VehicleConfig, workdir: pathlib.Path, *, unit: int
             raise study.ctx(key).error("scenario", f"{sc.name}'s device {sc.device.name} has "
                                                    f"{what}; the recipe needs three gyros x, y, "
                                                    f"z (and on the mission three accelerometers)")
+    for comp in config.compensators:    # too few windows: refused before any run (the late
+        _enough_windows(study, comp, _powered_windows(train_sc, config.window_s),  # check stays)
+                        _powered_windows(mission_sc, config.window_s), config.window_s,
+                        at_most=True)
     # the mission's route built and checked against the sensors' ranges (cached on the scenario
     # for its run): a route past the gyro range is refused before the train run, not after it
     mission_sc.trajectory.build(float(mission_sc.duration_s))
@@ -189,13 +193,27 @@ def _window_fits(study: Study, key: str, sc: Any, window_s: float) -> None:
                         f"{acq.thermal_step_s:g}-s thermal steps, at least two of them")
 
 
+def _powered_windows(sc: Any, window_s: float) -> int:
+    """At most how many of ``sc``'s ``window_s`` windows (from the start, back to back) can be
+    powered throughout, from ``duration_s`` and ``[power] on_at_s``/``off_at_s`` alone — an
+    upper bound (a window holding the switching instant is counted), so a run it refuses
+    has too few windows whatever its data."""
+    n = math.floor(sc.duration_s / window_s + 1e-9)
+    first = math.floor(sc.power.on_at_s / window_s + 1e-9)
+    end = n if sc.power.off_at_s is None else min(n, math.ceil(sc.power.off_at_s / window_s))
+    return max(0, end - first)
+
+
 def _enough_windows(study: Study, comp: Compensator, n_train: int, n_mission: int,
-                    window_s: float) -> None:
+                    window_s: float, *, at_most: bool = False) -> None:
     """One line when the runs' powered windows cannot fit or use ``comp`` (a polynomial of
-    C(degree + inputs, degree) coefficients) — a window too long for a run, a mission cut short."""
+    C(degree + inputs, degree) coefficients) — a window too long for a run, a mission cut short;
+    ``at_most``: the counts are :func:`_powered_windows`' bounds (checked before the runs)."""
     need = math.comb(comp.degree + len(comp.inputs), comp.degree)
     if n_train < need:
-        raise study.ctx("train").error("window_s", f"{window_s:g} s leaves {n_train} powered "
+        bound = "at most " if at_most else ""
+        raise study.ctx("train").error("window_s", f"{window_s:g} s leaves {bound}{n_train} "
+                                                   f"powered "
                                                    f"window(s) in the train run; compensator "
                                                    f"{comp.name!r} has {need} coefficients to "
                                                    f"fit (a shorter window or a longer run)")
