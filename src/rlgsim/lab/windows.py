@@ -151,13 +151,10 @@ def dataset_windows(ds: Dataset, where: Where, n_win: int, m_s: int, m_t: int, w
                     ) -> dict[str, np.ndarray]:
     """Per-window ``counts`` (pulses), ``power`` (powered throughout), and with truth
     ``dtheta`` [rad], ``b``, ``r`` [rad/s], ``mean:<probe>`` [°C], ``slope:<probe>`` [K/s],
-    ``uhfo`` [V] of the first ``n_win`` windows of an open dataset (module docstring)."""
+    ``uhfo`` [V] of the first ``n_win`` (at least one: the callers say why there is none)
+    windows of an open dataset (module docstring)."""
     step = float(ds.attrs["thermal_step_s"])
     per_block = max(1, READ_BLOCK_SAMPLES // max(m_s, m_t))
-    if n_win < 1:
-        raise UserInputError(f"{ds.path}: {ds.length(IMU, 'gyro_pulses') / m_s * window_s:g} s "
-                             f"of data hold no complete {window_s:g}-s window; a window must "
-                             f"fit in the run (a shorter window or a longer run)")
     blocks = [_window_block(ds, i, min(n_win, i + per_block), m_s, m_t, step, window_s, where)
               for i in range(0, n_win, per_block)]
     return {k: np.concatenate([blk[k] for blk in blocks]) for k in blocks[0]}
@@ -250,6 +247,9 @@ def _dataset_table(source, window_s: float, gyro: str | None) -> dict[str, np.nd
                       body=ds.strings(TRUTH, "body").index(axis) if truth else None,
                       probes={n: c for c, n in enumerate(names)}, uhfo=ds.has(IMU, "uhfo"),
                       slopes=tuple(names), gaps=True)
+        if n_win < 1:                   # window_table says so
+            return {"n_win": 0, "seconds": ds.length(IMU, "gyro_pulses") / m_s * W,
+                    "what": "run", "where": ds.path}
         w = dataset_windows(ds, where, n_win, m_s, m_t, W)
         latitude = float(ds.attrs.get("latitude_deg", DEFAULT_LATITUDE_DEG))
     earth = w["dtheta"] / W if truth else earth_on_axis(latitude, axis)
@@ -263,7 +263,7 @@ def _dataset_table(source, window_s: float, gyro: str | None) -> dict[str, np.nd
         cols[f"dTdt_{name}_k_per_s"] = w[f"slope:{name}"]
     if where.uhfo:
         cols["uhfo_v"] = w["uhfo"]
-    return {"cols": cols, "keep": w["power"]}
+    return {"cols": cols, "keep": w["power"], "n_win": n_win}
 
 
 def _recording_table(source, window_s: float, gyro: str | None) -> dict[str, Any]:
@@ -276,10 +276,9 @@ def _recording_table(source, window_s: float, gyro: str | None) -> dict[str, Any
     names = tuple(rec.probe_names)
     w = recording_windows(rec, axis, window_s, names, names, uhfo_column(rec, axis), gaps=True)
     n_win = w["n_win"]
-    if n_win < 1:
-        raise UserInputError(f"{source}: {rec.n_samples / rec.sample_rate_hz:g} s of data hold "
-                             f"no complete {window_s:g}-s window; a window must fit in the "
-                             f"recording (a shorter window or a longer recording)")
+    if n_win < 1:                       # window_table says so
+        return {"n_win": 0, "seconds": rec.n_samples / rec.sample_rate_hz, "what": "recording",
+                "where": source}
     cols: dict[str, Any] = {"time_s": (np.arange(n_win) + 1) * window_s,
                             "bias_deg_per_h": w.get("y", np.zeros(0))}
     for name in names:
@@ -290,7 +289,7 @@ def _recording_table(source, window_s: float, gyro: str | None) -> dict[str, Any
     keep = ~w["dropout"] if n_win else np.zeros(0, dtype=bool)
     if "power" in w:
         keep &= w["power"] >= 1.0
-    return {"cols": cols, "keep": keep}
+    return {"cols": cols, "keep": keep, "n_win": n_win}
 
 
 def window_table(source: str | os.PathLike, window_s: float = 100.0, *,
@@ -304,6 +303,11 @@ def window_table(source: str | os.PathLike, window_s: float = 100.0, *,
     from rlgsim.ground.recording import is_recording
     source = os.fspath(source)
     got = (_recording_table if is_recording(source) else _dataset_table)(source, window_s, gyro)
+    if got["n_win"] < 1:                # the one check of both kinds (the studies' runs say it
+        what = got["what"]              # with their study key: rlgsim.lab.studies.runs)
+        raise UserInputError(f"{got['where']}: {got['seconds']:g} s of data hold no complete "
+                             f"{window_s:g}-s window; a window must fit in the {what} (a "
+                             f"shorter window or a longer {what})")
     df = pd.DataFrame(got["cols"])
     keep = got["keep"] & np.all(np.isfinite(df.to_numpy(dtype=float)), axis=1)
     return df[keep].reset_index(drop=True)
