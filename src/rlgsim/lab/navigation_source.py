@@ -6,8 +6,9 @@ site, the nominal pulse weights, the alignment segment and the true attitude. Th
 layout is docs/dataset.md; recordings docs/recordings.md (a recording must name its site;
 its mount's body frame: :mod:`rlgsim.lab.navigation_mount`).
 
-Alignment segment: the first static turntable motion after power-on (a recording: the start of
-the data, the sidecar's orientation), at most ``align_s`` long; navigation starts where it ends.
+Alignment segment: the first static turntable motion after power-on (a recording: from its
+first row with power_on = 1, or its first row without that column; the sidecar's orientation),
+at most ``align_s`` long; navigation starts where it ends.
 """
 
 from __future__ import annotations
@@ -260,8 +261,19 @@ def _from_recording(path: pathlib.Path) -> NavSource:
         return (f"{path}: row {k + 1} is a dropout (dropout = 1; {count} row(s) in the "
                 f"navigated span)")
 
+    # as a dataset's, the alignment starts at power-on: the row after the last reading that
+    # says unpowered (power_on is a slow column, NaN between readings, each reading the state
+    # over the interval it closes — an export starts where its dataset does)
+    start = 0
+    if "power_on" in rec.columns:
+        power = np.asarray(rec.columns["power_on"], dtype=float)
+        on = np.flatnonzero(power >= 1)
+        if on.size == 0:
+            raise UserInputError(f"{path}: column power_on: the IMU is never powered")
+        off = np.flatnonzero(~np.isnan(power[:on[0]]))
+        start = int(off[-1]) + 1 if off.size else 0
     return NavSource(path.name, rec.sample_rate_hz, sc.latitude_deg, sc.height_m,
-                     rec.n_samples, np.full(3, 1.0 / k_g), np.full(3, 1.0 / k_a), 0,
+                     rec.n_samples, np.full(3, 1.0 / k_g), np.full(3, 1.0 / k_a), start,
                      rec.n_samples, lambda k0, k1: (g[k0:k1], a[k0:k1]), attitude,
                      lost=np.flatnonzero(rec.dropout), lost_line=lost_line)
 
