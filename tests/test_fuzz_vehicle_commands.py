@@ -567,3 +567,20 @@ def test_navigate_advises_the_vehicle_study_for_an_exported_drive(runs, tmp_path
     line = one_line(capsys, ["identify", str(table), "--device-template", "rlg_imu_000", "-q",
                              "-o", str(tmp_path / "twin")])
     assert "give the dataset itself" in line
+
+
+def test_own_axis_names_keep_their_order_and_unit_vectors_their_bits(tmp_path):
+    """Final review: axes of the user's own names were sorted (roll, pitch, yaw → pitch, roll,
+    yaw), which turned a right-handed mount left-handed and refused it; and a unit vector was
+    normalised again, changing its last bits ([0, 0.28, 0.96] has a float norm of 1 − 1e-16)
+    and with them every result that reads the mount."""
+    from rlgsim.ground.recording_sidecar import read_sidecar
+    from rlgsim.lab.navigation_mount import body_axes, body_frame
+    names = ["roll", "pitch", "yaw"]
+    assert body_axes(names, names[::-1], "w") == names
+    mount = {"roll": [0.0, 1.0, 0.0], "pitch": [1.0, 0.0, 0.0], "yaw": [0.0, 0.0, -1.0]}
+    assert np.linalg.det(body_frame(mount, names, "w")) > 0
+    (tmp_path / "r.csv").write_text("time_s,gyro_x_rate_deg_per_s\n0,0\n0.1,0\n")
+    (tmp_path / "r.toml").write_text('[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n'
+                                     "[orientation]\nx = [0, 0.28, 0.96]\n")
+    assert read_sidecar(tmp_path / "r.toml").orientation["x"].tolist() == [0.0, 0.28, 0.96]

@@ -251,7 +251,8 @@ def _orientation(data: Mapping, p: pathlib.Path, sc: Sidecar) -> None:
             raise _fail(f"{p}: orientation.{axis}", f"unknown axis; the sidecar's axes are "
                                                     f"{', '.join(dict.fromkeys(named))} "
                                                     f"(and x, y, z are always allowed)")
-        sc.orientation[axis] = a / np.linalg.norm(a)
+        norm = np.linalg.norm(a)     # rounded cosines normalised; a unit vector kept bit for bit
+        sc.orientation[axis] = a if abs(norm - 1.0) <= 1e-12 else a / norm
 
 
 def _identify_tables(data: Mapping, p: pathlib.Path, sc: Sidecar) -> None:

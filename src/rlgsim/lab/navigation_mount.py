@@ -49,10 +49,12 @@ def body_frame(orientation: dict, axes: list[str], where: Any) -> np.ndarray:
 
 
 def body_axes(gyro_axes: list[str], accel_axes: list[str], where: Any) -> list[str]:
-    """The three body axes navigated, in the order x, y, z (or sorted): picked by name, so a
-    table may list its columns in any order; each accelerometer is paired with the gyro of the
-    same axis name (one line if the names differ)."""
-    axes = ["x", "y", "z"] if {"x", "y", "z"} <= set(gyro_axes) else sorted(gyro_axes[:3])
+    """The three body axes navigated, in the order x, y, z (axes of the user's own names: in
+    their gyro columns' order, the only order they have — sorting them could turn a
+    right-handed mount left-handed): picked by name, so a table may list its columns in any
+    order; each accelerometer is paired with the gyro of the same axis name (one line if the
+    names differ)."""
+    axes = ["x", "y", "z"] if {"x", "y", "z"} <= set(gyro_axes) else list(gyro_axes[:3])
     missing = [a for a in axes if a not in accel_axes]
     if missing:
         raise UserInputError(f"{where}: no accelerometer on gyro axis {', '.join(missing)} "

@@ -6,9 +6,10 @@ site, the nominal pulse weights, the alignment segment and the true attitude. Th
 layout is docs/dataset.md; recordings docs/recordings.md (a recording must name its site;
 its mount's body frame: :mod:`rlgsim.lab.navigation_mount`).
 
-Alignment segment: the first static turntable motion after power-on (a recording: from its
-first row with power_on = 1, or its first row without that column; the sidecar's orientation),
-at most ``align_s`` long; navigation starts where it ends.
+Alignment segment: the first static turntable motion after power-on (a recording: from the row
+after its last power_on reading of 0 before the first reading of 1, or its first row without
+that column; the sidecar's orientation), at most ``align_s`` long; navigation starts where it
+ends.
 """
 
 from __future__ import annotations
