@@ -360,16 +360,29 @@ def test_export_refuses_vehicle_and_damaged_pulses(runs, tmp_path, capsys, run, 
 def test_montecarlo_chamber_spread_past_the_chamber_is_refused(tmp_path, offset_c, rate_rel,
                                                                 words):
     """``--chamber-offset-c 1e6`` put a unit's chamber at ~1e5 °C (overflow warnings, exit 0);
-    ``--chamber-rate-rel 1000`` an infinite or zero ramp rate factor: the unit is refused."""
+    ``--chamber-rate-rel 1000`` an infinite or zero ramp rate factor: the unit is refused (a
+    factor of 0 on a ramp given by its duration was a ZeroDivisionError before the check)."""
     from rlgsim.ground.errors import UserInputError
     from rlgsim.sim.run.scenario import load_scenario
     from rlgsim.sim.run.unit_variations import ChamberVariation, apply, varied
-    (tmp_path / "static.toml").write_text(STATIC)
+    hold = 'type = "hold"\nduration_min = 3'
+    assert hold in STATIC
+    (tmp_path / "static.toml").write_text(
+        STATIC.replace(hold, 'type = "ramp"\nto_c = 25.0\nduration_min = 3'))
     sc = load_scenario(str(tmp_path / "static.toml"))
     with varied(ChamberVariation(offset_c=offset_c, rate_rel=rate_rel)):
         with pytest.raises(UserInputError, match=words):
             for unit in range(16):                     # a draw past the limits in 16 units
                 apply(dataclasses.replace(sc, unit=unit))
+    if rate_rel:                                       # both ends: a factor of 0 and of inf
+        with varied(ChamberVariation(offset_c=0.0, rate_rel=rate_rel)):
+            factors = set()
+            for unit in range(16):                     # any other exception fails the test
+                try:
+                    apply(dataclasses.replace(sc, unit=unit))
+                except UserInputError as e:
+                    factors.add(str(e).split("rate factor of ")[1].split(" ")[0])
+            assert factors == {"0", "inf"}, factors
     with varied(ChamberVariation(offset_c=2.0, rate_rel=0.1)):
         assert apply(sc).chamber.start_c != sc.chamber.start_c   # a sane spread still runs
 
@@ -584,3 +597,16 @@ def test_own_axis_names_keep_their_order_and_unit_vectors_their_bits(tmp_path):
     (tmp_path / "r.toml").write_text('[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n'
                                      "[orientation]\nx = [0, 0.28, 0.96]\n")
     assert read_sidecar(tmp_path / "r.toml").orientation["x"].tolist() == [0.0, 0.28, 0.96]
+
+
+def test_a_misspelt_orientation_axis_is_refused_without_axes_lists(tmp_path, capsys):
+    """Final review: with no [gyro]/[accelerometer] axes lists the sidecar cannot check its
+    [orientation] keys, and a misspelt X was dropped silently (the mount read as the default
+    east-north-up); the table's columns check them now. A key of a column's axis still reads."""
+    (tmp_path / "r.csv").write_text("time_s,gyro_roll_rate_deg_per_s\n0,0\n0.1,0\n")
+    head = '[recording]\nsample_rate_hz = 10\ndata = "r.csv"\n\n[orientation]\n'
+    (tmp_path / "r.toml").write_text(head + "X = [0, 1, 0]\n")
+    line = one_line(capsys, ["info", str(tmp_path / "r.toml")])
+    assert "orientation.X: unknown axis; the table's axes are roll" in line
+    (tmp_path / "r.toml").write_text(head + "roll = [0, 1, 0]\n")
+    assert main(["info", str(tmp_path / "r.toml")]) == 0, capsys.readouterr().err

@@ -107,17 +107,18 @@ def apply(scenario):
     if variation is None or not variation.active:
         return scenario
     offset, factor = draw(scenario.seed, scenario.unit, variation)
-    program = vary_program(scenario.chamber, offset, factor)
-    bad = [t for t in _temperatures(program) if not MIN_TEMPERATURE_C <= t <= MAX_TEMPERATURE_C]
-    if not 0.0 < factor < math.inf:
+    if not 0.0 < factor < math.inf:     # before the program is varied (a ramp's duration / 0)
         why = (f"a rate factor of {factor:.4g} (from --chamber-rate-rel {variation.rate_rel:g});"
                f" ramp rates are scaled by a finite factor > 0")
-    elif bad:
+    else:
+        program = vary_program(scenario.chamber, offset, factor)
+        bad = [t for t in _temperatures(program)
+               if not MIN_TEMPERATURE_C <= t <= MAX_TEMPERATURE_C]
+        if not bad:
+            return dataclasses.replace(scenario, chamber=program)
         why = (f"an offset of {offset:+.4g} K (from --chamber-offset-c {variation.offset_c:g}), "
                f"which takes the chamber to {bad[0]:.4g} °C; it holds {MIN_TEMPERATURE_C:g} to "
                f"{MAX_TEMPERATURE_C:g} °C")
-    else:
-        return dataclasses.replace(scenario, chamber=program)
     raise UserInputError(f"unit {scenario.unit}, scenario {scenario.name}: the drawn chamber "
                          f"variation has {why} — give smaller spreads")
 

@@ -248,6 +248,14 @@ def _check_axes(data_path: pathlib.Path, sc: Sidecar, kinds: dict, where) -> Non
             if a not in found:
                 raise UserInputError(f"{data_path}: column '{kind_}_{a}_pulses' (or a rate "
                                      f"column) missing: the sidecar's [{table}] axes list {a!r}")
+    if sc.gyro_axes is None and sc.accel_axes is None:   # no lists: the sidecar could not check
+        axes = [g["axis"] for k, _, g in kinds.values()  # its [orientation] keys; the columns can
+                if k in ("gyro", "accel") and g.get("axis") is not None]
+        for key in sc.orientation:                       # (a misspelt key never passes silently)
+            if key not in axes and key not in ("x", "y", "z"):
+                raise UserInputError(f"{sc.path}: orientation.{key}: unknown axis; the table's "
+                                     f"axes are {', '.join(dict.fromkeys(axes)) or 'none'} (and "
+                                     f"x, y, z are always allowed)")
     gyro_axes = [g["axis"] for k, _, g in kinds.values() if k == "gyro"]
     for std, (k, _, g) in kinds.items():
         if k == "uhfo" and g.get("axis") is None and len(gyro_axes) > 1:
