@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.estimators.model_export import ExportedCompensator, export_compensator
 from rlgsim.estimators.terms import term_label
 
@@ -285,8 +286,9 @@ def write_c(model: ExportedCompensator, directory: str | pathlib.Path,
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     c_path, h_path = directory / f"{src.function_name}.c", directory / f"{src.function_name}.h"
-    c_path.write_text(src.c, encoding="ascii")
-    h_path.write_text(src.h, encoding="ascii")
+    for path, text in ((c_path, src.c), (h_path, src.h)):
+        with atomic_file(path) as tmp:                  # whole or not at all
+            tmp.write_text(text, encoding="ascii")
     return c_path, h_path
 
 

@@ -13,6 +13,7 @@ import pathlib
 
 import numpy as np
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.estimators.calibration import AXES, PARAMETERS, CampaignResult
 
 _UNITS = {"deg/h": "°/h", "ppm": "ppm", "arcsec": "arcsec", "ug": "µg"}
@@ -74,7 +75,8 @@ def plot_campaign(result: CampaignResult, prefix: str | pathlib.Path,
         fig.suptitle(f"calibration parameters vs temperature ({int(ok.sum())} of "
                      f"{len(ok)} windows ok)", fontsize=10)
         path = prefix.with_name(f"{prefix.name}_{fig_name}.png")
-        fig.savefig(path, dpi=110)
+        with atomic_file(path) as tmp:             # whole or not at all
+            fig.savefig(tmp, dpi=110, format="png")
         plt.close(fig)
         out.append(path)
     return out

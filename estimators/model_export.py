@@ -58,6 +58,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.metrics.pairwise import rbf_kernel
 from sklearn.utils.validation import check_array, check_is_fitted
 
+from rlgsim.ground.atomic import atomic_file
 from rlgsim.estimators.columns import Columns
 from rlgsim.estimators.compensator_kinds import KINDS as COMPENSATOR_KINDS
 from rlgsim.estimators.terms import (design_matrix, format_equation, raw_coefficients,
@@ -361,8 +362,9 @@ class ExportedCompensator(RegressorMixin, BaseEstimator):
     def to_json(self, path: str | pathlib.Path) -> pathlib.Path:
         """Write the JSON document (UTF-8, floats exact); returns the path."""
         path = pathlib.Path(path)
-        path.write_text(json.dumps(self.document_, indent=1, ensure_ascii=False,
-                                   allow_nan=False) + "\n", encoding="utf-8")
+        text = json.dumps(self.document_, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+        with atomic_file(path) as tmp:                  # whole or not at all
+            tmp.write_text(text, encoding="utf-8")
         return path
 
 

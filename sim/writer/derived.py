@@ -12,13 +12,14 @@ variable's ``DIMENSION_LIST`` and each scale's ``REFERENCE_LIST`` over as refere
 
 from __future__ import annotations
 
-import os
 import pathlib
 import shutil
 from typing import Any, Callable
 
 import h5py
 import numpy as np
+
+from rlgsim.ground.atomic import atomic_file
 
 __all__ = ["rewrite_pulses"]
 
@@ -32,8 +33,7 @@ def rewrite_pulses(src: pathlib.Path, dst: pathlib.Path,
     pulses`` called block by block in sample order (stored in place: the original's type, chunks
     and compression); every other group and attribute is copied unchanged, the root's ``title``
     gets ``title_suffix`` and ``attrs`` are added to the root."""
-    tmp = dst.with_name(f".{dst.name}.tmp{os.getpid()}")
-    try:
+    with atomic_file(dst, sep="") as tmp:
         shutil.copyfile(src, tmp)
         with h5py.File(tmp, "r+") as fd:
             fd.attrs["title"] = f"{fd.attrs.get('title', '')}{title_suffix}"
@@ -47,8 +47,4 @@ def rewrite_pulses(src: pathlib.Path, dst: pathlib.Path,
                 for k0 in range(0, n, chunk):
                     k1 = min(n, k0 + chunk)
                     pulses[k0:k1] = transform(k0, pulses[k0:k1])
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    os.replace(tmp, dst)
     return dst

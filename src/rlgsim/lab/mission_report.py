@@ -13,6 +13,8 @@ from typing import Mapping
 
 import numpy as np
 
+from rlgsim.ground.atomic import atomic_file
+
 
 def mission_figure(dataset: str | pathlib.Path, scores: Mapping[str, dict],
                    path: str | pathlib.Path) -> pathlib.Path:
@@ -21,7 +23,8 @@ def mission_figure(dataset: str | pathlib.Path, scores: Mapping[str, dict],
     import matplotlib.pyplot as plt
     fig = mission_plot(dataset, scores)
     out = pathlib.Path(path)
-    fig.savefig(out, dpi=110)
+    with atomic_file(out) as tmp:                       # whole or not at all
+        fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
     return out
 

@@ -13,8 +13,8 @@
 Every user mistake (:class:`~rlgsim.ground.errors.UserInputError`, bad arguments) is printed as one line
 ``rlgsim: error: ...`` with exit code 2 and no traceback. A disk that fills up while a command
 writes (ENOSPC, EDQUOT: not a user mistake, not a bug) is one line too, with exit code 1; the
-file being written is removed (what a study wrote before it stays). Anything else is a bug and keeps its
-traceback.
+file being written is removed (what a study wrote before it stays). Anything else is a bug and
+keeps its traceback.
 """
 
 from __future__ import annotations
@@ -139,7 +139,7 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
 _HDF5_FILENAME = re.compile(r"filename = '([^']*)'")
 
 #: the name of a temporary file an output is written through before it is moved into place:
-#: ``<name>.tmp-<pid>`` (a dataset) or ``.<name>.tmp[-]<pid>`` (rlgsim.ground.atomic, derived datasets)
+#: ``<name>.tmp-<pid>`` (a dataset) or ``.<name>.tmp[-]<pid>`` (rlgsim.ground.atomic)
 _TMP_NAME = re.compile(r"^(?:\.(?P<hidden>.+)|(?P<plain>.+))\.tmp-?\d+$")
 
 

@@ -51,12 +51,14 @@ def _output(args: argparse.Namespace, src: pathlib.Path) -> pathlib.Path:
     """The output folder, checked before any work: not an existing file, and none of the
     files it will hold (:func:`rlgsim.lab.navigation_report.write`) an input, a folder or a
     link (one line, exit status 2)."""
+    from rlgsim.ground.paths import sweep_temporaries
     from rlgsim.ground.recording_sidecar import sidecar_path
     from rlgsim.lab.cli.paths import output_file, output_folder
     inputs = [src, sidecar_path(src), *args.models]      # a recording's sidecar beside it
     out = output_folder(args.output or f"{src.stem}-navigation", inputs=inputs)
     for name in (f"solution.{args.format}", "summary.csv", "navigation.png", "report.md"):
         output_file(out / name, inputs=inputs)
+        sweep_temporaries(out / name)       # a killed navigate's (rlgsim.ground.atomic)
     return out
 
 
