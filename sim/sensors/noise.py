@@ -349,4 +349,3 @@ class SlowNoise:
             x, ws = self.walk.block_from(ws, wr)
             out += x
         return out, (fs, ws)
-

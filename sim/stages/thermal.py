@@ -43,19 +43,18 @@ class ThermalPart:
         if getattr(scenario, "vehicle_bay", None) is not None:
             self.bay = (scenario.vehicle_bay,
                         scenario.trajectory.build(float(timeline.duration_s)))
-            net = self.network
-            self._bay_check = (float(np.max(-np.expm1(
-                -net.ambient_conductance_w_per_k * self.step / net.capacitance_j_per_k))),
-                scenario.source)
-            self._check_bay_before_the_run(float(timeline.duration_s))
+            self._check_bay_before_the_run(float(timeline.duration_s), scenario.source)
 
-    def _check_bay_before_the_run(self, duration_s: float) -> None:
+    def _check_bay_before_the_run(self, duration_s: float, source: Any) -> None:
         """Refuse an airflow too strong for the thermal step before the first block: where an
         upper bound of the route's speed (each body leg's channels lie between their start and
         end values: linear or the monotone quintic) could be refused, the speeds of every
         thermal step's start are checked now — the steps :meth:`block` holds the film over, so
         no block checks them again."""
         bay, route = self.bay
+        net = self.network
+        still = float(np.max(-np.expm1(       # the ambient's weight a step in still air
+            -net.ambient_conductance_w_per_k * self.step / net.capacitance_j_per_k)))
         top = 0.0
         for leg, t0 in zip(route.legs, route.leg_starts):
             if t0 > duration_s:
@@ -65,13 +64,13 @@ class ThermalPart:
                 break
             ends = np.abs(np.stack([leg.coef[3:, 0], leg.end()[3:]]))
             top = max(top, float(np.linalg.norm(np.max(ends, axis=0))))
-        if (bay.factor(np.array([top]))[0] - 1.0) * self._bay_check[0] < 1.0:
+        if (bay.factor(np.array([top]))[0] - 1.0) * still < 1.0:
             return
         steps = max(1, int(round(duration_s / self.step)))
         for lo in range(0, steps, 100_000):
             t = np.arange(lo, min(steps, lo + 100_000)) * self.step
             speed = np.linalg.norm(route.states(t).v_n, axis=1)
-            bay.check_step(bay.factor(speed) - 1.0, speed, *self._bay_check, self.step)
+            bay.check_step(bay.factor(speed) - 1.0, speed, still, source, self.step)
 
     @property
     def node_names(self) -> tuple[str, ...]:
@@ -94,8 +93,7 @@ class ThermalPart:
         film = None
         if self.bay is not None:             # φ − 1 at each step's start (held over the step)
             bay, route = self.bay
-            speed = np.linalg.norm(route.states(t[:-1]).v_n, axis=1)
-            film = bay.factor(speed) - 1.0
+            film = bay.factor(np.linalg.norm(route.states(t[:-1]).v_n, axis=1)) - 1.0
         noise = None
         if self.chamber_noise is not None:   # one stream per 600-s block: chunking-invariant
             loop = self.integrator.chamber_loop
