@@ -134,6 +134,15 @@ CASES = [
                             segs=seg("climb", duration_s=10, pitch_deg=-80)
                             + seg("hold", duration_s=2000)).replace("duration_s = 20\n", "")},
      ["the route reaches a height of", "outside the Earth model's heights [-11000, 50000] m"]),
+    # the same dive for 10 s, then a 60-s hold in a 70-s run: ran 19 km under the ellipsoid —
+    # the check read the heights at the legs' and the DOP853 steps' starts only (the hold is
+    # one step), now also at the steps' ends and the run's end
+    ("route_underground_at_the_run_end",
+     {"scen.toml": scenario(head=HEAD + "\nspeed_m_s = 300",
+                            segs=seg("climb", duration_s=10, pitch_deg=-80)
+                            + seg("hold", duration_s=60)).replace("duration_s = 20\n",
+                                                                   "duration_s = 70\n", 1)},
+     ["the route reaches a height of -18996.9 m at t = 70 s", "[-11000, 50000] m"]),
     # a route of 1e12 s and no run duration: the run's "too long" named the key "duration"
     ("route_too_long", {"scen.toml": scenario(segs=seg("hold", duration_s="1e12")).replace(
         "duration_s = 20\n", "", 1)},

@@ -567,8 +567,9 @@ class Trajectory:
         return out
 
     def height_extent(self) -> tuple[float, float, float, float]:
-        """Lowest and highest height [m] of the route up to the run's end, at its legs' starts
-        and its DOP853 steps' starts (a table's: its rows), with the times [s] they are at."""
+        """Lowest and highest height [m] of the route up to the run's end, at its legs' starts,
+        its DOP853 steps' starts and ends (y_old + F_0; a table's: its rows) and the run's end
+        (the truth there), with the times [s] they are at."""
         from rlgsim.sim.motion._trajectory_route import ROW
         h, t = [], []
         for j, (y0, steps) in enumerate(self._position):
@@ -576,9 +577,10 @@ class Trajectory:
                 break
             y0 = self._channels(j, np.zeros(1))[0][3:, 0] if y0 is None else y0   # a table
             rows = self._dense[steps[0]:steps[0] + steps[1]] if steps else self._dense[:0]
-            h += [[y0[2]], rows[:, ROW - 1]]
-            t += [[self._t0[j]], self._t0[j] + rows[:, 0]]
-        hs, ts = np.concatenate(h), np.concatenate(t)
+            h += [[y0[2]], rows[:, ROW - 1], rows[:, ROW - 1] + rows[:, 4]]
+            t += [[self._t0[j]], self._t0[j] + rows[:, 0], self._t0[j] + (rows[:, 0] + rows[:, 1])]
+        hs = np.concatenate(h + [self.truth(np.array([self._until]))["height"]])
+        ts = np.concatenate(t + [[self._until]])
         hs[ts > self._until] = np.nan
         lo, hi = int(np.nanargmin(hs)), int(np.nanargmax(hs))
         return float(hs[lo]), float(ts[lo]), float(hs[hi]), float(ts[hi])
