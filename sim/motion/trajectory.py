@@ -575,7 +575,7 @@ class Trajectory:
         for j, (y0, steps) in enumerate(self._position):
             if self._t0[j] > self._until:
                 break
-            y0 = self._channels(j, np.zeros(1))[0][3:, 0] if y0 is None else y0   # a table
+            y0 = self._coef[j, 3:, 0] if y0 is None else y0     # a table: its start row
             rows = self._dense[steps[0]:steps[0] + steps[1]] if steps else self._dense[:0]
             h += [[y0[2]], rows[:, ROW - 1], rows[:, ROW - 1] + rows[:, 4]]
             t += [[self._t0[j]], self._t0[j] + rows[:, 0], self._t0[j] + (rows[:, 0] + rows[:, 1])]
