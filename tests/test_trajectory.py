@@ -300,6 +300,18 @@ def test_same_numbers_whatever_block_asks():
         assert np.array_equal(whole.dv_m_per_s[k:k + n], part.dv_m_per_s)
 
 
+@pytest.mark.parametrize("until", [42.3, 30.0])
+def test_numpy_peaks_end_with_the_run(until):
+    """The NumPy reference of the range check's peaks stops at the run's end as the kernel does
+    (a leg's grid cut there, the legs after it left out): a run ending inside the smooth turn,
+    before its peak rate at 42.505 s, and one ending at a leg's start."""
+    traj = Trajectory(manoeuvres(), START, until_s=until)
+    (w, f, at), (wn, fn, atn) = traj.peak_inputs(), traj.peak_inputs_numpy()
+    assert at == atn <= until and w == pytest.approx(wn, rel=1e-14, abs=0)
+    assert f == pytest.approx(fn, rel=1e-14, abs=0)
+    assert wn < Trajectory(manoeuvres(), START, until_s=120.0).peak_inputs_numpy()[0]
+
+
 def test_range_check_leaves_out_only_legs_under_the_ranges():
     """The range check (``peak_inputs(below=...)``) leaves out the legs of constant attitude and
     velocity whose bounds are under both ranges — each such leg's own grid peaks are under them

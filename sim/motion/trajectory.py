@@ -587,21 +587,21 @@ class Trajectory:
 
     def peak_inputs_numpy(self, step_s: float = 0.5) -> tuple[float, float, float]:
         """:meth:`peak_inputs` by the NumPy formulas (:meth:`_inputs`; what the tests compare
-        the kernel with).
-
-        A leg's grid is ``np.linspace(0, duration, m)``, evaluated :data:`_PEAK_SLICE` points at
-        a time (``k · duration / (m − 1)``, its last point the duration: linspace's own numbers),
-        so the memory does not grow with a leg's length — a run's closing hold lasts as long as
-        the run (~3 MB per hour of it at once before)."""
-        best_w, best_f, at = 0.0, 0.0, 0.0
-        for j, leg in enumerate(self.legs):
-            m = max(3, int(np.ceil(leg.duration_s / step_s)) + 1)
+        the kernel with), up to the run's end as it. A leg's grid is ``np.linspace(0, duration,
+        m)`` (the duration cut at the run's end), evaluated :data:`_PEAK_SLICE` points at a time
+        (``k · duration / (m − 1)``, its last point the duration: linspace's own numbers): the
+        memory does not grow with a leg's length (a closing hold lasts as long as the run)."""
+        best_w, best_f, at, cut = 0.0, 0.0, 0.0, self._until < self._end_s
+        n = int(np.searchsorted(self._t0, self._until)) if cut else len(self.legs)  # t0 < end
+        for j, leg in enumerate(self.legs[:n]):
+            dur = min(leg.duration_s, self._until - self._t0[j]) if cut else leg.duration_s
+            m = max(3, int(np.ceil(dur / step_s)) + 1)
             m += 1 - m % 2                              # odd: the leg's middle on the grid
-            step = leg.duration_s / (m - 1)
+            step = dur / (m - 1)
             for lo in range(0, m, _PEAK_SLICE):
                 tau = np.arange(lo, min(m, lo + _PEAK_SLICE), dtype=float) * step
                 if lo + tau.size == m:
-                    tau[-1] = leg.duration_s
+                    tau[-1] = dur
                 w, f = self._inputs(j, tau)
                 iw = int(np.argmax(np.max(np.abs(w), axis=1)))
                 if np.max(np.abs(w[iw])) > best_w:
