@@ -50,7 +50,7 @@ from rlgsim.ground.errors import UserInputError
 from rlgsim.ground.units import DEG
 from rlgsim.sim.motion.legs import (MAX_LEGS, TOO_MANY_LEGS_ADVICE, Leg, rate_leg, smooth_leg,
                                     smooth_time)
-from rlgsim.sim.motion.position_table import MAX_LATITUDE_DEG
+from rlgsim.sim.motion.position_table import MAX_LATITUDE_DEG, _is_number
 from rlgsim.sim.motion.site import MAX_HEIGHT_M, MIN_HEIGHT_M
 
 #: gnss-ins-sim's built-in mobility ``high_mobility``: m/s², rad/s², rad/s
@@ -182,11 +182,3 @@ def read_motion_def(path: str | pathlib.Path, *,
         raise UserInputError(f"{p}: the motion definition has no command of positive "
                              f"duration")
     return MotionDefinition(lat * DEG, lon * DEG, alt, tuple(legs))
-
-
-def _is_number(cell: str) -> bool:
-    try:
-        float(cell)
-    except ValueError:
-        return False
-    return True
