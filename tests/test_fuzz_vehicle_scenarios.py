@@ -1,8 +1,9 @@
 """Hostile vehicle scenarios (issue 26): ``[trajectory]`` tables, gnss-ins-sim motion files,
 position tables and the bay's keys that once gave a traceback, a hang, a silent misreading or a
 message naming the wrong thing — each now one line ``rlgsim: error: ...`` naming the file, key,
-line or column, exit status 2, the old output untouched and no temporary file left. Every case
-is refused before the first block is simulated (well under a second each)."""
+line or column, exit status 2, the old output untouched and no temporary file left, refused
+before the first block is simulated (well under a second each); and extreme but valid routes
+that once hung, ran out of memory or were refused, each now built (``EXTREME``)."""
 
 from __future__ import annotations
 
@@ -94,6 +95,8 @@ CASES = [
      ["trajectory.table: /dev/null: is a character device"]),
     ("table_name_too_long", {"scen.toml": scenario(head=f'table = "{"r" * 300}.csv"', segs="")},
      ["trajectory.table: ", "file name too long"]),
+    ("table_name_nul", {"scen.toml": scenario(head='table = "r\\u0000.csv"', segs="")},
+     ["trajectory.table: ", "a file name cannot contain a NUL character"]),
     ("table_name_empty", {"scen.toml": scenario(head='table = ""', segs="")},
      ["trajectory.table: '' not allowed; expected a file name"]),
     # a table's height outside the Earth model's: Site's ValueError (traceback)
@@ -204,9 +207,9 @@ def _write(folder: pathlib.Path, files: dict) -> None:
 
 @pytest.mark.parametrize("files, needles", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
 def test_bad_vehicle_scenario_is_one_line(tmp_path, monkeypatch, capsys, files, needles):
-    from rlgsim.sim.motion import legs, motion_def, position_table
+    from rlgsim.sim.motion import motion_def, position_table
     monkeypatch.chdir(tmp_path)
-    for module in (legs, motion_def, position_table):
+    for module in (motion_def, position_table):     # the modules that read the cap
         monkeypatch.setattr(module, "MAX_LEGS", SMALL_CAP)
     _write(tmp_path, files)
     (tmp_path / "out.h5").write_bytes(b"old output")

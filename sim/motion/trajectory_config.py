@@ -178,9 +178,9 @@ def _input_path(table: Mapping[str, Any], key: str, ctx: Ctx, base_dir: pathlib.
                 ) -> pathlib.Path:
     """The regular file named by ``table[key]`` (relative to ``base_dir``):
     :func:`rlgsim.ground.paths.input_file`'s refusals (missing, a folder, a FIFO or a device,
-    unreadable, a name too long) in one line that names the key."""
+    unreadable, a name too long or with a NUL) in one line that names the key."""
     name = get_str(table, key, ctx)
-    if not name or "\0" in name:
+    if not name:
         raise ctx.error(key, f"{name!r} not allowed; expected a file name")
     path = pathlib.Path(name)
     if not path.is_absolute() and base_dir is not None:
